@@ -1,0 +1,1 @@
+"""gnp package."""
