@@ -1,0 +1,277 @@
+"""Run configuration: frozen pydantic models with the thesis's defaults, presets and TOML files.
+
+A run is a function of its `RunConfig` and seed. Every field carries its range and unit; a bad
+value raises `ConfigError` naming the field and what it allows.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from gnp.config import EvolutionConfig, GnpConfig, Schedule
+
+Method = Literal["RL", "BS", "CS"]
+ScheduleKind = Literal["fixed", "changing"]
+FaultMode = Literal["dead", "saturated", "stuck", "random"]
+
+PRESET_NAMES = ("quick", "thesis-ch2", "thesis-ch3", "thesis-ch4", "thesis-ch5")
+
+
+class ConfigError(ValueError):
+    """A configuration value, file or preset is invalid; the message names the problem."""
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class ControllerSettings(_Frozen):
+    """The GNP individual (Tables 2.4, 3.1, 5.1)."""
+
+    method: Method = Field(
+        "CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
+    )
+    fuzzy: bool = Field(True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds")
+    n_judgment: int = Field(40, ge=8, le=400, description="judgment nodes [count]")
+    n_processing: int = Field(20, ge=2, le=200, description="processing nodes [count]")
+    n_sub: int | None = Field(
+        None,
+        ge=1,
+        le=8,
+        description="sub nodes per node [count]; unset = the thesis's choice for the method "
+        "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
+    )
+    n_branch: int = Field(2, ge=1, le=8, description="branch connections per connection, BS only")
+    gamma: float = Field(0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ [1]")
+
+    @property
+    def sub_nodes(self) -> int:
+        """Sub nodes per node, resolving the method's thesis default."""
+        if self.n_sub is not None:
+            return self.n_sub
+        return 4 if self.method == "RL" else 2
+
+    def gnp_config(self) -> GnpConfig:
+        """The brain's config for these settings."""
+        return GnpConfig(
+            method=self.method,
+            fuzzy=self.fuzzy,
+            n_judgment=self.n_judgment,
+            n_processing=self.n_processing,
+            n_sub=self.sub_nodes,
+            n_branch=self.n_branch,
+            gamma=self.gamma,
+        )
+
+
+class TrainingSettings(_Frozen):
+    """The training phase (thesis §2.5, 3.5, 4.5, 5.5)."""
+
+    arena: str = Field("training", min_length=1, description="arena name or JSON path")
+    population: int = Field(300, ge=2, le=100_000, description="individuals [count]")
+    generations: int = Field(1000, ge=1, le=1_000_000, description="generations G [count]")
+    steps: int = Field(1000, ge=1, le=1_000_000, description="life time T [control steps]")
+    redraw_every: int = Field(
+        0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
+    )
+    noise_sigma: float = Field(0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]")
+    control_period: float = Field(0.064, gt=0.0, le=1.0, description="control step [s]")
+    schedule: ScheduleKind = Field("fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2")
+    epsilon: float = Field(0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
+    alpha: float = Field(0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
+    epsilon_max: float = Field(0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
+    epsilon_min: float = Field(0.01, ge=0.0, le=1.0, description="changing ε at g = G [1]")
+    alpha_max: float = Field(0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
+    alpha_min: float = Field(0.10, ge=0.0, le=1.0, description="changing α at g = G [1]")
+    schedule_n: float = Field(1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2")
+    checkpoint_every: int = Field(
+        1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> TrainingSettings:
+        _check_ordered(self)
+        return self
+
+    def schedules(self) -> tuple[Schedule, Schedule]:
+        """(ε, α) over generations: fixed values, or Eq. 4.1-4.2 from max to min."""
+        return _schedules(self)
+
+
+class ImplementationSettings(_Frozen):
+    """The implementation phase: a trained individual in an unseen arena, sensors breaking."""
+
+    arena: str = Field("implementation", min_length=1, description="arena name or JSON path")
+    steps: int = Field(3000, ge=1, le=1_000_000, description="life time T [control steps]")
+    repeats: int = Field(300, ge=1, le=100_000, description="trials per start pose [count]")
+    noise_sigma: float = Field(0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]")
+    broken_sensors: tuple[int, ...] = Field(
+        (), max_length=8, description="sensors that break at the fault step, 0..7"
+    )
+    fault_mode: FaultMode = Field("dead", description="what a broken sensor reads")
+    fault_step: int = Field(500, ge=0, le=1_000_000, description="fault step t' [control steps]")
+    schedule: ScheduleKind = Field("fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4")
+    epsilon: float = Field(0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
+    alpha: float = Field(0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
+    epsilon_max: float = Field(0.015, ge=0.0, le=1.0, description="changing ε at t = t' [1]")
+    epsilon_min: float = Field(0.0, ge=0.0, le=1.0, description="changing ε at t = T [1]")
+    alpha_max: float = Field(0.15, ge=0.0, le=1.0, description="changing α at t = t' [1]")
+    alpha_min: float = Field(0.0, ge=0.0, le=1.0, description="changing α at t = T [1]")
+    schedule_n: float = Field(1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4")
+    recorded_trials: int = Field(
+        3, ge=0, le=100, description="trials whose trajectory and trace are stored [count]"
+    )
+    generation: int | None = Field(
+        None, ge=0, description="take the best of this generation; unset = the final elite"
+    )
+    seed: int | None = Field(None, ge=0, description="random seed; unset = the run's seed")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ImplementationSettings:
+        _check_ordered(self)
+        if self.broken_sensors and self.fault_step >= self.steps:
+            raise ValueError(
+                f"fault_step ({self.fault_step}) must be below steps ({self.steps}) "
+                "for the sensors to break"
+            )
+        return self
+
+    def schedules(self) -> tuple[Schedule, Schedule]:
+        """(ε, α) after the fault: fixed values, or Eq. 4.3-4.4 from max to min."""
+        return _schedules(self)
+
+    @field_validator("broken_sensors")
+    @classmethod
+    def _sensors_in_range(cls, sensors: tuple[int, ...]) -> tuple[int, ...]:
+        if any(not 0 <= s <= 7 for s in sensors):
+            raise ValueError(f"sensors are numbered 0..7, got {list(sensors)}")
+        if len(set(sensors)) != len(sensors):
+            raise ValueError(f"a sensor is listed twice in {list(sensors)}")
+        return tuple(sorted(sensors))
+
+
+def _check_ordered(settings: TrainingSettings | ImplementationSettings) -> None:
+    for name in ("epsilon", "alpha"):
+        low, high = getattr(settings, f"{name}_min"), getattr(settings, f"{name}_max")
+        if low > high:
+            raise ValueError(f"{name}_min ({low}) must not exceed {name}_max ({high})")
+
+
+def _schedules(settings: TrainingSettings | ImplementationSettings) -> tuple[Schedule, Schedule]:
+    if settings.schedule == "fixed":
+        return Schedule.fixed(settings.epsilon), Schedule.fixed(settings.alpha)
+    return (
+        Schedule(max=settings.epsilon_max, min=settings.epsilon_min, n=settings.schedule_n),
+        Schedule(max=settings.alpha_max, min=settings.alpha_min, n=settings.schedule_n),
+    )
+
+
+class RunConfig(_Frozen):
+    """Everything a run's results depend on (worker count excluded: results do not depend on it)."""
+
+    seed: int = Field(0, ge=0, le=2**63 - 1, description="random seed of the run")
+    controller: ControllerSettings = ControllerSettings()
+    evolution: EvolutionConfig = EvolutionConfig()
+    training: TrainingSettings = TrainingSettings()
+    implementation: ImplementationSettings = ImplementationSettings()
+
+
+def _format_errors(error: ValidationError, source: str) -> str:
+    problems = []
+    for item in error.errors():
+        field = ".".join(str(part) for part in item["loc"]) or "(top level)"
+        message = item["msg"]
+        if item["type"] == "extra_forbidden":
+            message = "unknown setting"
+        message = message.removeprefix("Value error, ")
+        given = item.get("input")
+        got = "" if isinstance(given, Mapping) else f" (got {given!r})"
+        problems.append(f"{field}: {message}{got}")
+    return f"invalid configuration in {source}: " + "; ".join(problems)
+
+
+def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
+            merged[key] = _merge(dict(merged[key]), value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> RunConfig:
+    """Validate nested dicts merged left to right (later layers win) into a `RunConfig`.
+
+    Raises:
+        ConfigError: naming every bad field, its problem and the value given.
+    """
+    merged: dict[str, Any] = {}
+    for layer in layers:
+        merged = _merge(merged, layer)
+    try:
+        return RunConfig.model_validate(merged)
+    except ValidationError as error:
+        raise ConfigError(_format_errors(error, source)) from None
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML file into a dict, with a clear error for a missing or malformed file."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config path is a directory: {path}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise ConfigError(f"config file {path} is not valid TOML: {error}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"config file {path} is not UTF-8 text") from None
+
+
+def preset_layer(name: str) -> dict[str, Any]:
+    """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
+    if name not in PRESET_NAMES:
+        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
+    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+def load_preset(name: str) -> RunConfig:
+    """A shipped preset as a validated `RunConfig`."""
+    return build_config(preset_layer(name), source=f"preset {name!r}")
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """A TOML config file (missing settings take the thesis's defaults)."""
+    return build_config(read_toml(path), source=str(path))
+
+
+def to_toml(config: RunConfig) -> str:
+    """Render a config as TOML (unset optional values are left out), readable by `load_config`."""
+    lines = [f"seed = {config.seed}"]
+    for section, model in config:
+        if not isinstance(model, BaseModel):
+            continue
+        lines.append(f"\n[{section}]")
+        for key, value in model.model_dump().items():
+            if value is None:
+                continue
+            if isinstance(value, bool):
+                rendered = "true" if value else "false"
+            elif isinstance(value, str):
+                rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+            elif isinstance(value, tuple | list):
+                rendered = "[" + ", ".join(str(v) for v in value) + "]"
+            else:
+                rendered = repr(value)
+            lines.append(f"{key} = {rendered}")
+    return "\n".join(lines) + "\n"
