@@ -1,1 +1,59 @@
-"""gnp package."""
+"""GNP Lab's brain: GNP-RL, Fuzzy GNP-RL and Fuzzy GNP-TSRL (BS, CS) controllers, batched.
+
+See docs/architecture.md (the gnp section) for the contract and docs/decisions/gnp.md for the
+choices the thesis leaves open.
+"""
+
+from gnp.config import (
+    EvolutionConfig,
+    GnpConfig,
+    GnpError,
+    Schedule,
+)
+from gnp.engine import EngineState, StepTrace, init_state, reset_episode, step
+from gnp.evolution import crossover, evolve, mutate, nonuniform_mutation, tournament
+from gnp.population import (
+    Population,
+    check_population,
+    concat,
+    init_population,
+    population_from_arrays,
+    population_to_arrays,
+    take,
+)
+from gnp.schedules import (
+    epsilon_alpha_after_fault,
+    epsilon_alpha_over_generations,
+    schedule_after_fault,
+    schedule_over_generations,
+    schedule_value,
+)
+
+__all__ = [
+    "EngineState",
+    "EvolutionConfig",
+    "GnpConfig",
+    "GnpError",
+    "Population",
+    "Schedule",
+    "StepTrace",
+    "check_population",
+    "concat",
+    "crossover",
+    "epsilon_alpha_after_fault",
+    "epsilon_alpha_over_generations",
+    "evolve",
+    "init_population",
+    "init_state",
+    "mutate",
+    "nonuniform_mutation",
+    "population_from_arrays",
+    "population_to_arrays",
+    "reset_episode",
+    "schedule_after_fault",
+    "schedule_over_generations",
+    "schedule_value",
+    "step",
+    "take",
+    "tournament",
+]

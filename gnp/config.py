@@ -1,0 +1,145 @@
+"""Frozen configuration of the brain: graph shape, learning method, evolution, schedules."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+#: Node types (Table 2.1 of the thesis): NT_i.
+START, JUDGMENT, PROCESSING = 0, 1, 2
+#: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (DESIGN.md §3).
+NODE_COST = {START: 0, JUDGMENT: 1, PROCESSING: 5}
+SKIP_COST = 1
+#: Time units a controller may spend per world step.
+STEP_BUDGET = 5
+#: Sensors judged by judgment nodes (J0..J7) and wheels set by processing nodes (P0, P1).
+N_SENSORS = 8
+N_WHEELS = 2
+RIGHT_WHEEL, LEFT_WHEEL = 0, 1
+#: Parameter ranges: judgment β ≤ α in 0..1023, processing wheel speed in −10..10.
+SENSOR_MAX = 1023
+SPEED_MAX = 10
+
+
+class GnpError(ValueError):
+    """Bad input to the gnp package (a genome, an array, an argument)."""
+
+
+class GnpConfig(BaseModel):
+    """Shape of every individual and the learning method (Tables 2.4, 3.1, 5.1).
+
+    Node 0 is the start node, nodes 1..n_judgment are judgment nodes, the rest processing nodes.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    method: Literal["RL", "BS", "CS"] = Field(
+        default="RL",
+        description="RL: sub node selection only; BS: + branch connections; CS: + credit",
+    )
+    fuzzy: bool = Field(default=True, description="fuzzy (Eq. 2.1–2.2) or crisp judgment")
+    n_judgment: int = Field(default=40, ge=1, le=10_000, description="judgment nodes")
+    n_processing: int = Field(default=20, ge=1, le=10_000, description="processing nodes")
+    n_sub: int = Field(default=2, ge=1, le=64, description="sub nodes m per node")
+    n_branch: int = Field(
+        default=2, ge=1, le=64, description="branch connections U per connection (BS)"
+    )
+    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="discount rate γ")
+
+    @cached_property
+    def n_nodes(self) -> int:
+        """All nodes, the start node included."""
+        return 1 + self.n_judgment + self.n_processing
+
+    @cached_property
+    def n_conn_branches(self) -> int:
+        """Size of the branch-connection axis of `conn` and `q_bs`: U for BS, else 1."""
+        return self.n_branch if self.method == "BS" else 1
+
+    @cached_property
+    def node_type(self) -> np.ndarray:
+        """(n_nodes,) int8: START, JUDGMENT or PROCESSING per node."""
+        types = np.full(self.n_nodes, PROCESSING, dtype=np.int8)
+        types[0] = START
+        types[1 : 1 + self.n_judgment] = JUDGMENT
+        types.setflags(write=False)
+        return types
+
+    @cached_property
+    def node_cost(self) -> np.ndarray:
+        """(n_nodes,) int32 time units d_i per node (Table 2.1)."""
+        cost = np.array([NODE_COST[int(t)] for t in self.node_type], dtype=np.int32)
+        cost.setflags(write=False)
+        return cost
+
+    @property
+    def max_visits_per_step(self) -> int:
+        """Longest possible node sequence in one world step: the start node + 5 unit nodes."""
+        return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
+
+
+class EvolutionConfig(BaseModel):
+    """Evolution settings (Table 2.4); the population split scales with the population size."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    tournament_size: int = Field(default=7, ge=1, description="individuals per tournament")
+    p_crossover: float = Field(default=0.1, ge=0.0, le=1.0, description="P_c: per node gene swap")
+    p_mutation: float = Field(
+        default=0.01, ge=0.0, le=1.0, description="P_m: per connection/function/param"
+    )
+    elite_fraction: float = Field(
+        default=1 / 300, ge=0.0, le=1.0, description="elite share (≥ 1 kept)"
+    )
+    crossover_fraction: float = Field(
+        default=120 / 300, ge=0.0, le=1.0, description="offspring share"
+    )
+    nonuniform_b: float = Field(
+        default=2.0, gt=0.0, description="b of non-uniform mutation (Eq. 2.5)"
+    )
+
+    @model_validator(mode="after")
+    def _fractions_fit(self) -> EvolutionConfig:
+        if self.elite_fraction + self.crossover_fraction > 1.0:
+            raise ValueError("elite_fraction + crossover_fraction must not exceed 1")
+        return self
+
+    def split(self, n: int) -> tuple[int, int, int]:
+        """(elite, crossover, mutation) counts for a population of n (1/120/179 at n = 300)."""
+        if n < 1:
+            raise GnpError(f"population size must be ≥ 1, got {n}")
+        n_elite = min(n, max(1, round(n * self.elite_fraction)))
+        n_cross = 2 * round(n * self.crossover_fraction / 2)
+        n_cross = min(n_cross, (n - n_elite) // 2 * 2)
+        return n_elite, n_cross, n - n_elite - n_cross
+
+
+class Schedule(BaseModel):
+    """A learning parameter (ε or α) that is fixed or decays from `max` to `min` (Eq. 4.1–4.4).
+
+    value = (max − min)·(1 − progress)^n + min, progress in [0, 1]. A fixed value has max = min.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    max: float = Field(default=0.1, ge=0.0, le=1.0, description="value at progress 0")
+    min: float = Field(default=0.1, ge=0.0, le=1.0, description="value at progress 1")
+    n: float = Field(default=1.0, gt=0.0, description="exponent n of Eq. 4.1–4.4")
+
+    @classmethod
+    def fixed(cls, value: float) -> Schedule:
+        """A schedule that always returns `value`."""
+        return cls(max=value, min=value)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Schedule:
+        if self.min > self.max:
+            raise ValueError(f"min ({self.min}) must not exceed max ({self.max})")
+        return self
+
+    @property
+    def is_fixed(self) -> bool:
+        return self.max == self.min

@@ -1,0 +1,384 @@
+"""The batched node-transition engine with Sarsa learning (RL, BS, CS; crisp or fuzzy).
+
+One call of `step` advances N controllers by one world step. A controller visits nodes from its
+current node until it has spent the step's budget of 5 time units: a judgment node costs 1, a
+processing node 5, a credit skip 1, the start node 0 (it runs once per episode). The cost is
+charged before the node runs and the node that overshoots still runs, so a step ends right
+after a processing node or after five unit-cost nodes in a row. The current node carries over.
+
+Learning (docs/decisions/gnp.md has the equations). Every visit k chooses a sub node p_k by
+ε-greedy on Q_SS, for CS also c_k ∈ {normal, credit} on Q_CS, runs, and for BS then chooses the
+branch connection u_k on Q_BS of the branch it took. A visit's reward r_k is the world step's
+reward if it was the step's last visit (and not a credit skip), else 0. When visit k+1 has
+chosen its actions, visit k's Q_SS (and Q_CS) entries get the Sarsa update with r_k, and visit
+k−1's Q_BS entry gets the update with r_k: a branch connection is judged by the reward of the
+node it leads to (Eq. 3.2's r_{t+1}).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from gnp.config import (
+    JUDGMENT,
+    SKIP_COST,
+    START,
+    STEP_BUDGET,
+    GnpConfig,
+    GnpError,
+)
+from gnp.population import Population, field_shapes
+from gnp.rng import next_uniform, seed_states
+
+METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
+_BS, _CS = 1, 2
+#: Columns of EngineState.pending / pending_bs: one remembered node visit.
+V_NODE, V_SUB, V_BRANCH, V_U, V_CREDIT = range(5)
+
+
+@dataclass(frozen=True)
+class EngineState:
+    """Mutable per-controller engine state, arrays with leading axis N.
+
+    Attributes:
+        node: (N,) current node (0 = start node: a new episode).
+        wheels: (N, 2) wheel speeds as (left, right); each keeps its value until a processing
+            node sets it.
+        rng: (N,) uint64 splitmix64 state of each controller's own random stream.
+        pending: (N, 5) the last visit (node, sub, branch, u, credit), awaiting its Q_SS/Q_CS
+            update; node −1 when there is none.
+        pending_bs: (N, 5) the visit before it, awaiting its Q_BS update (BS only).
+    """
+
+    node: np.ndarray
+    wheels: np.ndarray
+    rng: np.ndarray
+    pending: np.ndarray
+    pending_bs: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return int(self.node.shape[0])
+
+
+@dataclass(frozen=True)
+class StepTrace:
+    """What each controller did in one world step; (N, K) arrays padded with −1 after `count`.
+
+    Attributes:
+        node: nodes visited in order (the start node, 0, appears at an episode's first step).
+        sub: sub node chosen.
+        branch: judgment branch taken (A = 0, B = 1; 0 for processing and start nodes,
+            −1 for a credit skip).
+        u: branch connection chosen (0 unless BS; −1 for a credit skip).
+        skipped: 1 if the visit was a credit skip (CS), else 0.
+        count: (N,) number of visits in the step.
+    """
+
+    node: np.ndarray
+    sub: np.ndarray
+    branch: np.ndarray
+    u: np.ndarray
+    skipped: np.ndarray
+    count: np.ndarray
+
+
+def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineState:
+    """State for n controllers at the start node, wheels at 0, streams seeded from `seeds`."""
+    states = seed_states(seeds)
+    if states.shape != (n,):
+        raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
+    return EngineState(
+        node=np.zeros(n, np.int32),
+        wheels=np.zeros((n, 2), np.float64),
+        rng=states,
+        pending=np.full((n, 5), -1, np.int32),
+        pending_bs=np.full((n, 5), -1, np.int32),
+    )
+
+
+def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = None) -> None:
+    """Put every controller back at the start node (new episode); Q tables are untouched.
+
+    Wheels stop, pending transitions are dropped (no terminal update). With `seeds` the random
+    streams restart from them, otherwise they continue.
+    """
+    if seeds is not None:
+        states = seed_states(seeds)
+        if states.shape != state.rng.shape:
+            raise GnpError(f"reset_episode: need {state.size} seeds, got {states.shape[0]}")
+        state.rng[:] = states
+    state.node[:] = 0
+    state.wheels[:] = 0.0
+    state.pending[:] = -1
+    state.pending_bs[:] = -1
+
+
+def _per_controller(value: float | np.ndarray, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    elif arr.shape != (n,):
+        raise GnpError(f"{name} must be a scalar or shape ({n},), got {arr.shape}")
+    if not np.all((arr >= 0.0) & (arr <= 1.0)):
+        raise GnpError(f"{name} must lie in [0, 1]")
+    return np.ascontiguousarray(arr)
+
+
+def step(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    observations: np.ndarray,
+    reward: np.ndarray,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    learn: bool = True,
+    trace: bool = False,
+) -> np.ndarray | tuple[np.ndarray, StepTrace]:
+    """Advance N controllers by one world step.
+
+    Args:
+        cfg: the configuration `pop` was built for.
+        pop: N individuals; their Q tables are updated in place when `learn`.
+        state: engine state of the N controllers, updated in place.
+        observations: (N, 8) sensor readings the controllers see, 0..1023.
+        reward: (N,) reward of the previous world step, credited to that step's last visit.
+        epsilon: ε of ε-greedy, scalar or (N,).
+        alpha: learning rate α, scalar or (N,).
+        learn: apply Sarsa updates.
+        trace: also return a StepTrace.
+
+    Returns:
+        Wheel commands (N, 2) as (left, right) in −10..10, and the StepTrace if `trace`.
+    """
+    n = state.size
+    if pop.size != n:
+        raise GnpError(f"population has {pop.size} individuals, state {n} controllers")
+    if pop.q_bs.shape[1:] != field_shapes(cfg)["q_bs"] or pop.q_ss.shape[1:] != (
+        cfg.n_nodes,
+        cfg.n_sub,
+    ):
+        raise GnpError("population does not match the config (node, sub node or branch counts)")
+    obs = np.ascontiguousarray(observations, dtype=np.float64)
+    if obs.shape != (n, 8):
+        raise GnpError(f"observations must have shape ({n}, 8), got {obs.shape}")
+    rew = np.ascontiguousarray(reward, dtype=np.float64)
+    if rew.shape != (n,):
+        raise GnpError(f"reward must have shape ({n},), got {rew.shape}")
+    eps = _per_controller(epsilon, n, "epsilon")
+    alp = _per_controller(alpha, n, "alpha")
+    k = cfg.max_visits_per_step if trace else 0
+    t_node = np.full((n, k), -1, np.int32)
+    t_sub = np.full((n, k), -1, np.int32)
+    t_branch = np.full((n, k), -1, np.int32)
+    t_u = np.full((n, k), -1, np.int32)
+    t_skip = np.full((n, k), -1, np.int32)
+    t_count = np.zeros(n, np.int32)
+    _step_kernel(
+        METHOD_CODE[cfg.method],
+        cfg.fuzzy,
+        cfg.gamma,
+        np.asarray(cfg.node_type, np.int8),
+        np.asarray(cfg.node_cost, np.int32),
+        pop.function,
+        pop.mu_beta,
+        pop.mu_alpha,
+        pop.speed,
+        pop.conn,
+        pop.credit,
+        pop.q_ss,
+        pop.q_bs,
+        pop.q_cs,
+        state.node,
+        state.wheels,
+        state.rng,
+        state.pending,
+        state.pending_bs,
+        obs,
+        rew,
+        eps,
+        alp,
+        learn,
+        trace,
+        t_node,
+        t_sub,
+        t_branch,
+        t_u,
+        t_skip,
+        t_count,
+    )
+    commands = state.wheels.copy()
+    if trace:
+        return commands, StepTrace(t_node, t_sub, t_branch, t_u, t_skip, t_count)
+    return commands
+
+
+@njit(cache=True, inline="always")
+def _egreedy(q: np.ndarray, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+    """ε-greedy over the 1-D values q: (new stream state, chosen index).
+
+    Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima.
+    """
+    k = q.shape[0]
+    s, u = next_uniform(s)
+    if u < eps:
+        s, v = next_uniform(s)
+        return s, min(int(v * k), k - 1)
+    best = q[0]
+    ties = 1
+    for a in range(1, k):
+        if q[a] > best:
+            best = q[a]
+            ties = 1
+        elif q[a] == best:
+            ties += 1
+    if ties == 1:
+        for a in range(k):
+            if q[a] == best:
+                return s, a
+    s, v = next_uniform(s)
+    pick = min(int(v * ties), ties - 1)
+    for a in range(k):
+        if q[a] == best:
+            if pick == 0:
+                return s, a
+            pick -= 1
+    return s, k - 1  # unreachable
+
+
+@njit(cache=True)
+def _step_kernel(
+    method,
+    fuzzy,
+    gamma,
+    node_type,
+    node_cost,
+    function,
+    mu_beta,
+    mu_alpha,
+    speed,
+    conn,
+    credit,
+    q_ss,
+    q_bs,
+    q_cs,
+    cur_node,
+    wheels,
+    rng,
+    pending,
+    pending_bs,
+    obs,
+    reward,
+    eps_arr,
+    alpha_arr,
+    learn,
+    trace,
+    t_node,
+    t_sub,
+    t_branch,
+    t_u,
+    t_skip,
+    t_count,
+):  # pragma: no cover - compiled
+    n_ctrl = cur_node.shape[0]
+    for c in range(n_ctrl):
+        s = rng[c]
+        node = cur_node[c]
+        eps = eps_arr[c]
+        lr = alpha_arr[c]
+        # The pending visit was the last of the previous world step: it earns that step's
+        # reward, unless it was a credit skip (reward 0, Eq. 5.3).
+        pend_r = 0.0
+        if pending[c, 0] >= 0 and pending[c, 4] != 1:
+            pend_r = reward[c]
+        used = 0
+        k = 0
+        while used < STEP_BUDGET:
+            if node_type[node] == START:
+                if trace:
+                    t_node[c, k] = node
+                    t_sub[c, k] = 0
+                    t_branch[c, k] = 0
+                    t_u[c, k] = 0
+                    t_skip[c, k] = 0
+                k += 1
+                node = conn[c, node, 0, 0, 0]
+                continue
+            s, p = _egreedy(q_ss[c, node], eps, s)
+            cs = 0
+            if method == _CS:
+                s, cs = _egreedy(q_cs[c, node, p], eps, s)
+            if learn and pending[c, 0] >= 0:
+                pn = pending[c, 0]
+                pp = pending[c, 1]
+                q_ss[c, pn, pp] += lr * (pend_r + gamma * q_ss[c, node, p] - q_ss[c, pn, pp])
+                if method == _CS:
+                    pc = pending[c, 4]
+                    q_cs[c, pn, pp, pc] += lr * (
+                        pend_r + gamma * q_cs[c, node, p, cs] - q_cs[c, pn, pp, pc]
+                    )
+                if method == _BS and pending_bs[c, 0] >= 0:
+                    bn = pending_bs[c, 0]
+                    bp = pending_bs[c, 1]
+                    bb = pending_bs[c, 2]
+                    bu = pending_bs[c, 3]
+                    q_bs[c, bn, bp, bb, bu] += lr * (
+                        pend_r
+                        + gamma * q_bs[c, pn, pp, pending[c, 2], pending[c, 3]]
+                        - q_bs[c, bn, bp, bb, bu]
+                    )
+            if cs == 1:
+                used += SKIP_COST
+                branch = -1
+                u = -1
+                nxt = credit[c, node, p]
+            else:
+                used += node_cost[node]
+                fn = function[c, node, p]
+                if node_type[node] == JUDGMENT:
+                    x = obs[c, fn]
+                    lo = mu_beta[c, node, p]
+                    hi = mu_alpha[c, node, p]
+                    if fuzzy:
+                        if x >= hi:
+                            mu = 1.0
+                        elif x <= lo:
+                            mu = 0.0
+                        else:
+                            mu = (x - lo) / (hi - lo)
+                        s, v = next_uniform(s)
+                        branch = 0 if v < mu else 1
+                    else:
+                        branch = 0 if x >= (lo + hi) / 2.0 else 1
+                else:
+                    # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are
+                    # stored as (left, right).
+                    wheels[c, 1 - fn] = float(speed[c, node, p])
+                    branch = 0
+                u = 0
+                if method == _BS:
+                    s, u = _egreedy(q_bs[c, node, p, branch], eps, s)
+                nxt = conn[c, node, p, branch, u]
+            if trace:
+                t_node[c, k] = node
+                t_sub[c, k] = p
+                t_branch[c, k] = branch
+                t_u[c, k] = u
+                t_skip[c, k] = cs
+            k += 1
+            for j in range(5):
+                pending_bs[c, j] = pending[c, j]
+            pending[c, 0] = node
+            pending[c, 1] = p
+            pending[c, 2] = branch
+            pending[c, 3] = u
+            pending[c, 4] = cs
+            pend_r = 0.0
+            node = nxt
+        cur_node[c] = node
+        rng[c] = s
+        t_count[c] = k

@@ -1,0 +1,232 @@
+"""A population of GNP individuals as a struct of numpy arrays with a leading axis N."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gnp.config import (
+    JUDGMENT,
+    N_SENSORS,
+    N_WHEELS,
+    PROCESSING,
+    SENSOR_MAX,
+    SPEED_MAX,
+    GnpConfig,
+    GnpError,
+)
+
+GENE_DTYPE = np.int32
+Q_DTYPE = np.float64
+
+
+@dataclass(frozen=True)
+class Population:
+    """N individuals of V nodes with m sub nodes each; every array has the leading axis N.
+
+    Axes: V nodes (0 = start, then judgment, then processing; see `GnpConfig.node_type`),
+    m sub nodes, 2 branches (A = 0, B = 1; processing nodes use A only), U branch connections
+    (`GnpConfig.n_conn_branches`: U for BS, 1 otherwise). Parts a node type or method does not
+    use hold valid but unused values, so every method shares one layout.
+
+    Attributes:
+        function: (N, V, m) sensor 0..7 judged (judgment) or wheel set (processing:
+            0 = right wheel P0, 1 = left wheel P1); 0 for the start node.
+        mu_beta: (N, V, m) β of the judgment membership function, 0 ≤ β ≤ α.
+        mu_alpha: (N, V, m) α of the judgment membership function, ≤ 1023.
+        speed: (N, V, m) wheel speed −10..10 set by a processing sub node.
+        conn: (N, V, m, 2, U) next node per branch and branch connection; the start node uses
+            conn[:, 0, 0, 0, 0].
+        credit: (N, V, m) next node through the credit branch (CS).
+        q_ss: (N, V, m) Q_SS(i, ip), sub node selection.
+        q_bs: (N, V, m, 2, U) Q_BS(C_ip^A|B, b^(u)), branch connection selection (BS).
+        q_cs: (N, V, m, 2) Q_CS(ip, b_N) at [..., 0] and Q_CS(ip, b_C) at [..., 1] (CS).
+    """
+
+    function: np.ndarray
+    mu_beta: np.ndarray
+    mu_alpha: np.ndarray
+    speed: np.ndarray
+    conn: np.ndarray
+    credit: np.ndarray
+    q_ss: np.ndarray
+    q_bs: np.ndarray
+    q_cs: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of individuals N."""
+        return int(self.function.shape[0])
+
+    def __len__(self) -> int:
+        return self.size
+
+    def copy(self) -> Population:
+        """A deep copy (every array copied)."""
+        return Population(**{f: a.copy() for f, a in population_to_arrays(self).items()})
+
+
+FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Population))
+Q_FIELDS = ("q_ss", "q_bs", "q_cs")
+
+
+def field_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
+    """Per-individual shape (without the leading N) of every Population array."""
+    v, m, u = cfg.n_nodes, cfg.n_sub, cfg.n_conn_branches
+    return {
+        "function": (v, m),
+        "mu_beta": (v, m),
+        "mu_alpha": (v, m),
+        "speed": (v, m),
+        "conn": (v, m, 2, u),
+        "credit": (v, m),
+        "q_ss": (v, m),
+        "q_bs": (v, m, 2, u),
+        "q_cs": (v, m, 2),
+    }
+
+
+def field_dtype(name: str) -> type[np.generic]:
+    return Q_DTYPE if name in Q_FIELDS else GENE_DTYPE
+
+
+def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Population:
+    """n random individuals (§2.3.3): balanced functions, random parameters and connections.
+
+    Each sub node slot p of the judgment nodes holds every sensor equally often (5 per sensor
+    for 40 nodes), and of the processing nodes every wheel equally often (10 per wheel for 20
+    nodes), in a random order per individual. α is drawn in 1..1023 and β in 0..α−1, speeds in
+    −10..10, every connection uniformly among nodes 1..V−1. Q tables start at 0.
+    """
+    if n < 0:
+        raise GnpError(f"population size must be ≥ 0, got {n}")
+    v, m, nj, npr = cfg.n_nodes, cfg.n_sub, cfg.n_judgment, cfg.n_processing
+    judg = slice(1, 1 + nj)
+    proc = slice(1 + nj, v)
+    shapes = field_shapes(cfg)
+
+    def balanced(count: int, kinds: int) -> np.ndarray:
+        base = np.tile(np.arange(count, dtype=GENE_DTYPE) % kinds, (n * m, 1))
+        return rng.permuted(base, axis=1).reshape(n, m, count).transpose(0, 2, 1)
+
+    function = np.zeros((n, v, m), GENE_DTYPE)
+    function[:, judg] = balanced(nj, N_SENSORS)
+    function[:, proc] = balanced(npr, N_WHEELS)
+    mu_alpha = np.zeros((n, v, m), GENE_DTYPE)
+    mu_beta = np.zeros((n, v, m), GENE_DTYPE)
+    mu_alpha[:, judg] = rng.integers(1, SENSOR_MAX + 1, size=(n, nj, m))
+    mu_beta[:, judg] = rng.integers(0, mu_alpha[:, judg])
+    speed = np.zeros((n, v, m), GENE_DTYPE)
+    speed[:, proc] = rng.integers(-SPEED_MAX, SPEED_MAX + 1, size=(n, npr, m))
+    return Population(
+        function=function,
+        mu_beta=mu_beta,
+        mu_alpha=mu_alpha,
+        speed=speed,
+        conn=rng.integers(1, v, size=(n, *shapes["conn"])).astype(GENE_DTYPE),
+        credit=rng.integers(1, v, size=(n, *shapes["credit"])).astype(GENE_DTYPE),
+        q_ss=np.zeros((n, *shapes["q_ss"]), Q_DTYPE),
+        q_bs=np.zeros((n, *shapes["q_bs"]), Q_DTYPE),
+        q_cs=np.zeros((n, *shapes["q_cs"]), Q_DTYPE),
+    )
+
+
+def take(pop: Population, idx: Sequence[int] | np.ndarray) -> Population:
+    """The individuals at `idx` (a 1-D index array or list), copied, in that order."""
+    index = np.asarray(idx)
+    if index.ndim != 1 or not (np.issubdtype(index.dtype, np.integer) or index.size == 0):
+        raise GnpError(f"take needs a 1-D integer index, got shape {index.shape} {index.dtype}")
+    if index.size and (index.min() < -pop.size or index.max() >= pop.size):
+        raise GnpError(f"index out of range for a population of {pop.size}")
+    index = index.astype(np.intp)
+    return Population(**{f: a[index] for f, a in population_to_arrays(pop).items()})
+
+
+def concat(pops: Sequence[Population]) -> Population:
+    """One population holding the individuals of `pops` in order."""
+    if not pops:
+        raise GnpError("concat needs at least one population")
+    for f in FIELDS:
+        shapes = {getattr(p, f).shape[1:] for p in pops}
+        if len(shapes) > 1:
+            raise GnpError(f"concat: populations disagree on the shape of {f!r}: {shapes}")
+    return Population(**{f: np.concatenate([getattr(p, f) for p in pops]) for f in FIELDS})
+
+
+def population_to_arrays(pop: Population) -> dict[str, np.ndarray]:
+    """The population's arrays by field name (not copied), e.g. for an HDF5 group."""
+    return {f: getattr(pop, f) for f in FIELDS}
+
+
+def population_from_arrays(cfg: GnpConfig, arrays: dict[str, np.ndarray]) -> Population:
+    """A validated population from `population_to_arrays` output (copied, dtypes normalised).
+
+    Raises:
+        GnpError: a field is missing or unknown, has the wrong shape, is not integral where it
+            must be, or the genome is invalid (see `check_population`).
+    """
+    missing = sorted(set(FIELDS) - set(arrays))
+    extra = sorted(set(arrays) - set(FIELDS))
+    if missing or extra:
+        raise GnpError(f"population arrays: missing {missing}, unknown {extra}")
+    out: dict[str, np.ndarray] = {}
+    for f in FIELDS:
+        a = np.asarray(arrays[f])
+        dtype = field_dtype(f)
+        if dtype is GENE_DTYPE:
+            integral = np.issubdtype(a.dtype, np.integer) or a.size == 0
+            whole = np.issubdtype(a.dtype, np.floating) and bool(np.all(a == np.round(a)))
+            if not (integral or whole):
+                raise GnpError(f"population field {f!r} must hold integers, got {a.dtype}")
+            if a.size and (a.min() < np.iinfo(dtype).min or a.max() > np.iinfo(dtype).max):
+                raise GnpError(f"population field {f!r} holds values outside int32")
+        elif not np.issubdtype(a.dtype, np.number):
+            raise GnpError(f"population field {f!r} must be numeric, got {a.dtype}")
+        out[f] = np.array(a, dtype=dtype, copy=True)
+    pop = Population(**out)
+    check_population(cfg, pop)
+    return pop
+
+
+def check_population(cfg: GnpConfig, pop: Population) -> None:
+    """Raise GnpError unless `pop` is a valid population for `cfg`.
+
+    Valid: shapes and dtypes match the config; judgment functions name a sensor 0..7 and
+    processing functions a wheel 0..1; 0 ≤ β ≤ α ≤ 1023 on judgment nodes; speeds in −10..10
+    on processing nodes; every connection and credit branch names a node 1..V−1 (none into
+    the start node); Q values finite.
+    """
+    n = pop.size
+    for f, shape in field_shapes(cfg).items():
+        a = getattr(pop, f)
+        if not isinstance(a, np.ndarray):
+            raise GnpError(f"population field {f!r} is not a numpy array")
+        if a.shape != (n, *shape):
+            raise GnpError(f"population field {f!r} has shape {a.shape}, expected {(n, *shape)}")
+        if a.dtype != field_dtype(f):
+            raise GnpError(f"population field {f!r} has dtype {a.dtype}, expected {field_dtype(f)}")
+    types = cfg.node_type
+    judg = types == JUDGMENT
+    proc = types == PROCESSING
+    fn = pop.function
+    if np.any((fn[:, judg] < 0) | (fn[:, judg] >= N_SENSORS)):
+        raise GnpError("judgment function outside sensors 0..7")
+    if np.any((fn[:, proc] < 0) | (fn[:, proc] >= N_WHEELS)):
+        raise GnpError("processing function outside wheels 0..1")
+    beta, alpha = pop.mu_beta[:, judg], pop.mu_alpha[:, judg]
+    if np.any(beta < 0) or np.any(alpha > SENSOR_MAX):
+        raise GnpError("judgment parameters outside 0..1023")
+    if np.any(beta > alpha):
+        raise GnpError("judgment parameter β exceeds α")
+    if np.any(np.abs(pop.speed[:, proc]) > SPEED_MAX):
+        raise GnpError("processing speed outside −10..10")
+    for f in ("conn", "credit"):
+        a = getattr(pop, f)
+        if np.any((a < 1) | (a >= cfg.n_nodes)):
+            raise GnpError(f"{f}: a connection names no node in 1..{cfg.n_nodes - 1}")
+    for f in Q_FIELDS:
+        if not np.all(np.isfinite(getattr(pop, f))):
+            raise GnpError(f"{f}: Q values must be finite")
