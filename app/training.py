@@ -1,0 +1,531 @@
+"""The training phase: generations of evaluate-then-evolve, split over persistent workers.
+
+Every random draw of an individual's life (its start poses, the world's noise stream, the
+controller's stream) comes from a `numpy.random.SeedSequence` keyed by (run seed, generation,
+individual index), and evolution's Generator from (run seed, generation). No draw depends on
+where an individual sits in a batch, so a run gives bit-identical results on any number of
+worker processes, and a resumed run matches one never interrupted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import math
+import multiprocessing
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+import gnp
+import sim
+from app.config import RunConfig, TrainingSettings
+from app.store import TERM_NAMES, RunTemplate, RunWriter, Trajectory
+
+# Purpose tags mixed into every SeedSequence so different uses never share a stream.
+_TAG_INIT, _TAG_LIFE, _TAG_EVOLVE = 1, 2, 3
+
+
+class TrainingError(RuntimeError):
+    """Training could not go on (a worker died, the run cannot start)."""
+
+
+class Interrupted(Exception):
+    """Training was stopped by Ctrl-C or SIGTERM after the last complete generation."""
+
+    def __init__(self, generations_done: int) -> None:
+        super().__init__(f"stopped after {generations_done} complete generation(s)")
+        self.generations_done = generations_done
+
+
+# --- seeds ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LifeSeeds:
+    """Random inputs of N lives: all drawn per individual, none from a batch position."""
+
+    world: np.ndarray  # (N,) uint64 seed of each robot's stream (noise, faults)
+    engine: np.ndarray  # (N,) uint64 seed of each controller's stream
+    starts: np.ndarray  # (N, S) start pose index of each of the S segments of a life
+
+    def take(self, sl: slice) -> LifeSeeds:
+        return LifeSeeds(self.world[sl], self.engine[sl], self.starts[sl])
+
+
+def n_segments(steps: int, redraw_every: int) -> int:
+    """How many start poses a life of `steps` uses when redrawn every `redraw_every` steps."""
+    return 1 if redraw_every <= 0 else math.ceil(steps / redraw_every)
+
+
+def life_seeds(
+    seed: int, generation: int, indices: np.ndarray, segments: int, n_starts: int
+) -> LifeSeeds:
+    """Seeds of individuals `indices` of `generation`, keyed by (seed, generation, index)."""
+    states = np.array(
+        [
+            np.random.SeedSequence([seed, _TAG_LIFE, generation, int(i)]).generate_state(
+                2 + segments, np.uint64
+            )
+            for i in indices
+        ],
+        dtype=np.uint64,
+    ).reshape(len(indices), 2 + segments)
+    return LifeSeeds(
+        world=states[:, 0] >> np.uint64(1),
+        engine=states[:, 1] >> np.uint64(1),
+        starts=(states[:, 2:] % np.uint64(n_starts)).astype(np.int64),
+    )
+
+
+def evolution_rng(seed: int, generation: int) -> np.random.Generator:
+    """The Generator evolution uses after `generation`."""
+    return np.random.default_rng(np.random.SeedSequence([seed, _TAG_EVOLVE, generation]))
+
+
+def initial_population(config: RunConfig) -> gnp.Population:
+    """Generation 0, drawn from (seed, init)."""
+    rng = np.random.default_rng(np.random.SeedSequence([config.seed, _TAG_INIT]))
+    return gnp.init_population(config.controller.gnp_config(), config.training.population, rng)
+
+
+# --- one batch of lives ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Lives:
+    """Outcome of N lives: fitness (Eq. 2.8) and the mean per step of every reward term."""
+
+    fitness: np.ndarray  # (N,)
+    terms: np.ndarray  # (N, len(TERM_NAMES))
+
+
+def live(
+    world: sim.World,
+    cfg: gnp.GnpConfig,
+    pop: gnp.Population,
+    seeds: LifeSeeds,
+    steps: int,
+    redraw_every: int,
+    epsilon: float,
+    alpha: float,
+    record: bool = False,
+) -> tuple[Lives, Trajectory | None]:
+    """Let N individuals live `steps` steps in `world`, learning online (Q tables in place).
+
+    Each life starts at its first start pose; with `redraw_every` > 0 the robot is moved to its
+    next start pose every `redraw_every` steps and the controller starts a new episode (its Q
+    tables, random stream and the world's streams carry on).
+    """
+    n = pop.size
+    start_poses = world.arena.start_poses
+    state = gnp.init_state(cfg, n, seeds.engine)
+    world.reset(start_poses[seeds.starts[:, 0]], seeds=seeds.world)
+    reward = np.zeros(n)
+    sums = np.zeros((n, len(TERM_NAMES)))
+    log: dict[str, list[np.ndarray]] = {}
+    for t in range(steps):
+        if redraw_every > 0 and t > 0 and t % redraw_every == 0:
+            world.place(start_poses[seeds.starts[:, t // redraw_every]])
+            gnp.reset_episode(state)
+            reward = np.zeros(n)
+        seen = world.observe()
+        if record:
+            commands, trace = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha, trace=True)
+        else:
+            commands = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha)
+        world.step(commands)
+        true_readings = world.sense()
+        terms = sim.reward_terms(true_readings, commands)
+        reward = terms["reward"]
+        step_terms = np.stack([terms[name] for name in TERM_NAMES], axis=1)
+        sums += step_terms
+        if record:
+            for key, value in (
+                ("poses", world.poses),
+                ("readings", true_readings),
+                ("observations", seen),
+                ("commands", commands),
+                ("terms", step_terms),
+            ):
+                log.setdefault(key, []).append(np.array(value, dtype=np.float64))
+            for field in _TRACE_FIELDS:
+                log.setdefault("trace/" + field, []).append(np.array(getattr(trace, field)))
+    means = sums / steps
+    lives = Lives(fitness=means[:, 0].copy(), terms=means)
+    if not record:
+        return lives, None
+    stacked = {key: np.stack(values, axis=1) for key, values in log.items()}
+    trajectory = Trajectory(
+        poses=stacked["poses"],
+        readings=stacked["readings"],
+        observations=stacked["observations"],
+        commands=stacked["commands"],
+        terms={name: stacked["terms"][..., i] for i, name in enumerate(TERM_NAMES)},
+        trace={field: stacked["trace/" + field] for field in _TRACE_FIELDS},
+        start_index=seeds.starts[:, 0].copy(),
+    )
+    return lives, trajectory
+
+
+_TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
+
+
+def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
+    """One step's trace of one controller, (1, ...) per field: the shapes the store needs."""
+    rng = np.random.default_rng(0)
+    pop = gnp.init_population(cfg, 1, rng)
+    state = gnp.init_state(cfg, 1, [0])
+    _, trace = gnp.step(
+        cfg, pop, state, np.zeros((1, 8)), np.zeros(1), 0.0, 0.0, learn=False, trace=True
+    )
+    return {field: np.asarray(getattr(trace, field)) for field in _TRACE_FIELDS}
+
+
+# --- evaluators: in-process or persistent worker processes ------------------------------------
+
+
+@dataclass(frozen=True)
+class _Job:
+    arrays: dict[str, np.ndarray]
+    seeds: LifeSeeds
+    epsilon: float
+    alpha: float
+
+
+class Evaluator(Protocol):
+    def evaluate(
+        self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
+    ) -> tuple[Lives, gnp.Population]: ...
+
+    def close(self) -> None: ...
+
+
+def _make_world(config: RunConfig, n: int) -> sim.World:
+    training = config.training
+    return sim.World(
+        sim.load_arena(training.arena),
+        n=n,
+        seed=config.seed,
+        noise_sigma=training.noise_sigma,
+        control_period=training.control_period,
+    )
+
+
+def _run_job(
+    world: sim.World, cfg: gnp.GnpConfig, training: TrainingSettings, job: _Job
+) -> tuple[Lives, dict[str, np.ndarray]]:
+    pop = gnp.population_from_arrays(cfg, job.arrays)
+    lives, _ = live(
+        world, cfg, pop, job.seeds, training.steps, training.redraw_every, job.epsilon, job.alpha
+    )
+    return lives, gnp.population_to_arrays(pop)
+
+
+class LocalEvaluator:
+    """Evaluates in this process, on one world of the whole population."""
+
+    def __init__(self, config: RunConfig) -> None:
+        self._config = config
+        self._cfg = config.controller.gnp_config()
+        self._world = _make_world(config, config.training.population)
+
+    def evaluate(
+        self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
+    ) -> tuple[Lives, gnp.Population]:
+        job = _Job(gnp.population_to_arrays(pop.copy()), seeds, epsilon, alpha)
+        lives, arrays = _run_job(self._world, self._cfg, self._config.training, job)
+        return lives, gnp.population_from_arrays(self._cfg, arrays)
+
+    def close(self) -> None:
+        pass
+
+
+def _worker_main(conn: Connection, config_json: str, n: int) -> None:
+    # Ctrl-C and SIGTERM reach the whole process group: the main process decides, and stops
+    # workers itself; a worker whose parent died sees its pipe close and exits.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    config = RunConfig.model_validate_json(config_json)
+    cfg = config.controller.gnp_config()
+    world = _make_world(config, n)
+    try:
+        while True:
+            job = conn.recv()
+            if job is None:
+                break
+            conn.send(_run_job(world, cfg, config.training, job))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+
+
+class ProcessEvaluator:
+    """Persistent `spawn` worker processes, each owning a world of its contiguous share."""
+
+    def __init__(self, config: RunConfig, workers: int) -> None:
+        self._cfg = config.controller.gnp_config()
+        population = config.training.population
+        bounds = np.linspace(0, population, workers + 1).round().astype(int)
+        self._slices = [slice(a, b) for a, b in itertools.pairwise(bounds)]
+        context = multiprocessing.get_context("spawn")
+        self._busy = False
+        self._conns: list[Connection] = []
+        self._procs: list[Any] = []
+        for part in self._slices:
+            parent, child = context.Pipe()
+            proc = context.Process(
+                target=_worker_main,
+                args=(child, config.model_dump_json(), part.stop - part.start),
+                daemon=True,
+            )
+            proc.start()
+            child.close()
+            self._conns.append(parent)
+            self._procs.append(proc)
+
+    def evaluate(
+        self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
+    ) -> tuple[Lives, gnp.Population]:
+        arrays = gnp.population_to_arrays(pop)
+        self._busy = True
+        for conn, part in zip(self._conns, self._slices, strict=True):
+            share = {name: values[part] for name, values in arrays.items()}
+            conn.send(_Job(share, seeds.take(part), epsilon, alpha))
+        results = []
+        for conn, proc in zip(self._conns, self._procs, strict=True):
+            try:
+                results.append(conn.recv())
+            except (EOFError, ConnectionResetError):
+                raise TrainingError(f"a worker process died (exit code {proc.exitcode})") from None
+        self._busy = False
+        lives = Lives(
+            fitness=np.concatenate([r[0].fitness for r in results]),
+            terms=np.concatenate([r[0].terms for r in results]),
+        )
+        learned = {name: np.concatenate([r[1][name] for r in results]) for name in arrays}
+        return lives, gnp.population_from_arrays(self._cfg, learned)
+
+    def close(self) -> None:
+        busy = self._busy  # interrupted mid-generation: the workers' results are not wanted
+        for conn in self._conns:
+            with contextlib.suppress(BrokenPipeError, OSError):
+                conn.send(None)
+        for proc in self._procs:
+            proc.join(timeout=0 if busy else 5)
+            if proc.is_alive():
+                proc.kill()
+                proc.join()
+        for conn in self._conns:
+            conn.close()
+
+
+def make_evaluator(config: RunConfig, workers: int) -> Evaluator:
+    """In-process for one worker, else that many persistent worker processes."""
+    workers = max(1, min(workers, config.training.population))
+    return LocalEvaluator(config) if workers == 1 else ProcessEvaluator(config, workers)
+
+
+def default_workers() -> int:
+    """One worker per core."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+# --- the loop -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GenerationSummary:
+    """What a progress display needs after each generation."""
+
+    generation: int
+    generations: int
+    best_fitness: float
+    mean_fitness: float
+    seconds: float
+
+
+ProgressCallback = Callable[[GenerationSummary], None]
+
+
+@contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt (as Ctrl-C) while training, in the main thread."""
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+
+        def handler(signum: int, frame: Any) -> None:
+            raise KeyboardInterrupt
+
+        signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tuple[float, float]:
+    """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
+    eps_schedule, alpha_schedule = training.schedules()
+    return gnp.epsilon_alpha_over_generations(
+        eps_schedule, alpha_schedule, generation, training.generations
+    )
+
+
+def _train_from(
+    writer: RunWriter,
+    start: int,
+    pop: gnp.Population,
+    workers: int,
+    progress: ProgressCallback | None,
+) -> None:
+    config = writer.config
+    training = config.training
+    cfg = config.controller.gnp_config()
+    arena = sim.load_arena(training.arena)
+    segments = n_segments(training.steps, training.redraw_every)
+    everyone = np.arange(training.population)
+    evaluator = make_evaluator(config, workers)
+    done = start
+    try:
+        with _stop_on_sigterm():
+            for generation in range(start, training.generations):
+                began = time.perf_counter()
+                epsilon, alpha = generation_epsilon_alpha(training, generation)
+                seeds = life_seeds(
+                    config.seed, generation, everyone, segments, len(arena.start_poses)
+                )
+                lives, learned = evaluator.evaluate(pop, seeds, epsilon, alpha)
+                best = int(np.argmax(lives.fitness))
+                writer.write_generation(
+                    generation,
+                    fitness=lives.fitness,
+                    best_terms=dict(zip(TERM_NAMES, lives.terms[best], strict=True)),
+                    mean_terms=dict(zip(TERM_NAMES, lives.terms.mean(axis=0), strict=True)),
+                    epsilon=epsilon,
+                    alpha=alpha,
+                    best_genome=gnp.population_to_arrays(gnp.take(learned, [best])),
+                )
+                last = generation + 1 == training.generations
+                if last:
+                    elite_life = _replay(config, cfg, arena, pop, best, seeds, epsilon, alpha)
+                else:
+                    pop_next = gnp.evolve(
+                        cfg,
+                        learned,
+                        lives.fitness,
+                        generation,
+                        training.generations,
+                        evolution_rng(config.seed, generation),
+                        config.evolution,
+                    )
+                    if (generation + 1) % training.checkpoint_every == 0:
+                        writer.write_checkpoint(generation + 1, gnp.population_to_arrays(pop_next))
+                writer.mark_done(generation + 1)
+                done = generation + 1
+                if progress is not None:
+                    progress(
+                        GenerationSummary(
+                            generation=generation,
+                            generations=training.generations,
+                            best_fitness=float(lives.fitness[best]),
+                            mean_fitness=float(lives.fitness.mean()),
+                            seconds=time.perf_counter() - began,
+                        )
+                    )
+                if last:
+                    writer.write_elite(generation, elite_life)
+                else:
+                    pop = pop_next
+    except KeyboardInterrupt:
+        raise Interrupted(done) from None
+    finally:
+        evaluator.close()
+        writer.close()
+
+
+def _replay(
+    config: RunConfig,
+    cfg: gnp.GnpConfig,
+    arena: sim.Arena,
+    pop: gnp.Population,
+    best: int,
+    seeds: LifeSeeds,
+    epsilon: float,
+    alpha: float,
+) -> Trajectory:
+    """Live the best individual's evaluation again, recording it (it is bit-identical)."""
+    training = config.training
+    world = sim.World(
+        arena,
+        n=1,
+        seed=config.seed,
+        noise_sigma=training.noise_sigma,
+        control_period=training.control_period,
+    )
+    _, trajectory = live(
+        world,
+        cfg,
+        gnp.take(pop, [best]),
+        seeds.take(slice(best, best + 1)),
+        training.steps,
+        training.redraw_every,
+        epsilon,
+        alpha,
+        record=True,
+    )
+    assert trajectory is not None
+    return trajectory
+
+
+def run_template(config: RunConfig) -> RunTemplate:
+    """The shapes a run file of this config needs."""
+    cfg = config.controller.gnp_config()
+    genome = gnp.population_to_arrays(gnp.init_population(cfg, 1, np.random.default_rng(0)))
+    return RunTemplate(config=config, genome=genome, trace=trace_template(cfg))
+
+
+def train(
+    config: RunConfig,
+    out: str | Path,
+    *,
+    workers: int = 1,
+    progress: ProgressCallback | None = None,
+) -> Path:
+    """Run the training phase of `config` into a new run file `out`.
+
+    Raises:
+        RunFileError: `out` exists or cannot be created.
+        Interrupted: Ctrl-C / SIGTERM; the file holds every completed generation.
+        TrainingError: a worker process died.
+    """
+    sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
+    pop = initial_population(config)
+    writer = RunWriter.create(out, run_template(config))
+    writer.write_checkpoint(0, gnp.population_to_arrays(pop))
+    writer.mark_done(0)
+    _train_from(writer, 0, pop, workers, progress)
+    return writer.path
+
+
+def resume(path: str | Path, *, workers: int = 1, progress: ProgressCallback | None = None) -> Path:
+    """Continue an interrupted run from its last checkpoint; the result matches an
+    uninterrupted run of the same config and seed.
+
+    Raises:
+        RunFileError: not a resumable run.
+    """
+    writer, generation, arrays = RunWriter.resume(path)
+    pop = gnp.population_from_arrays(writer.config.controller.gnp_config(), arrays)
+    _train_from(writer, generation, pop, workers, progress)
+    return writer.path
