@@ -1,0 +1,482 @@
+"""A batch of Khepera robots, each in its own copy of an arena, in pymunk spaces."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Literal, cast
+
+import numpy as np
+import pymunk
+import pymunk.batch as pb
+
+from sim import kernels
+from sim.arena import Arena
+from sim.khepera import (
+    BODY_RADIUS_MM,
+    CONTROL_PERIOD_S,
+    MASS,
+    MOMENT,
+    N_SENSORS,
+)
+
+FaultMode = Literal["dead", "saturated", "stuck", "random"]
+FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
+"""Fault modes; their codes in ``World.fault_modes`` are 1..4 in this order (0 = healthy)."""
+
+WALL_CATEGORY = 0b01
+ROBOT_CATEGORY = 0b10
+WALL_FILTER = pymunk.ShapeFilter(categories=WALL_CATEGORY, mask=ROBOT_CATEGORY)
+"""Walls collide with robots only."""
+ROBOT_FILTER = pymunk.ShapeFilter(categories=ROBOT_CATEGORY, mask=WALL_CATEGORY)
+"""Robots collide with walls only: robots in one space never touch each other."""
+RAY_FILTER = pymunk.ShapeFilter(mask=WALL_CATEGORY)
+"""What a sensor ray sees: walls."""
+
+COPY_REGION_MM = (32768.0, 65536.0)
+"""All copies of the arena lie in this range on both axes: there every float64 has the same
+spacing (2⁻³⁷ mm), so moving a copy by a whole number of millimetres changes no rounding, and a
+robot's trajectory is bit-identical whichever copy it is in."""
+COPY_MARGIN_MM = 64
+DEFAULT_SUBSTEPS = 2
+
+
+class WorldError(ValueError):
+    """Bad input to a ``World`` (shapes, ranges, sensor or robot indices, fault modes)."""
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A scheduled sensor fault.
+
+    Attributes:
+        step: The world step (``world.t``) at which the sensors break.
+        sensors: Sensor indices 0..7.
+        mode: ``dead`` (reads 0), ``saturated`` (1023), ``stuck`` (keeps the value it showed when
+            it broke) or ``random`` (uniform in 0..1023 each step).
+        robots: Robot indices, or None for every robot.
+    """
+
+    step: int
+    sensors: tuple[int, ...]
+    mode: FaultMode = "dead"
+    robots: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.step, bool) or not isinstance(self.step, int | np.integer):
+            raise WorldError(f"Fault.step must be an int, got {self.step!r}")
+        if self.step < 0:
+            raise WorldError(f"Fault.step must be ≥ 0, got {self.step}")
+        object.__setattr__(self, "sensors", tuple(int(s) for s in _check_sensors(self.sensors)))
+        _mode_code(self.mode)
+        if self.robots is not None:
+            object.__setattr__(self, "robots", tuple(int(r) for r in self.robots))
+
+
+def _check_sensors(sensors: int | Iterable[int]) -> np.ndarray:
+    items = [sensors] if isinstance(sensors, int | np.integer) else list(sensors)
+    if not items:
+        raise WorldError("no sensors given: expected indices in 0..7")
+    for s in items:
+        if isinstance(s, bool) or not isinstance(s, int | np.integer) or not 0 <= s < N_SENSORS:
+            raise WorldError(f"sensor index {s!r} is not in 0..{N_SENSORS - 1}")
+    return np.array(items, dtype=np.int64)
+
+
+def _mode_code(mode: str) -> int:
+    if mode not in FAULT_MODES:
+        raise WorldError(f"unknown fault mode {mode!r}: expected one of {', '.join(FAULT_MODES)}")
+    return FAULT_MODES.index(cast(FaultMode, mode)) + 1
+
+
+class _Chunk:
+    """One pymunk space holding a run of robots, each with its own copy of the arena."""
+
+    def __init__(self, arena: Arena, offsets: np.ndarray) -> None:
+        self.offsets = offsets
+        self.space = pymunk.Space()
+        self.space.damping = 0.0  # velocity = force·dt/m each substep: the force drive
+        self.space.gravity = (0.0, 0.0)
+        walls = []
+        for offset in offsets:
+            for a, b in arena.walls + offset:
+                seg = pymunk.Segment(self.space.static_body, tuple(a), tuple(b), 0.0)
+                seg.filter = WALL_FILTER
+                seg.friction = 0.0
+                seg.elasticity = 0.0
+                walls.append(seg)
+        self.space.add(*walls)
+        self.bodies = []
+        self.shapes = []
+        for _ in offsets:
+            body = pymunk.Body(MASS, MOMENT)
+            shape = pymunk.Circle(body, BODY_RADIUS_MM)
+            shape.filter = ROBOT_FILTER
+            shape.friction = 0.0
+            shape.elasticity = 0.0
+            self.bodies.append(body)
+            self.shapes.append(shape)
+        self.ids = {body.id: i for i, body in enumerate(self.bodies)}
+        self.added = np.zeros(len(offsets), dtype=bool)
+        self.buffer = pb.Buffer()  # for reading; chipmunk owns (and grows) its arrays
+        self.set_buffer = pb.Buffer()  # for writing; points at self.forces
+        self.rows = np.arange(len(offsets))  # buffer row of each robot
+        self.n_rows = 0
+        self.forces = np.zeros((0, 3))
+
+    def place(self, local: Sequence[int], poses: np.ndarray) -> None:
+        """Remove robots ``local`` and add them back, at rest, at arena-local ``poses``."""
+        for i, pose in zip(local, poses, strict=True):
+            body, shape = self.bodies[i], self.shapes[i]
+            if self.added[i]:
+                self.space.remove(body, shape)
+            body.position = (pose[0] + self.offsets[i, 0], pose[1] + self.offsets[i, 1])
+            body.angle = pose[2]
+            body.velocity = (0.0, 0.0)
+            body.angular_velocity = 0.0
+            body.force = (0.0, 0.0)
+            body.torque = 0.0
+            self.space.add(body, shape)
+            self.added[i] = True
+        self.buffer.clear()
+        pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, self.buffer)
+        ids = np.frombuffer(self.buffer.int_buf(), dtype=np.uintp)
+        for row, body_id in enumerate(ids):
+            robot = self.ids.get(int(body_id))
+            if robot is not None:
+                self.rows[robot] = row
+        self.n_rows = len(ids)
+        self.forces = np.zeros((self.n_rows, 3))
+        self.set_buffer.set_float_buf(self.forces.reshape(-1))
+
+    def read_poses(self, out: np.ndarray) -> None:
+        """Arena-local poses of this chunk's robots into out (n, 3)."""
+        self.buffer.clear()
+        pb.get_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self.buffer)
+        rows = np.frombuffer(self.buffer.float_buf()).reshape(-1, 3)[self.rows]
+        out[:, :2] = rows[:, :2] - self.offsets
+        out[:, 2] = rows[:, 2]
+
+    def substep(self, angles: np.ndarray, commands: np.ndarray, dt: float) -> None:
+        kernels.drive_forces(angles, commands, self.rows, dt, self.forces)
+        pb.set_space_bodies(self.space, pb.BodyFields.FORCE | pb.BodyFields.TORQUE, self.set_buffer)
+        self.space.step(dt)
+
+
+def _copy_offsets(arena: Arena, count: int) -> tuple[np.ndarray, int]:
+    """Whole-millimetre offsets of ``count`` arena copies inside ``COPY_REGION_MM``."""
+    xmin, ymin, xmax, ymax = arena.bounds
+    cell = int(np.ceil(max(xmax - xmin, ymax - ymin))) + 2 * COPY_MARGIN_MM
+    lo, hi = COPY_REGION_MM
+    per_axis = int((hi - lo - 2 * COPY_MARGIN_MM) // cell)
+    capacity = per_axis * per_axis
+    slots = np.arange(count) % capacity
+    col, row = slots % per_axis, slots // per_axis
+    origin_x = lo + 2 * COPY_MARGIN_MM - np.floor(xmin)
+    origin_y = lo + 2 * COPY_MARGIN_MM - np.floor(ymin)
+    offsets = np.stack([origin_x + col * cell, origin_y + row * cell], axis=1)
+    return offsets.astype(np.float64), capacity
+
+
+class World:
+    """N Khepera I robots, each alone in its own copy of an arena.
+
+    Poses in and out are arena-local: x mm, y mm, heading rad (0 = +x, counter-clockwise).
+    A robot's trajectory and random draws depend only on its own pose, commands and seed, never
+    on the other robots in the batch.
+
+    Args:
+        arena: The arena.
+        n: Number of robots.
+        seed: World seed; the default per-robot seeds derive from it (see ``reset``).
+        noise_sigma: σ of the Gaussian sensor noise of Eq. 2.6 (reading units), settable.
+        control_period: Simulated seconds per ``step``.
+        substeps: Physics steps per control period.
+    """
+
+    def __init__(
+        self,
+        arena: Arena,
+        n: int = 300,
+        seed: int = 0,
+        noise_sigma: float = 0.0,
+        control_period: float = CONTROL_PERIOD_S,
+        substeps: int = DEFAULT_SUBSTEPS,
+    ) -> None:
+        if not isinstance(arena, Arena):
+            raise WorldError(f"arena must be a sim.Arena (see sim.load_arena), got {arena!r}")
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise WorldError(f"n (number of robots) must be a positive int, got {n!r}")
+        if not (np.isfinite(control_period) and control_period > 0):
+            raise WorldError(f"control_period must be > 0 seconds, got {control_period!r}")
+        if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+            raise WorldError(f"substeps must be a positive int, got {substeps!r}")
+        self.arena = arena
+        self.n = int(n)
+        self.seed = int(seed)
+        self.control_period = float(control_period)
+        self.substeps = substeps
+        self.noise_sigma = noise_sigma
+        offsets, capacity = _copy_offsets(arena, self.n)
+        self._walls = np.ascontiguousarray(arena.walls, dtype=np.float64)
+        self._chunks = [
+            _Chunk(arena, offsets[start : start + capacity]) for start in range(0, self.n, capacity)
+        ]
+        self._capacity = capacity
+        self._poses = np.zeros((self.n, 3))
+        self._readings = np.zeros((self.n, N_SENSORS))
+        self._observed = np.zeros((self.n, N_SENSORS))
+        self._commands = np.zeros((self.n, 2))
+        self._fault_mode = np.zeros((self.n, N_SENSORS), dtype=np.int8)
+        self._stuck = np.zeros((self.n, N_SENSORS))
+        self._schedule: list[Fault] = []
+        self._episode = 0
+        self._seeds = np.zeros(self.n, dtype=np.uint64)
+        self._keys = np.zeros(self.n, dtype=np.uint64)
+        self._fresh = False
+        self.t = 0
+        self.reset(np.resize(arena.start_poses, (self.n, 3)))
+
+    # --- state ---
+
+    @property
+    def noise_sigma(self) -> float:
+        """σ of the sensor noise (reading units); 0 turns it off."""
+        return self._noise_sigma
+
+    @noise_sigma.setter
+    def noise_sigma(self, value: float) -> None:
+        if not (np.isfinite(value) and value >= 0):
+            raise WorldError(f"noise_sigma must be a finite number ≥ 0, got {value!r}")
+        self._noise_sigma = float(value)
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(N, 3) arena-local poses: x mm, y mm, heading rad in [-π, π)."""
+        poses = self._poses.copy()
+        poses[:, 2] = np.mod(poses[:, 2] + np.pi, 2 * np.pi) - np.pi
+        return poses
+
+    @property
+    def seeds(self) -> np.ndarray:
+        """(N,) uint64 per-robot seeds of the current episode."""
+        return self._seeds.copy()
+
+    @property
+    def broken(self) -> np.ndarray:
+        """(N, 8) bool: which sensors are broken."""
+        return self._fault_mode > 0
+
+    @property
+    def fault_modes(self) -> np.ndarray:
+        """(N, 8) int8: 0 healthy, else 1 + the index of the mode in ``FAULT_MODES``."""
+        return self._fault_mode.copy()
+
+    @property
+    def schedule(self) -> tuple[Fault, ...]:
+        """Scheduled faults (they persist across resets)."""
+        return tuple(self._schedule)
+
+    # --- episode control ---
+
+    def reset(self, poses: np.ndarray, seeds: np.ndarray | Sequence[int] | None = None) -> None:
+        """Start an episode: place every robot at rest, repair all sensors, set ``t`` to 0.
+
+        Args:
+            poses: (N, 3) arena-local start poses.
+            seeds: (N,) non-negative ints, each robot's random stream (noise, random faults).
+                Default: derived from (world seed, episode number, robot index), so every reset
+                draws fresh noise. Pass ``world.seeds[i]`` to replay robot i elsewhere.
+        """
+        poses = self._check_poses(poses, self.n)
+        if seeds is None:
+            new_seeds = kernels.derive_seeds(
+                np.uint64(self.seed % 2**64), np.uint64(self._episode), self.n
+            )
+        else:
+            raw = np.asarray(seeds)
+            if raw.shape != (self.n,) or not np.issubdtype(raw.dtype, np.integer):
+                raise WorldError(f"seeds must be {self.n} ints, got shape {raw.shape} {raw.dtype}")
+            if np.any(raw < 0):
+                raise WorldError("seeds must be ≥ 0")
+            new_seeds = raw.astype(np.uint64)
+        self._episode += 1
+        self._seeds = new_seeds
+        self._keys = kernels.robot_keys(new_seeds)
+        self.t = 0
+        self._fault_mode[:] = 0
+        self._stuck[:] = 0.0
+        self._place_all(np.arange(self.n), poses)
+        self._fire_scheduled()
+
+    def place(self, poses: np.ndarray, robots: Sequence[int] | np.ndarray | None = None) -> None:
+        """Move robots to new poses, at rest, keeping the clock, faults and random streams.
+
+        Args:
+            poses: (R, 3) arena-local poses for the R chosen robots.
+            robots: Robot indices; None for all.
+        """
+        index = self._robot_index(robots)
+        self._place_all(index, self._check_poses(poses, len(index)))
+
+    def _place_all(self, index: np.ndarray, poses: np.ndarray) -> None:
+        cap = self._capacity
+        for c, chunk in enumerate(self._chunks):
+            mine = (index >= c * cap) & (index < (c + 1) * cap)
+            if np.any(mine):
+                chunk.place(list(index[mine] - c * cap), poses[mine])
+        self._read_poses()
+
+    def _check_poses(self, poses: np.ndarray, count: int) -> np.ndarray:
+        poses = np.array(poses, dtype=np.float64)
+        if poses.shape != (count, 3):
+            raise WorldError(f"poses must have shape ({count}, 3), got {poses.shape}")
+        if not np.all(np.isfinite(poses)):
+            raise WorldError("poses contain NaN or infinity")
+        free = self.arena.contains(poses[:, :2]) & (
+            self.arena.clearance(poses[:, :2]) > BODY_RADIUS_MM
+        )
+        if not np.all(free):
+            bad = int(np.argmin(free))
+            raise WorldError(
+                f"pose {bad} {tuple(poses[bad])} is not in free space of arena "
+                f"{self.arena.name!r}: the robot (radius {BODY_RADIUS_MM} mm) must be inside "
+                "the outer wall, outside obstacles and clear of every wall"
+            )
+        return poses
+
+    def _robot_index(self, robots: Sequence[int] | np.ndarray | None) -> np.ndarray:
+        if robots is None:
+            return np.arange(self.n)
+        index = np.asarray(robots)
+        if index.dtype == bool:
+            if index.shape != (self.n,):
+                raise WorldError(f"a robot mask must have shape ({self.n},), got {index.shape}")
+            return np.flatnonzero(index)
+        index = index.reshape(-1)
+        if index.size and not np.issubdtype(index.dtype, np.integer):
+            raise WorldError(f"robot indices must be ints, got {index.dtype}")
+        index = index.astype(np.int64)
+        if np.any((index < 0) | (index >= self.n)):
+            raise WorldError(f"robot indices must be in 0..{self.n - 1}, got {index.tolist()}")
+        return np.unique(index)
+
+    def _read_poses(self) -> None:
+        cap = self._capacity
+        for c, chunk in enumerate(self._chunks):
+            chunk.read_poses(self._poses[c * cap : c * cap + len(chunk.offsets)])
+        self._fresh = False
+
+    # --- sensing and acting ---
+
+    def sense(self) -> np.ndarray:
+        """(N, 8) true IR readings s0..s7 in 0..1023 (no noise, no fault)."""
+        self._update_readings()
+        return self._readings.copy()
+
+    def _update_readings(self) -> None:
+        if not self._fresh:
+            kernels.ir_readings(self._poses, self._walls, self._readings)
+            self._fresh = True
+
+    def observe(self) -> np.ndarray:
+        """(N, 8) what the controller sees: true readings, Eq. 2.6 noise, then faults.
+
+        Draws are a function of (robot seed, ``t``, sensor): observing twice in a step gives the
+        same values.
+        """
+        self._update_readings()
+        kernels.observe(
+            self._readings,
+            self._keys,
+            np.uint64(self.t),
+            self._noise_sigma,
+            self._fault_mode,
+            self._stuck,
+            self._observed,
+        )
+        return self._observed.copy()
+
+    def step(self, commands: np.ndarray) -> None:
+        """Advance one control period.
+
+        Args:
+            commands: (N, 2) left, right wheel commands (rad/s), clipped to −10..10.
+        """
+        raw = np.asarray(commands, dtype=np.float64)
+        if raw.shape != (self.n, 2):
+            raise WorldError(f"commands must have shape ({self.n}, 2), got {raw.shape}")
+        if not kernels.clip_commands(raw, self._commands):
+            raise WorldError("commands contain NaN")
+        dt = self.control_period / self.substeps
+        cap = self._capacity
+        for c, chunk in enumerate(self._chunks):
+            part = slice(c * cap, c * cap + len(chunk.offsets))
+            for k in range(self.substeps):
+                if k > 0:
+                    chunk.read_poses(self._poses[part])
+                chunk.substep(self._poses[part, 2], self._commands[part], dt)
+            chunk.read_poses(self._poses[part])
+        self._fresh = False
+        self.t += 1
+        self._fire_scheduled()
+
+    # --- faults ---
+
+    def break_sensors(
+        self,
+        sensors: int | Iterable[int],
+        mode: FaultMode = "dead",
+        robots: Sequence[int] | np.ndarray | None = None,
+    ) -> None:
+        """Break sensors now (between two steps).
+
+        Args:
+            sensors: Sensor index or indices in 0..7.
+            mode: ``dead``, ``saturated``, ``stuck`` or ``random``.
+            robots: Robot indices or an (N,) bool mask; None for all.
+        """
+        which = _check_sensors(sensors)
+        code = _mode_code(mode)
+        index = self._robot_index(robots)
+        if code == FAULT_MODES.index("stuck") + 1:
+            seen = self.observe()
+            rows = np.ix_(index, which)
+            self._stuck[rows] = seen[rows]
+        self._fault_mode[np.ix_(index, which)] = code
+
+    def repair(
+        self,
+        robots: Sequence[int] | np.ndarray | None = None,
+        sensors: int | Iterable[int] | None = None,
+    ) -> None:
+        """Repair sensors (all of them by default) of the given robots (all by default)."""
+        index = self._robot_index(robots)
+        which = np.arange(N_SENSORS) if sensors is None else _check_sensors(sensors)
+        self._fault_mode[np.ix_(index, which)] = 0
+
+    def schedule_faults(self, faults: Iterable[Fault]) -> None:
+        """Replace the fault schedule. A fault fires when ``t`` reaches its step, in this and
+        every later episode; one whose step is now or past fires at once."""
+        faults = list(faults)
+        for f in faults:
+            if not isinstance(f, Fault):
+                raise WorldError(f"schedule_faults takes sim.Fault objects, got {f!r}")
+            if f.robots is not None:
+                self._robot_index(list(f.robots))
+        self._schedule = faults
+        for f in faults:
+            if f.step <= self.t:
+                self.break_sensors(f.sensors, f.mode, f.robots)
+
+    def _fire_scheduled(self) -> None:
+        for f in self._schedule:
+            if f.step == self.t:
+                self.break_sensors(f.sensors, f.mode, f.robots)
+
+    # --- views for the dashboard and the tests ---
+
+    def space_of(self, robot: int) -> tuple[pymunk.Space, np.ndarray]:
+        """The pymunk space holding a robot and its copy offset (for oracles and debugging)."""
+        chunk = self._chunks[robot // self._capacity]
+        return chunk.space, chunk.offsets[robot % self._capacity]
