@@ -1,0 +1,102 @@
+"""What the dashboard reads from one GNP individual: node kinds, columns, edges, and the
+inspector's text for a node (sub nodes, parameters, connections, Q values)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import gnp
+from app.dashboard.graph_layout import JUDGMENT, START, WHEEL_NAMES
+
+
+@dataclass(frozen=True)
+class GenomeView:
+    """The static shape of an individual's graph.
+
+    Attributes:
+        kinds: (V,) START, JUDGMENT or PROCESSING.
+        column_function: (V,) sensor or wheel of each node's first sub node (its column).
+        edges: (E, 2) distinct (from, to) node pairs over every connection the individual has
+            (both branches, every BS branch connection, CS credit branches).
+    """
+
+    method: str
+    kinds: np.ndarray
+    column_function: np.ndarray
+    edges: np.ndarray
+
+
+def genome_view(cfg: gnp.GnpConfig, population: gnp.Population) -> GenomeView:
+    """The graph of individual 0 of `population`."""
+    kinds = np.asarray(cfg.node_type, np.int64)
+    function = population.function[0]
+    conn = population.conn[0]  # (V, m, 2, U)
+    pairs = []
+    for node, kind in enumerate(kinds):
+        if kind == START:
+            targets = conn[node, 0, 0, :1]
+        elif kind == JUDGMENT:
+            targets = conn[node].reshape(-1)
+        else:
+            targets = conn[node, :, 0, :].reshape(-1)
+        if cfg.method == "CS" and kind != START:
+            targets = np.concatenate([targets, population.credit[0, node]])
+        pairs.extend((node, int(t)) for t in targets)
+    edges = np.unique(np.array(pairs, np.int64).reshape(-1, 2), axis=0)
+    return GenomeView(cfg.method, kinds, function[:, 0].astype(np.int64), edges)
+
+
+def node_label(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> str:
+    """Short name of a node: `12 · J s3/s5` (judgment, sensors of its sub nodes), `47 · P right`."""
+    kind = int(cfg.node_type[node])
+    if kind == START:
+        return f"{node} · start"
+    functions = population.function[0, node]
+    if kind == JUDGMENT:
+        return f"{node} · J " + "/".join(f"s{f}" for f in functions)
+    return f"{node} · P " + "/".join(WHEEL_NAMES[f].split()[1] for f in functions)
+
+
+def node_markdown(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> str:
+    """The inspector's view of one node: a table row per sub node with its Q values."""
+    kind = int(cfg.node_type[node])
+    pop = population
+    if kind == START:
+        return f"**Node {node}: start** → node {int(pop.conn[0, node, 0, 0, 0])}"
+    lines = [f"**Node {node_label(cfg, pop, node)}** ({cfg.method}, m = {cfg.n_sub})", ""]
+    u = cfg.n_conn_branches
+    if kind == JUDGMENT:
+        header = "| sub | sensor | β..α | → A | → B | Q_SS |"
+    else:
+        header = "| sub | wheel | speed | → | Q_SS |"
+    extra = {"BS": " Q_BS A / B (per u) |", "CS": " Q_CS normal / credit | credit → |"}
+    header += extra.get(cfg.method, "")
+    lines += [header, _rule(header)]
+    for p in range(cfg.n_sub):
+        a_targets = ",".join(str(int(t)) for t in pop.conn[0, node, p, 0, :u])
+        q_ss = f"{pop.q_ss[0, node, p]:.3f}"
+        if kind == JUDGMENT:
+            row = (
+                f"| {p} | s{int(pop.function[0, node, p])} | "
+                f"{int(pop.mu_beta[0, node, p])}..{int(pop.mu_alpha[0, node, p])} | "
+                f"{a_targets} | {','.join(str(int(t)) for t in pop.conn[0, node, p, 1, :u])} | "
+                f"{q_ss} |"
+            )
+        else:
+            wheel = WHEEL_NAMES[int(pop.function[0, node, p])]
+            row = f"| {p} | {wheel} | {int(pop.speed[0, node, p]):+d} | {a_targets} | {q_ss} |"
+        if cfg.method == "BS":
+            q_a = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 0, :u])
+            q_b = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 1, :u])
+            row += f" {q_a} / {q_b} |" if kind == JUDGMENT else f" {q_a} |"
+        elif cfg.method == "CS":
+            q_n, q_c = pop.q_cs[0, node, p]
+            row += f" {q_n:.3f} / {q_c:.3f} | {int(pop.credit[0, node, p])} |"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def _rule(header: str) -> str:
+    return "|" + "---|" * (header.count("|") - 1)

@@ -1,0 +1,143 @@
+"""The dashboard's uPlot charts: reward per step (live), fitness per generation, implementation.
+
+Series data are bounded (the live history holds the last 1000 steps; the implementation curve
+is block-averaged to at most `MAX_POINTS`), so a long session never grows a chart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import viser
+
+from app.dashboard.scene import ROBOT_COLORS
+from app.live import RobotSnapshot
+
+MAX_POINTS = 600
+SMOOTH = 50
+X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
+FAULT_STYLE: dict[str, Any] = {"stroke": "#e61414", "dash": (6.0, 4.0), "width": 1.5}
+
+
+def _rgb(color: tuple[int, int, int], alpha: float = 1.0) -> str:
+    return f"rgba({color[0]}, {color[1]}, {color[2]}, {alpha})"
+
+
+def _empty(n_series: int) -> tuple[np.ndarray, ...]:
+    return tuple(np.zeros(1) for _ in range(n_series))
+
+
+def _reward_series(labels: Sequence[str]) -> tuple[dict[str, Any], ...]:
+    series: list[dict[str, Any]] = [{"label": "step"}]
+    for i, label in enumerate(labels):
+        color = ROBOT_COLORS[i]
+        series.append({"label": f"{label}", "stroke": _rgb(color, 0.25), "width": 1.0})
+        series.append(
+            {"label": f"{label} ({SMOOTH}-step mean)", "stroke": _rgb(color), "width": 2.5}
+        )
+    series.append({"label": "broken sensors", "scale": "n", **FAULT_STYLE})
+    return tuple(series)
+
+
+def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
+    """Reward per step of the robots on show; broken-sensor count on the right axis."""
+    series = _reward_series(["robot"])
+    return gui.add_uplot(
+        data=_empty(len(series)),
+        series=series,  # type: ignore[arg-type]
+        title="Reward per step (robots on show)",
+        scales={**X_NOT_TIME, "y": {"range": (0.0, 1.0)}, "n": {"range": (0.0, 8.0)}},
+        axes=({}, {"scale": "y"}, {"scale": "n", "side": 1, "grid": {"show": False}}),
+        aspect=1.6,
+    )
+
+
+def set_reward_series(plot: viser.GuiUplotHandle, labels: Sequence[str]) -> None:
+    """Re-label the reward chart for the robots now on show (one or two)."""
+    series = _reward_series(labels)
+    plot.data = _empty(len(series))
+    plot.series = series  # type: ignore[assignment]
+
+
+def moving_mean(values: np.ndarray, window: int) -> np.ndarray:
+    """Trailing mean over up to `window` values (shorter at the start), same length."""
+    values = np.asarray(values, np.float64)
+    if len(values) == 0:
+        return values
+    cumulative = np.concatenate([[0.0], np.cumsum(values)])
+    index = np.arange(1, len(values) + 1)
+    lower = np.maximum(0, index - window)
+    return (cumulative[index] - cumulative[lower]) / (index - lower)
+
+
+def set_rewards(plot: viser.GuiUplotHandle, robots: Sequence[RobotSnapshot]) -> None:
+    """Feed the chart the robots' reward histories (they step together: shared x)."""
+    n = min(len(r.rewards) for r in robots)
+    if n == 0:
+        return
+    steps = robots[0].reward_steps[-n:].astype(np.float64)
+    data: list[np.ndarray] = [steps]
+    for robot in robots:
+        rewards = robot.rewards[-n:]
+        data += [rewards, moving_mean(rewards, SMOOTH)]
+    data.append(robots[0].broken_counts[-n:].astype(np.float64))
+    if len(data) == len(plot.series):
+        plot.data = tuple(data)
+
+
+def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
+    """Best and mean fitness (Eq. 2.8) per generation."""
+    return gui.add_uplot(
+        data=_empty(3),
+        series=(
+            {"label": "generation"},
+            {"label": "best", "stroke": "#1f6fd0", "width": 2.0},
+            {"label": "mean", "stroke": "#5aa05a", "width": 2.0},
+        ),
+        title="Fitness per generation",
+        scales=X_NOT_TIME,
+        aspect=1.8,
+    )
+
+
+def set_fitness(plot: viser.GuiUplotHandle, best: np.ndarray, mean: np.ndarray) -> None:
+    generations = np.arange(len(best), dtype=np.float64)
+    if len(best) == 0:
+        plot.data = _empty(3)
+        return
+    plot.data = (generations, np.asarray(best, np.float64), np.asarray(mean, np.float64))
+
+
+def block_mean(values: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """(x, y): `values` averaged over equal blocks so that at most `max_points` remain; x is
+    the first step of each block."""
+    values = np.asarray(values, np.float64)
+    block = max(1, int(np.ceil(len(values) / max_points)))
+    n_blocks = int(np.ceil(len(values) / block))
+    padded = np.full(n_blocks * block, np.nan)
+    padded[: len(values)] = values
+    y = np.nanmean(padded.reshape(n_blocks, block), axis=1)
+    return np.arange(n_blocks, dtype=np.float64) * block, y
+
+
+def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
+    """Mean reward per step over the trials of an implementation phase; the fault step."""
+    return gui.add_uplot(
+        data=_empty(3),
+        series=(
+            {"label": "step"},
+            {"label": "mean reward/step over trials", "stroke": "#8a3ab9", "width": 2.0},
+            {"label": "sensors broken", "scale": "n", **FAULT_STYLE},
+        ),
+        title="Implementation phase",
+        scales={**X_NOT_TIME, "n": {"range": (0.0, 1.0)}},
+        axes=({}, {}, {"scale": "n", "show": False}),
+        aspect=1.8,
+    )
+
+
+def set_implementation(plot: viser.GuiUplotHandle, reward: np.ndarray, fault_step: int) -> None:
+    x, y = block_mean(reward, MAX_POINTS)
+    plot.data = (x, y, (x >= fault_step).astype(np.float64))

@@ -1,0 +1,344 @@
+"""The 3D scene seen from above: the arena with its robots, and the node-transition graph beside it.
+
+Everything is drawn with line segments (screen-thick, cheap) and point clouds; per-frame updates
+assign new arrays of a fixed shape to existing handles, so a long session never adds nodes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+import sim
+from app.dashboard import geometry as geo
+from app.dashboard.genome import GenomeView
+from app.dashboard.graph_layout import JUDGMENT, PROCESSING, START, GraphLayout, graph_layout
+from app.live import RobotSnapshot
+
+ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
+"""Robot 1 blue, robot 2 orange (also their reward curves)."""
+BROKEN_RED = (230, 20, 20)
+WALL_COLOR = (40, 40, 48)
+BODY_RADIUS_MM = 28.5
+TRAIL_POINTS = 600
+
+
+@dataclass(frozen=True)
+class EdgeStyle:
+    """Colour and meaning of one kind of transition drawn on the graph."""
+
+    name: str
+    color: tuple[int, int, int]
+
+
+TRANSITION_STYLES = (
+    EdgeStyle("normal transition", (30, 110, 220)),
+    EdgeStyle("BS: alternative branch connection (u > 0)", (235, 140, 0)),
+    EdgeStyle("CS: credit branch (node skipped)", (200, 30, 200)),
+)
+NORMAL, BRANCH_SWITCH, CREDIT_SKIP = 0, 1, 2
+
+
+class ArenaView:
+    """Walls, start poses and up to two robots (body, heading, rays, faults, trail)."""
+
+    def __init__(self, server: viser.ViserServer, arena: sim.Arena, max_robots: int = 2):
+        self._server = server
+        self._root = "/arena"
+        self._walls = server.scene.add_line_segments(
+            f"{self._root}/walls",
+            geo.flat_to_3d(arena.walls * geo.MM),
+            WALL_COLOR,
+            thickness=3.0,
+            thickness_units="screen",
+        )
+        starts = arena.start_poses
+        heads = starts[:, :2] + 40.0 * np.stack([np.cos(starts[:, 2]), np.sin(starts[:, 2])], 1)
+        self._starts = server.scene.add_line_segments(
+            f"{self._root}/starts",
+            geo.arrow_segments(starts[:, :2] * geo.MM, heads * geo.MM, head=0.012),
+            (150, 150, 160),
+            thickness=1.5,
+            thickness_units="screen",
+        )
+        self._start_labels = [
+            server.scene.add_label(
+                f"{self._root}/start_label_{i}",
+                str(i),
+                position=(float(x) * geo.MM, float(y) * geo.MM, 0.0),
+                font_screen_scale=0.7,
+                anchor="top-right",
+            )
+            for i, (x, y, _) in enumerate(starts)
+        ]
+        self.arena = arena
+        self._robots = [self._add_robot(i) for i in range(max_robots)]
+
+    def _add_robot(self, i: int) -> dict[str, viser.LineSegmentsHandle]:
+        blank = np.zeros((1, 2, 3))
+        root = f"{self._root}/robot{i}"
+        return {
+            "trail": self._server.scene.add_line_segments(
+                f"{root}/trail", blank, (0, 0, 0), thickness=3.0, thickness_units="screen"
+            ),
+            "body": self._server.scene.add_line_segments(
+                f"{root}/body", blank, (0, 0, 0), thickness=2.5, thickness_units="screen"
+            ),
+            "rays": self._server.scene.add_line_segments(
+                f"{root}/rays", blank, (0, 0, 0), thickness=2.0, thickness_units="screen"
+            ),
+            "faults": self._server.scene.add_line_segments(
+                f"{root}/faults", blank, BROKEN_RED, thickness=4.0, thickness_units="screen"
+            ),
+        }
+
+    def set_arena(self, arena: sim.Arena) -> None:
+        """Redraw walls and start poses for another arena (same handles)."""
+        if arena is self.arena:
+            return
+        self._walls.points = geo.flat_to_3d(arena.walls * geo.MM).astype(np.float32)
+        starts = arena.start_poses
+        heads = starts[:, :2] + 40.0 * np.stack([np.cos(starts[:, 2]), np.sin(starts[:, 2])], 1)
+        arrows = geo.arrow_segments(starts[:, :2] * geo.MM, heads * geo.MM, head=0.012)
+        self._starts.points = arrows.astype(np.float32)
+        for label, (x, y, _) in zip(self._start_labels, starts, strict=True):
+            label.position = (float(x) * geo.MM, float(y) * geo.MM, 0.0)
+        self.arena = arena
+
+    def update(self, robots: tuple[RobotSnapshot, ...]) -> None:
+        """Draw the robots of a snapshot; hide the unused slots."""
+        for i, handles in enumerate(self._robots):
+            if i >= len(robots):
+                for handle in handles.values():
+                    handle.visible = False
+                continue
+            self._draw_robot(handles, robots[i], ROBOT_COLORS[i])
+
+    def _draw_robot(
+        self,
+        handles: dict[str, viser.LineSegmentsHandle],
+        robot: RobotSnapshot,
+        color: tuple[int, int, int],
+    ) -> None:
+        pose = robot.pose[None, :]
+        x, y, heading = robot.pose
+        nose = np.array(
+            [[x + BODY_RADIUS_MM * np.cos(heading), y + BODY_RADIUS_MM * np.sin(heading)]]
+        )
+        body = np.concatenate(
+            [
+                geo.circle_segments(pose[:, :2] * geo.MM, BODY_RADIUS_MM * geo.MM),
+                geo.flat_to_3d(np.stack([pose[:, :2], nose], axis=1) * geo.MM),
+            ]
+        )
+        handles["body"].points = body.astype(np.float32)
+        handles["body"].colors = np.broadcast_to(np.array(color, np.uint8), body.shape).copy()
+
+        origins, directions = sim.sensor_rays(pose)
+        readings = robot.seen_readings
+        # A ray is drawn as long as the range, brighter the higher what the controller saw.
+        ends = origins[0] + directions[0] * sim.IR_RANGE_MM
+        rays = geo.flat_to_3d(np.stack([origins[0], ends], axis=1) * geo.MM, z=0.001)
+        ray_colors = np.repeat(geo.reading_colors(readings)[:, None, :], 2, axis=1)
+        ray_colors[robot.broken] = BROKEN_RED
+        handles["rays"].points = rays.astype(np.float32)
+        handles["rays"].colors = ray_colors
+
+        # A broken sensor: a red cross at its origin (degenerate when intact, fixed shape).
+        crosses = geo.cross_segments(origins[0] * geo.MM, 0.009).reshape(8, 2, 2, 3)
+        crosses[~robot.broken] = 0.0
+        crosses[~robot.broken] += np.array([x, y, 0.0]) * geo.MM
+        faults = crosses.reshape(16, 2, 3)
+        handles["faults"].points = faults.astype(np.float32)
+        handles["faults"].colors = np.broadcast_to(
+            np.array(BROKEN_RED, np.uint8), faults.shape
+        ).copy()
+
+        trail = _padded(robot.trajectory, TRAIL_POINTS)
+        segments = geo.polyline_segments(trail * geo.MM)
+        point_colors = geo.reward_colors(_padded(robot.trajectory_reward, TRAIL_POINTS), 0.0, 0.8)
+        handles["trail"].points = segments.astype(np.float32)
+        handles["trail"].colors = geo.segment_colors(point_colors)
+        for handle in handles.values():
+            handle.visible = True
+
+
+def _disc_mesh(radius: float, n_sides: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """A flat disc in the z = 0 plane: (vertices (n + 1, 3), faces (n, 3))."""
+    angles = np.linspace(0.0, 2.0 * np.pi, n_sides, endpoint=False)
+    rim = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(n_sides)], 1)
+    vertices = np.concatenate([np.zeros((1, 3)), rim]).astype(np.float32)
+    index = np.arange(n_sides)
+    faces = np.stack([np.zeros(n_sides, np.int64), 1 + index, 1 + (index + 1) % n_sides], 1)
+    return vertices, faces.astype(np.uint32)
+
+
+def _padded(values: np.ndarray, n: int) -> np.ndarray:
+    """The last n rows, front-padded by repeating the first row (so shapes never change)."""
+    values = np.asarray(values)[-n:]
+    if len(values) == 0:
+        raise ValueError("nothing to pad")
+    pad = np.repeat(values[:1], n - len(values), axis=0)
+    return np.concatenate([pad, values])
+
+
+class GraphView:
+    """The node-transition graph of the robot on show, beside the arena.
+
+    Static: nodes (colour by kind), every connection of the genome (faint), column captions.
+    Live: the last transitions as arrows coloured by kind (fading with age), the current node
+    ringed, the inspected node ringed.
+    """
+
+    RECENT = 12
+
+    def __init__(self, server: viser.ViserServer, origin: tuple[float, float], size: float):
+        self._server = server
+        self._origin = np.array(origin)
+        self._size = size
+        root = "/graph"
+        blank = np.zeros((1, 2, 3))
+        self._edges = server.scene.add_line_segments(
+            f"{root}/edges", blank, (215, 215, 222), thickness=1.0, thickness_units="screen"
+        )
+        self._node_radius = 0.016 * size
+        self._nodes = server.scene.add_batched_meshes_simple(
+            f"{root}/nodes",
+            *_disc_mesh(self._node_radius),
+            batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
+            batched_positions=np.zeros((1, 3)),
+            material="toon3",
+            cast_shadow=False,
+            receive_shadow=False,
+            side="double",
+        )
+        self._recent = server.scene.add_line_segments(
+            f"{root}/recent", blank, (0, 0, 0), thickness=3.0, thickness_units="screen"
+        )
+        self._current = server.scene.add_line_segments(
+            f"{root}/current", blank, (240, 30, 30), thickness=3.5, thickness_units="screen"
+        )
+        self._selected = server.scene.add_line_segments(
+            f"{root}/selected", blank, (130, 40, 200), thickness=2.5, thickness_units="screen"
+        )
+        self._captions: list[viser.LabelHandle] = []
+        self._title = server.scene.add_label(
+            f"{root}/title",
+            "node-transition graph",
+            position=(*(self._origin + np.array([0.0, 1.08 * size])), 0.0),
+            anchor="bottom-left",
+        )
+        self.layout: GraphLayout | None = None
+        self.genome: GenomeView | None = None
+        self.selected: int | None = None
+
+    @property
+    def nodes_handle(self) -> viser.BatchedMeshHandle:
+        """The node discs (clickable)."""
+        return self._nodes
+
+    def node_at(self, point: np.ndarray) -> int | None:
+        """The node nearest to a scene point (x, y), if within reach of its disc."""
+        if self.layout is None:
+            return None
+        positions = self._origin + self.layout.positions
+        distances = np.linalg.norm(positions - np.asarray(point)[:2], axis=1)
+        nearest = int(np.argmin(distances))
+        return nearest if distances[nearest] < 0.04 * self._size else None
+
+    def set_genome(self, genome: GenomeView) -> None:
+        """Lay out and draw the static graph of an individual."""
+        self.genome = genome
+        layout = graph_layout(genome.kinds, genome.column_function, self._size * 1.25, self._size)
+        self.layout = layout
+        positions = self._origin + layout.positions
+        edges = genome.edges
+        if len(edges):
+            points = geo.flat_to_3d(np.stack([positions[edges[:, 0]], positions[edges[:, 1]]], 1))
+        else:
+            points = np.zeros((1, 2, 3))
+        self._edges.points = points.astype(np.float32)
+        self._edges.colors = np.broadcast_to(
+            np.array([215, 215, 222], np.uint8), points.shape
+        ).copy()
+        node_colors = np.array([[60, 60, 60], [70, 130, 190], [60, 160, 80]], np.uint8)
+        n_nodes = len(positions)
+        with self._server.atomic():
+            self._nodes.batched_positions = geo.flat_to_3d(positions[None])[0].astype(np.float32)
+            self._nodes.batched_wxyzs = np.tile(np.array([1.0, 0, 0, 0], np.float32), (n_nodes, 1))
+            self._nodes.batched_colors = node_colors[genome.kinds]
+        if not self._captions:
+            self._captions = [
+                self._server.scene.add_label(
+                    f"/graph/caption_{i}",
+                    name,
+                    position=(0.0, 0.0, 0.0),
+                    anchor="top-center",
+                    font_screen_scale=0.8,
+                )
+                for i, name in enumerate(layout.column_names)
+            ]
+        for caption, x in zip(self._captions, layout.column_x, strict=True):
+            caption.position = (float(self._origin[0] + x), float(self._origin[1] - 0.02), 0.0)
+        self.select(self.selected)
+
+    def select(self, node: int | None) -> None:
+        """Ring the inspected node (None: no ring)."""
+        self.selected = node
+        if self.layout is None or node is None or not 0 <= node < len(self.layout.positions):
+            self._selected.visible = False
+            return
+        center = self._origin + self.layout.positions[node]
+        self._selected.points = geo.circle_segments(center[None], 0.03 * self._size).astype(
+            np.float32
+        )
+        self._selected.visible = True
+
+    def update(self, robot: RobotSnapshot) -> None:
+        """Draw the robot's latest transitions and ring its current node."""
+        if self.layout is None:
+            return
+        positions = self._origin + self.layout.positions
+        visits = robot.visits[-(self.RECENT + 1) :]
+        n_arrows = max(0, len(visits) - 1)
+        arrows = np.zeros((3 * self.RECENT, 2, 3))
+        colors = np.full((3 * self.RECENT, 2, 3), 255, np.uint8)
+        if n_arrows:
+            source, target = visits[:-1], visits[1:]
+            kinds = transition_kinds(source, target)
+            drawn = geo.arrow_segments(
+                positions[source[:, 0]],
+                positions[target[:, 0]],
+                head=0.035 * self._size,
+                shorten=0.02 * self._size,
+            )
+            age = np.linspace(0.75, 0.0, n_arrows)[:, None]  # oldest faintest
+            style = np.array([s.color for s in TRANSITION_STYLES], np.float64)[kinds]
+            shade = np.round(style * (1 - age) + 255 * age).astype(np.uint8)
+            arrows[-3 * n_arrows :] = drawn
+            colors[-3 * n_arrows :] = np.repeat(shade, 3, axis=0)[:, None, :]
+        # Unused slots collapse onto the current node (invisible, same shape every frame).
+        arrows[: 3 * (self.RECENT - n_arrows)] = geo.flat_to_3d(
+            positions[robot.current_node][None, None]
+        )
+        self._recent.points = arrows.astype(np.float32)
+        self._recent.colors = colors
+        ring = geo.circle_segments(positions[robot.current_node][None], 0.022 * self._size)
+        self._current.points = ring.astype(np.float32)
+
+
+def transition_kinds(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Kind of each transition between consecutive visits (rows of node, sub, branch, u, credit).
+
+    A transition into a credit-skipped node is a CS credit skip; one taken through a BS branch
+    connection other than the first (u > 0) is a branch switch; anything else is normal.
+    """
+    kinds = np.full(len(source), NORMAL, np.int64)
+    kinds[source[:, 3] > 0] = BRANCH_SWITCH
+    kinds[(target[:, 4] > 0) | (source[:, 4] > 0)] = CREDIT_SKIP
+    return kinds
+
+
+KIND_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}

@@ -1,0 +1,361 @@
+"""A small live stepping loop: one or two robots, each with its own controller, stepped together.
+
+The dashboard drives a `LiveSession` from a background thread at a steady rate and draws its
+`snapshot()`; nothing here knows about viser, so the loop is unit-testable. Each robot lives in
+its own `sim.World` (n = 1) because robots on show may run controllers of different methods
+(e.g. BS beside CS); the world's per-robot streams make each robot's run the same as it would be
+in any batch.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+import gnp
+import sim
+
+FaultMode = Literal["dead", "saturated", "stuck", "random"]
+FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
+
+
+class LiveError(ValueError):
+    """A live-session request that cannot be honoured (bad sensor, mode, value...)."""
+
+
+@dataclass(frozen=True)
+class LearningSettings:
+    """Online learning of the robots on show.
+
+    ε and α are `gnp.Schedule`s: fixed (max = min) or Eq. 4.3–4.4 from max at the latest fault
+    down to min over `horizon` steps (the implementation phase's T − t'); before any fault they
+    sit at max, as in the implementation phase.
+    """
+
+    online: bool = True
+    epsilon: gnp.Schedule = field(default_factory=lambda: gnp.Schedule.fixed(0.1))
+    alpha: gnp.Schedule = field(default_factory=lambda: gnp.Schedule.fixed(0.1))
+    horizon: int = 2500
+
+    def __post_init__(self) -> None:
+        if self.horizon < 1:
+            raise LiveError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
+
+    def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
+        """ε and α at control step `t` given the step of the latest fault (or None)."""
+        if fault_step is None:
+            return self.epsilon.max, self.alpha.max
+        return gnp.epsilon_alpha_after_fault(
+            self.epsilon, self.alpha, t, fault_step, fault_step + self.horizon
+        )
+
+
+class Ring:
+    """A fixed-capacity ring buffer of rows; `values()` returns them oldest first (a copy)."""
+
+    def __init__(self, capacity: int, row_shape: tuple[int, ...] = (), dtype: type = float):
+        self._data = np.zeros((capacity, *row_shape), dtype=dtype)
+        self._next = 0
+        self._size = 0
+
+    @property
+    def capacity(self) -> int:
+        return self._data.shape[0]
+
+    def __len__(self) -> int:
+        return self._size
+
+    def append(self, row: object) -> None:
+        self._data[self._next] = row
+        self._next = (self._next + 1) % self.capacity
+        self._size = min(self._size + 1, self.capacity)
+
+    def clear(self) -> None:
+        self._next = self._size = 0
+
+    def values(self) -> np.ndarray:
+        if self._size < self.capacity:
+            return self._data[: self._size].copy()
+        return np.concatenate([self._data[self._next :], self._data[: self._next]])
+
+
+VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
+"""Columns of a robot's visit history: one row per node executed."""
+
+
+@dataclass(frozen=True)
+class RobotSnapshot:
+    """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
+
+    label: str
+    method: str
+    fuzzy: bool
+    t: int
+    pose: np.ndarray  # (3,) x mm, y mm, heading rad
+    true_readings: np.ndarray  # (8,)
+    seen_readings: np.ndarray  # (8,) with noise and faults: what the controller used
+    broken: np.ndarray  # (8,) bool
+    fault_mode: str | None
+    trajectory: np.ndarray  # (P, 2) mm, oldest first
+    trajectory_reward: np.ndarray  # (P,) reward of the step that ended at each point
+    reward_steps: np.ndarray  # (H,) step index
+    rewards: np.ndarray  # (H,) reward per step
+    broken_counts: np.ndarray  # (H,) number of broken sensors at each step
+    fault_steps: tuple[int, ...]  # steps at which sensors broke (within the history)
+    visits: np.ndarray  # (V, 5) int: node, sub, branch, u, skipped; oldest first
+    current_node: int
+    epsilon: float
+    alpha: float
+    mean_reward: float  # over the reward history
+
+    @property
+    def nodes_per_step(self) -> float:
+        return len(self.visits) / max(1, min(self.t, len(self.rewards)))
+
+
+@dataclass
+class LiveRobot:
+    """One robot on show and its controller; `population` holds one individual."""
+
+    label: str
+    cfg: gnp.GnpConfig
+    population: gnp.Population
+    world: sim.World
+    seed: int
+    trajectory_capacity: int = 600
+    history_capacity: int = 1000
+    visit_capacity: int = 64
+    _state: gnp.EngineState = field(init=False)
+    _last_reward: np.ndarray = field(init=False)
+    _seen: np.ndarray = field(init=False)
+    _fault_steps: list[int] = field(init=False, default_factory=list)
+    _fault_mode: str | None = field(init=False, default=None)
+    _rates: tuple[float, float] = field(init=False, default=(0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        self._trajectory = Ring(self.trajectory_capacity, (2,))
+        self._trajectory_reward = Ring(self.trajectory_capacity)
+        self._reward_steps = Ring(self.history_capacity, (), np.int64)
+        self._rewards = Ring(self.history_capacity)
+        self._broken_counts = Ring(self.history_capacity, (), np.int64)
+        self._visits = Ring(self.visit_capacity, (len(VISIT_FIELDS),), np.int64)
+        self._state = gnp.init_state(self.cfg, 1, np.array([self.seed], np.int64))
+        self._last_reward = np.zeros(1)
+        self._seen = self.world.sense().copy()
+        self._trajectory.append(self.world.poses[0, :2])
+        self._trajectory_reward.append(0.0)
+        self._current_node = 0
+
+    @property
+    def t(self) -> int:
+        return int(self.world.t)
+
+    def step(self, learning: LearningSettings) -> None:
+        """One control step: observe, run the controller (traced), move, judge the reward."""
+        fault_step = self._fault_steps[-1] if self._fault_steps else None
+        epsilon, alpha = learning.rates(self.t, fault_step)
+        self._rates = (epsilon, alpha)
+        seen = self.world.observe()
+        result = gnp.step(
+            self.cfg,
+            self.population,
+            self._state,
+            seen,
+            self._last_reward,
+            epsilon,
+            alpha,
+            learn=learning.online,
+            trace=True,
+        )
+        assert isinstance(result, tuple)
+        commands, trace = result
+        self.world.step(commands)
+        reward = float(sim.reward_terms(self.world.sense(), commands)["reward"][0])
+        self._last_reward = np.array([reward])
+        self._seen = seen.copy()
+        self._record_trace(trace)
+        self._trajectory.append(self.world.poses[0, :2])
+        self._trajectory_reward.append(reward)
+        self._reward_steps.append(self.t)
+        self._rewards.append(reward)
+        self._broken_counts.append(int(np.count_nonzero(self.world.broken[0])))
+
+    def _record_trace(self, trace: gnp.StepTrace) -> None:
+        count = int(trace.count[0])
+        columns = [trace.node, trace.sub, trace.branch, trace.u, trace.skipped]
+        for k in range(count):
+            self._visits.append([int(column[0, k]) for column in columns])
+        if count:
+            self._current_node = int(trace.node[0, count - 1])
+
+    def break_sensors(self, sensors: Sequence[int], mode: FaultMode) -> None:
+        self.world.break_sensors(list(sensors), mode=mode)
+        self._fault_steps = [*self._fault_steps[-7:], self.t]
+        self._fault_mode = mode
+
+    def repair(self) -> None:
+        self.world.repair()
+        self._fault_mode = None
+
+    def snapshot(self) -> RobotSnapshot:
+        steps = self._reward_steps.values()
+        rewards = self._rewards.values()
+        oldest = int(steps[0]) if len(steps) else self.t
+        return RobotSnapshot(
+            label=self.label,
+            method=self.cfg.method,
+            fuzzy=bool(self.cfg.fuzzy),
+            t=self.t,
+            pose=self.world.poses[0].copy(),
+            true_readings=self.world.sense()[0].copy(),
+            seen_readings=self._seen[0].copy(),
+            broken=np.asarray(self.world.broken[0], bool).copy(),
+            fault_mode=self._fault_mode,
+            trajectory=self._trajectory.values(),
+            trajectory_reward=self._trajectory_reward.values(),
+            reward_steps=steps,
+            rewards=rewards,
+            broken_counts=self._broken_counts.values(),
+            fault_steps=tuple(s for s in self._fault_steps if s >= oldest),
+            visits=self._visits.values(),
+            current_node=self._current_node,
+            epsilon=self._rates[0],
+            alpha=self._rates[1],
+            mean_reward=float(rewards.mean()) if len(rewards) else 0.0,
+        )
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """What to put on show: a label, a controller config and its one-individual population."""
+
+    label: str
+    cfg: gnp.GnpConfig
+    population: gnp.Population
+
+
+class LiveSession:
+    """One or two robots in the same arena from the same start pose, stepped together.
+
+    All methods are thread-safe: the dashboard's loop thread calls `step`, GUI callbacks call
+    the rest.
+
+    Args:
+        arena: the arena the robots live in.
+        robots: one or two robots to show.
+        start: index of the start pose (0..9) in `arena.start_poses`.
+        seed: seeds each robot's world and controller streams (robot i gets seed + i).
+        noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see.
+        learning: online learning settings.
+    """
+
+    def __init__(
+        self,
+        arena: sim.Arena,
+        robots: Sequence[RobotSpec],
+        start: int = 0,
+        seed: int = 0,
+        noise_sigma: float = 0.0,
+        learning: LearningSettings | None = None,
+    ) -> None:
+        if not 1 <= len(robots) <= 2:
+            raise LiveError(f"a live session shows one or two robots, got {len(robots)}")
+        n_starts = len(arena.start_poses)
+        if not 0 <= start < n_starts:
+            raise LiveError(f"start pose must be in 0..{n_starts - 1}, got {start}")
+        check_noise(noise_sigma)
+        self.arena = arena
+        self.start = start
+        self.learning = learning or LearningSettings()
+        self._lock = threading.Lock()
+        self._robots: list[LiveRobot] = []
+        self._pending_fault: tuple[int, tuple[int, ...], FaultMode] | None = None
+        for i, spec in enumerate(robots):
+            world = sim.World(arena, n=1, seed=seed + i, noise_sigma=noise_sigma)
+            world.reset(arena.start_poses[start : start + 1])
+            # Copy: online learning mutates Q tables, the caller's individual stays as loaded.
+            population = gnp.take(spec.population, np.array([0]))
+            self._robots.append(LiveRobot(spec.label, spec.cfg, population, world, seed + i))
+
+    @property
+    def lock(self) -> threading.Lock:
+        return self._lock
+
+    @property
+    def robots(self) -> tuple[LiveRobot, ...]:
+        return tuple(self._robots)
+
+    def step(self, n: int = 1) -> None:
+        """Advance every robot by `n` control steps."""
+        with self._lock:
+            for _ in range(n):
+                pending = self._pending_fault
+                if pending is not None and self._robots[0].t >= pending[0]:
+                    for robot in self._robots:
+                        robot.break_sensors(pending[1], pending[2])
+                    self._pending_fault = None
+                for robot in self._robots:
+                    robot.step(self.learning)
+
+    def schedule_fault(self, step: int, sensors: Sequence[int], mode: str) -> None:
+        """Break `sensors` of every robot when they reach control step `step` (t')."""
+        checked, checked_mode = check_sensors(sensors), check_mode(mode)
+        if step < 0:
+            raise LiveError(f"the fault step must be ≥ 0, got {step}")
+        with self._lock:
+            self._pending_fault = (int(step), checked, checked_mode)
+
+    def snapshot(self) -> tuple[RobotSnapshot, ...]:
+        with self._lock:
+            return tuple(robot.snapshot() for robot in self._robots)
+
+    def set_noise(self, sigma: float) -> None:
+        check_noise(sigma)
+        with self._lock:
+            for robot in self._robots:
+                robot.world.noise_sigma = float(sigma)
+
+    def break_sensors(self, sensors: Sequence[int], mode: str) -> None:
+        """Break `sensors` of every robot on show now, in fault `mode`."""
+        checked, checked_mode = check_sensors(sensors), check_mode(mode)
+        with self._lock:
+            for robot in self._robots:
+                robot.break_sensors(checked, checked_mode)
+
+    def repair(self) -> None:
+        with self._lock:
+            for robot in self._robots:
+                robot.repair()
+
+    def set_learning(self, learning: LearningSettings) -> None:
+        with self._lock:
+            self.learning = learning
+
+
+def check_noise(sigma: float) -> float:
+    """Noise σ must be a finite number in 0..1023."""
+    if not np.isfinite(sigma) or not 0.0 <= sigma <= 1023.0:
+        raise LiveError(f"noise σ must be in 0..1023, got {sigma}")
+    return float(sigma)
+
+
+def check_mode(mode: str) -> FaultMode:
+    """One of the fault modes: dead, saturated, stuck, random."""
+    for known in FAULT_MODES:
+        if mode == known:
+            return known
+    raise LiveError(f"fault mode must be one of {', '.join(FAULT_MODES)}, got {mode!r}")
+
+
+def check_sensors(sensors: Sequence[int]) -> tuple[int, ...]:
+    """A non-empty set of distinct sensor indices in 0..7."""
+    if len(sensors) == 0:
+        raise LiveError("choose at least one sensor to break")
+    bad = [s for s in sensors if isinstance(s, bool) or not 0 <= int(s) <= 7]
+    if bad:
+        raise LiveError(f"sensors are numbered 0..7, got {bad}")
+    return tuple(sorted({int(s) for s in sensors}))
