@@ -35,20 +35,24 @@ class ControllerSettings(_Frozen):
     """The GNP individual (Tables 2.4, 3.1, 5.1)."""
 
     method: Method = Field(
-        "CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
+        default="CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
     )
-    fuzzy: bool = Field(True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds")
-    n_judgment: int = Field(40, ge=8, le=400, description="judgment nodes [count]")
-    n_processing: int = Field(20, ge=2, le=200, description="processing nodes [count]")
+    fuzzy: bool = Field(
+        default=True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds"
+    )
+    n_judgment: int = Field(default=40, ge=8, le=400, description="judgment nodes [count]")
+    n_processing: int = Field(default=20, ge=2, le=200, description="processing nodes [count]")
     n_sub: int | None = Field(
-        None,
+        default=None,
         ge=1,
         le=8,
         description="sub nodes per node [count]; unset = the thesis's choice for the method "
         "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
     )
-    n_branch: int = Field(2, ge=1, le=8, description="branch connections per connection, BS only")
-    gamma: float = Field(0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ [1]")
+    n_branch: int = Field(
+        default=2, ge=1, le=8, description="branch connections per connection, BS only"
+    )
+    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ [1]")
 
     @property
     def sub_nodes(self) -> int:
@@ -73,25 +77,31 @@ class ControllerSettings(_Frozen):
 class TrainingSettings(_Frozen):
     """The training phase (thesis §2.5, 3.5, 4.5, 5.5)."""
 
-    arena: str = Field("training", min_length=1, description="arena name or JSON path")
-    population: int = Field(300, ge=2, le=100_000, description="individuals [count]")
-    generations: int = Field(1000, ge=1, le=1_000_000, description="generations G [count]")
-    steps: int = Field(1000, ge=1, le=1_000_000, description="life time T [control steps]")
+    arena: str = Field(default="training", min_length=1, description="arena name or JSON path")
+    population: int = Field(default=300, ge=2, le=100_000, description="individuals [count]")
+    generations: int = Field(default=1000, ge=1, le=1_000_000, description="generations G [count]")
+    steps: int = Field(default=1000, ge=1, le=1_000_000, description="life time T [control steps]")
     redraw_every: int = Field(
-        0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
+        default=0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
     )
-    noise_sigma: float = Field(0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]")
-    control_period: float = Field(0.064, gt=0.0, le=1.0, description="control step [s]")
-    schedule: ScheduleKind = Field("fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2")
-    epsilon: float = Field(0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
-    epsilon_min: float = Field(0.01, ge=0.0, le=1.0, description="changing ε at g = G [1]")
-    alpha_max: float = Field(0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
-    alpha_min: float = Field(0.10, ge=0.0, le=1.0, description="changing α at g = G [1]")
-    schedule_n: float = Field(1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2")
+    noise_sigma: float = Field(
+        default=0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]"
+    )
+    control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
+    schedule: ScheduleKind = Field(
+        default="fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2"
+    )
+    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
+    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
+    epsilon_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
+    epsilon_min: float = Field(default=0.01, ge=0.0, le=1.0, description="changing ε at g = G [1]")
+    alpha_max: float = Field(default=0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
+    alpha_min: float = Field(default=0.10, ge=0.0, le=1.0, description="changing α at g = G [1]")
+    schedule_n: float = Field(
+        default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
+    )
     checkpoint_every: int = Field(
-        1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
+        default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
     )
 
     @model_validator(mode="after")
@@ -107,30 +117,42 @@ class TrainingSettings(_Frozen):
 class ImplementationSettings(_Frozen):
     """The implementation phase: a trained individual in an unseen arena, sensors breaking."""
 
-    arena: str = Field("implementation", min_length=1, description="arena name or JSON path")
-    steps: int = Field(3000, ge=1, le=1_000_000, description="life time T [control steps]")
-    repeats: int = Field(300, ge=1, le=100_000, description="trials per start pose [count]")
-    noise_sigma: float = Field(0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]")
-    broken_sensors: tuple[int, ...] = Field(
-        (), max_length=8, description="sensors that break at the fault step, 0..7"
+    arena: str = Field(
+        default="implementation", min_length=1, description="arena name or JSON path"
     )
-    fault_mode: FaultMode = Field("dead", description="what a broken sensor reads")
-    fault_step: int = Field(500, ge=0, le=1_000_000, description="fault step t' [control steps]")
-    schedule: ScheduleKind = Field("fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4")
-    epsilon: float = Field(0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(0.015, ge=0.0, le=1.0, description="changing ε at t = t' [1]")
-    epsilon_min: float = Field(0.0, ge=0.0, le=1.0, description="changing ε at t = T [1]")
-    alpha_max: float = Field(0.15, ge=0.0, le=1.0, description="changing α at t = t' [1]")
-    alpha_min: float = Field(0.0, ge=0.0, le=1.0, description="changing α at t = T [1]")
-    schedule_n: float = Field(1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4")
+    steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
+    repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
+    noise_sigma: float = Field(
+        default=0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]"
+    )
+    broken_sensors: tuple[int, ...] = Field(
+        default=(), max_length=8, description="sensors that break at the fault step, 0..7"
+    )
+    fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
+    fault_step: int = Field(
+        default=500, ge=0, le=1_000_000, description="fault step t' [control steps]"
+    )
+    schedule: ScheduleKind = Field(
+        default="fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4"
+    )
+    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
+    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
+    epsilon_max: float = Field(
+        default=0.015, ge=0.0, le=1.0, description="changing ε at t = t' [1]"
+    )
+    epsilon_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing ε at t = T [1]")
+    alpha_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing α at t = t' [1]")
+    alpha_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing α at t = T [1]")
+    schedule_n: float = Field(
+        default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4"
+    )
     recorded_trials: int = Field(
-        3, ge=0, le=100, description="trials whose trajectory and trace are stored [count]"
+        default=3, ge=0, le=100, description="trials whose trajectory and trace are stored [count]"
     )
     generation: int | None = Field(
-        None, ge=0, description="take the best of this generation; unset = the final elite"
+        default=None, ge=0, description="take the best of this generation; unset = the final elite"
     )
-    seed: int | None = Field(None, ge=0, description="random seed; unset = the run's seed")
+    seed: int | None = Field(default=None, ge=0, description="random seed; unset = the run's seed")
 
     @model_validator(mode="after")
     def _consistent(self) -> ImplementationSettings:
@@ -175,7 +197,7 @@ def _schedules(settings: TrainingSettings | ImplementationSettings) -> tuple[Sch
 class RunConfig(_Frozen):
     """Everything a run's results depend on (worker count excluded: results do not depend on it)."""
 
-    seed: int = Field(0, ge=0, le=2**63 - 1, description="random seed of the run")
+    seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
     controller: ControllerSettings = ControllerSettings()
     evolution: EvolutionConfig = EvolutionConfig()
     training: TrainingSettings = TrainingSettings()

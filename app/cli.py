@@ -1,0 +1,457 @@
+"""`gnp-lab`: train, implement, list and inspect runs, serve the dashboard.
+
+A user mistake ends with one line on stderr (`gnp-lab: error: ...`) and a non-zero exit status;
+no command overwrites or damages an existing run file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import tomllib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from app.config import (
+    PRESET_NAMES,
+    ConfigError,
+    ImplementationSettings,
+    RunConfig,
+    build_config,
+    preset_layer,
+    read_toml,
+    to_toml,
+)
+from app.store import RunFileError, RunReader, list_runs, resolve_run
+
+PROG = "gnp-lab"
+EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
+
+
+class UsageError(Exception):
+    """Command-line arguments that do not make sense together."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage mistake on one line."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{PROG}: error: {message} (see {self.prog} --help)\n")
+        raise SystemExit(EXIT_USAGE)
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    text = text.strip()
+    if text.lower() in ("", "none"):
+        return ()
+    try:
+        return tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected sensor numbers separated by commas, like 2,3 (got {text!r})"
+        ) from None
+
+
+def _assignment(text: str) -> tuple[list[str], Any]:
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected SECTION.KEY=VALUE, got {text!r}")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw  # a bare word: a string
+    return key.strip().split("."), value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog=PROG,
+        description="GNP Lab: GNP with reinforcement learning for a Khepera robot "
+        "that learns wall following and adapts when its sensors break.",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    train = commands.add_parser(
+        "train",
+        help="train a population (evolution + Sarsa) into a run file",
+        description="Train a population. Settings come from the thesis's defaults, then "
+        "--preset, then --config, then the options below (later wins).",
+    )
+    train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
+    train.add_argument("--config", metavar="FILE", help="a TOML config file")
+    train.add_argument("--method", choices=("RL", "BS", "CS"), help="learning method")
+    fuzzy = train.add_mutually_exclusive_group()
+    fuzzy.add_argument("--fuzzy", dest="fuzzy", action="store_true", default=None)
+    fuzzy.add_argument("--crisp", dest="fuzzy", action="store_false", help="crisp judgment")
+    train.add_argument("--population", type=int, metavar="N", help="individuals")
+    train.add_argument("--generations", type=int, metavar="G", help="generations")
+    train.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
+    train.add_argument("--noise", type=float, metavar="SIGMA", help="sensor noise σ (0..1023)")
+    train.add_argument("--seed", type=int, help="random seed")
+    train.add_argument(
+        "--set",
+        dest="assignments",
+        type=_assignment,
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="any other setting, e.g. training.redraw_every=500 (repeatable)",
+    )
+    train.add_argument("--out", metavar="FILE", help="new run file (default: in --runs-dir)")
+    train.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    train.add_argument(
+        "--workers", type=int, metavar="W", help="worker processes (default: one per core)"
+    )
+    train.add_argument(
+        "--resume", metavar="FILE", help="continue an interrupted run with its own settings"
+    )
+    train.add_argument("--quiet", action="store_true", help="no progress bar")
+    train.add_argument(
+        "--print-config", action="store_true", help="print the resulting config as TOML and stop"
+    )
+
+    implement = commands.add_parser(
+        "implement",
+        help="implement a trained individual in the unseen arena, sensors breaking",
+        description="Clone the final elite (or the best of --generation) into 10 start "
+        "poses × --repeats trials in the implementation arena, with online Sarsa; the sensors "
+        "of --break fail at --fault-step. Results are stored in the run file. Unset options "
+        "take the run's implementation settings.",
+    )
+    implement.add_argument("run", metavar="RUN", help="run name in --runs-dir")
+    implement.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    implement.add_argument(
+        "--break",
+        dest="broken",
+        type=_int_list,
+        metavar="S,S",
+        help="sensors 0..7 that break ('none' for no fault)",
+    )
+    implement.add_argument("--mode", choices=("dead", "saturated", "stuck", "random"))
+    implement.add_argument("--fault-step", type=int, metavar="T", help="step t' of the fault")
+    implement.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
+    implement.add_argument("--repeats", type=int, help="trials per start pose")
+    implement.add_argument("--noise", type=float, metavar="SIGMA", help="sensor noise σ")
+    implement.add_argument(
+        "--schedule", choices=("fixed", "changing"), help="ε/α after the fault (Eq. 4.3-4.4)"
+    )
+    implement.add_argument("--generation", type=int, help="implement the best of this one")
+    implement.add_argument("--seed", type=int, help="random seed (default: the run's)")
+    implement.add_argument("--name", help="name of the result in the run file")
+    implement.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    runs = commands.add_parser("runs", help="list run files, or inspect one")
+    runs.add_argument("name", nargs="?", metavar="NAME", help="a run to inspect")
+    runs.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+
+    serve = commands.add_parser("serve", help="open the dashboard (viser)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to bind")
+    serve.add_argument("--port", type=int, default=8080, help="port to bind")
+    serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    serve.add_argument("--run", metavar="NAME", help="run to open first")
+    return parser
+
+
+# --- train ----------------------------------------------------------------------------------
+
+_CONFIG_OPTIONS = (
+    "preset",
+    "config",
+    "method",
+    "fuzzy",
+    "population",
+    "generations",
+    "steps",
+    "noise",
+    "seed",
+)
+
+
+def config_from_args(args: argparse.Namespace) -> RunConfig:
+    """Thesis defaults ← --preset ← --config ← options."""
+    layers: list[dict[str, Any]] = []
+    sources = ["defaults"]
+    if args.preset:
+        layers.append(preset_layer(args.preset))
+        sources.append(f"preset {args.preset}")
+    if args.config:
+        layers.append(read_toml(args.config))
+        sources.append(args.config)
+    controller: dict[str, Any] = {}
+    training: dict[str, Any] = {}
+    options: dict[str, Any] = {"controller": controller, "training": training}
+    if args.method is not None:
+        controller["method"] = args.method
+    if args.fuzzy is not None:
+        controller["fuzzy"] = args.fuzzy
+    for option, key in (
+        ("population", "population"),
+        ("generations", "generations"),
+        ("steps", "steps"),
+        ("noise", "noise_sigma"),
+    ):
+        if getattr(args, option) is not None:
+            training[key] = getattr(args, option)
+    if args.seed is not None:
+        options["seed"] = args.seed
+    for path, value in args.assignments:
+        target = options
+        for part in path[:-1]:
+            target = target.setdefault(part, {})
+            if not isinstance(target, dict):
+                raise ConfigError(f"--set {'.'.join(path)}: {part} is not a section")
+        target[path[-1]] = value
+    layers.append(options)
+    return build_config(*layers, source=" + ".join([*sources, "options"]))
+
+
+def _default_out(runs_dir: Path, config: RunConfig) -> Path:
+    controller = config.controller
+    kind = "fuzzy" if controller.fuzzy else "crisp"
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return runs_dir / f"{controller.method}-{kind}-seed{config.seed}-{stamp}.h5"
+
+
+class _GenerationBar:
+    """tqdm progress over generations with ETA and the current best and mean fitness."""
+
+    def __init__(self, total: int, initial: int, quiet: bool) -> None:
+        from tqdm import tqdm
+
+        self._bar = tqdm(
+            total=total,
+            initial=initial,
+            desc="train",
+            unit="gen",
+            file=sys.stderr,
+            disable=quiet,
+            dynamic_ncols=True,
+        )
+        self.best = float("nan")
+
+    def __call__(self, summary: Any) -> None:
+        self.best = summary.best_fitness
+        self._bar.set_postfix(
+            best=f"{summary.best_fitness:.3f}", mean=f"{summary.mean_fitness:.3f}"
+        )
+        self._bar.update(1)
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _interrupted(stop: Exception, path: Path) -> int:
+    sys.stderr.write(f"{PROG}: interrupted: {stop}; continue with: {PROG} train --resume {path}\n")
+    return EXIT_INTERRUPTED
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from app import training
+
+    workers = args.workers if args.workers is not None else training.default_workers()
+    if workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {workers}")
+    if args.resume:
+        given = [f"--{name}" for name in _CONFIG_OPTIONS if getattr(args, name) is not None]
+        given += ["--set"] if args.assignments else []
+        given += ["--out"] if args.out else []
+        if given:
+            raise UsageError(
+                f"--resume continues a run with its stored settings; drop {', '.join(given)}"
+            )
+        path = Path(args.resume)
+        with RunReader(path) as run:
+            config, start = run.config, run.generations_done
+            if run.finished:
+                raise RunFileError(f"{path} is a finished run; there is nothing to resume")
+        bar = _GenerationBar(config.training.generations, start, args.quiet)
+        try:
+            training.resume(path, workers=workers, progress=bar)
+        except training.Interrupted as stop:
+            return _interrupted(stop, path)
+        finally:
+            bar.close()
+    else:
+        config = config_from_args(args)
+        if args.print_config:
+            sys.stdout.write(to_toml(config))
+            return 0
+        path = Path(args.out) if args.out else _default_out(Path(args.runs_dir), config)
+        if path.exists():
+            raise RunFileError(f"{path} already exists; choose another --out or --resume it")
+        bar = _GenerationBar(config.training.generations, 0, args.quiet)
+        try:
+            training.train(config, path, workers=workers, progress=bar)
+        except training.Interrupted as stop:
+            return _interrupted(stop, path)
+        finally:
+            bar.close()
+    print(f"{path}: finished, best fitness {bar.best:.4f}")
+    return 0
+
+
+# --- implement ------------------------------------------------------------------------------
+
+
+def cmd_implement(args: argparse.Namespace) -> int:
+    from app.implementation import implement
+
+    path = resolve_run(args.runs_dir, args.run)
+    with RunReader(path) as run:
+        stored = run.config.implementation
+    changes: dict[str, Any] = {}
+    for option, key in (
+        ("broken", "broken_sensors"),
+        ("mode", "fault_mode"),
+        ("fault_step", "fault_step"),
+        ("steps", "steps"),
+        ("repeats", "repeats"),
+        ("noise", "noise_sigma"),
+        ("schedule", "schedule"),
+        ("generation", "generation"),
+        ("seed", "seed"),
+    ):
+        if getattr(args, option) is not None:
+            changes[key] = getattr(args, option)
+    config = build_config(
+        {"implementation": stored.model_dump()},
+        {"implementation": changes},
+        source="implementation options",
+    )
+    settings: ImplementationSettings = config.implementation
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=settings.steps,
+        desc="implement",
+        unit="step",
+        file=sys.stderr,
+        disable=args.quiet,
+        dynamic_ncols=True,
+    )
+
+    def progress(done: int, total: int) -> None:
+        bar.update(done - bar.n)
+
+    try:
+        result = implement(path, settings, name=args.name, progress=progress)
+    finally:
+        bar.close()
+    print(
+        f"{path}: implementation/{result.name}: mean reward {result.mean_reward:.4f}, "
+        f"after the fault {result.mean_after_fault:.4f} "
+        f"({len(result.trial_mean_reward)} trials)"
+    )
+    return 0
+
+
+# --- runs -----------------------------------------------------------------------------------
+
+
+def cmd_runs(args: argparse.Namespace) -> int:
+    if args.name:
+        return _inspect(resolve_run(args.runs_dir, args.name))
+    summaries = list_runs(args.runs_dir)
+    if not summaries:
+        print(f"no runs in {args.runs_dir}")
+        return 0
+    print(f"{'name':32} {'method':10} {'generations':>12} {'best':>7}  status")
+    for s in summaries:
+        if s.error:
+            print(f"{s.name:32} {'?':10} {'':>12} {'':>7}  unreadable: {s.error}")
+            continue
+        kind = f"{s.method} {'fuzzy' if s.fuzzy else 'crisp'}"
+        status = "finished" if s.finished else "running or interrupted"
+        if s.implementations:
+            status += f"; implementations: {', '.join(s.implementations)}"
+        gens = f"{s.generations_done}/{s.generations}"
+        print(f"{s.name:32} {kind:10} {gens:>12} {s.best_fitness:7.4f}  {status}")
+    return 0
+
+
+def _inspect(path: Path) -> int:
+    with RunReader(path) as run:
+        history = run.history()
+        done = run.generations_done
+        print(f"run {path.name}: seed {run.seed}, gnp-lab {run.package_version}")
+        print(
+            f"generations {done}/{run.config.training.generations}, "
+            f"{'finished' if run.finished else 'running or interrupted'}"
+        )
+        if done:
+            for g in sorted({0, done // 2, done - 1}):
+                print(
+                    f"  generation {g:5d}: best {history.best_fitness[g]:.4f}  "
+                    f"mean {history.mean_fitness[g]:.4f} ± {history.std_fitness[g]:.4f}  "
+                    f"ε {history.epsilon[g]:.3f}  α {history.alpha[g]:.3f}"
+                )
+        for name in run.implementation_names():
+            result = run.implementation(name)
+            sensors = ",".join(map(str, result.settings.broken_sensors)) or "none"
+            print(
+                f"implementation {name}: broken {sensors} ({result.settings.fault_mode}) at "
+                f"{result.settings.fault_step}, {len(result.trial_mean_reward)} trials: mean "
+                f"{result.mean_reward:.4f}, after the fault {result.mean_after_fault:.4f}"
+            )
+        print("\n# config")
+        sys.stdout.write(to_toml(run.config))
+    return 0
+
+
+# --- serve ----------------------------------------------------------------------------------
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    if args.run is not None:
+        resolve_run(args.runs_dir, args.run)
+    from app.dashboard import serve
+
+    serve(host=args.host, port=args.port, runs_dir=args.runs_dir, run=args.run)
+    return 0
+
+
+# --- entry point ----------------------------------------------------------------------------
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run `gnp-lab`; returns the exit status."""
+    import gnp
+    import sim
+    from app.implementation import ImplementationError
+    from app.training import TrainingError
+
+    args = build_parser().parse_args(argv)
+    handlers = {
+        "train": cmd_train,
+        "implement": cmd_implement,
+        "runs": cmd_runs,
+        "serve": cmd_serve,
+    }
+    try:
+        return handlers[args.command](args)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{PROG}: interrupted; nothing was written\n")
+        return EXIT_INTERRUPTED
+    except UsageError as error:
+        sys.stderr.write(f"{PROG}: error: {error}\n")
+        return EXIT_USAGE
+    except (
+        ConfigError,
+        RunFileError,
+        ImplementationError,
+        TrainingError,
+        sim.ArenaError,
+        sim.WorldError,
+        gnp.GnpError,
+    ) as error:
+        sys.stderr.write(f"{PROG}: error: {error}\n")
+        return EXIT_ERROR
+    except OSError as error:
+        sys.stderr.write(f"{PROG}: error: {error}\n")
+        return EXIT_ERROR
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
