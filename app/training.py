@@ -296,15 +296,14 @@ class ProcessEvaluator:
     ) -> tuple[Lives, gnp.Population]:
         arrays = gnp.population_to_arrays(pop)
         self._busy = True
-        for conn, part in zip(self._conns, self._slices, strict=True):
-            share = {name: values[part] for name, values in arrays.items()}
-            conn.send(_Job(share, seeds.take(part), epsilon, alpha))
-        results = []
-        for conn, proc in zip(self._conns, self._procs, strict=True):
-            try:
-                results.append(conn.recv())
-            except (EOFError, ConnectionResetError):
-                raise TrainingError(f"a worker process died (exit code {proc.exitcode})") from None
+        try:
+            for conn, part in zip(self._conns, self._slices, strict=True):
+                share = {name: values[part] for name, values in arrays.items()}
+                conn.send(_Job(share, seeds.take(part), epsilon, alpha))
+            results = [conn.recv() for conn in self._conns]
+        except (EOFError, OSError):
+            codes = [proc.exitcode for proc in self._procs]
+            raise TrainingError(f"a worker process died (exit codes {codes})") from None
         self._busy = False
         lives = Lives(
             fitness=np.concatenate([r[0].fitness for r in results]),
