@@ -58,7 +58,7 @@ class Ring:
     """A fixed-capacity ring buffer of rows; `values()` returns them oldest first (a copy)."""
 
     def __init__(self, capacity: int, row_shape: tuple[int, ...] = (), dtype: type = float):
-        self._data = np.zeros((capacity, *row_shape), dtype=dtype)
+        self._data: np.ndarray = np.zeros((capacity, *row_shape), dtype=dtype)
         self._next = 0
         self._size = 0
 

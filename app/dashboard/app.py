@@ -55,6 +55,11 @@ class Show:
     fault: tuple[int, tuple[int, ...], str] | None = None  # scheduled (step, sensors, mode)
 
 
+def _set(handle: Any, value: object) -> None:
+    """Assign a GUI input's value (viser's typing marks the setter read-only)."""
+    handle.value = value
+
+
 def _hex(color: tuple[int, int, int]) -> str:
     return "#{:02x}{:02x}{:02x}".format(*color)
 
@@ -92,6 +97,8 @@ class Dashboard:
 
         server.gui.configure_theme(control_width="large", show_share_button=False)
         server.gui.set_panel_label("GNP Lab")
+        server.gui.main_panel.dock_right()
+        server.gui.main_panel.set_width(400)
         self._build_scene()
         self._build_controls()
         self._build_plots()
@@ -103,20 +110,26 @@ class Dashboard:
     # --- layout -------------------------------------------------------------------------
 
     def _build_scene(self) -> None:
-        arena = self._arenas["training"]
-        xmin, ymin, xmax, ymax = (v * geo.MM for v in arena.bounds)
-        height = ymax - ymin
-        self.arena_view = ArenaView(self.server, arena)
-        graph_origin = (xmax + 0.12 * height, ymin + 0.04 * height)
-        self.graph_view = GraphView(self.server, graph_origin, 0.9 * height)
-        right = graph_origin[0] + 1.25 * 0.9 * height
-        center = ((xmin + right) / 2, (ymin + ymax) / 2)
+        """Arena on top, graph below it (they share the width), camera looking straight down."""
+        bounds = np.array([a.bounds for a in self._arenas.values()]) * geo.MM
+        xmin, ymin = bounds[:, :2].min(axis=0)
+        xmax, ymax = bounds[:, 2:].max(axis=0)
+        width = xmax - xmin
+        self.arena_view = ArenaView(self.server, self._arenas["training"])
+        graph_height = 0.62 * width
+        graph_origin = (xmin, ymin - 0.12 * width - graph_height)
+        self.graph_view = GraphView(self.server, graph_origin, width, graph_height)
+        bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.03 * width
+        center = ((xmin + xmax) / 2, (bottom + top) / 2)
+        fov = np.radians(50.0)
+        distance = 1.08 * (top - bottom) / 2 / np.tan(fov / 2)
         self.server.scene.set_up_direction("+y")
         camera = self.server.initial_camera
         camera.up = (0.0, 1.0, 0.0)
         camera.look_at = (center[0], center[1], 0.0)
-        camera.position = (center[0], center[1], 1.05 * (right - xmin))
-        camera.fov = np.radians(50.0)
+        camera.position = (center[0], center[1], distance)
+        camera.fov = fov
+        camera.far = 100.0
 
         @self.graph_view.nodes_handle.on_click
         def _(event: viser.SceneNodePointerEvent[Any]) -> None:
@@ -411,9 +424,9 @@ class Dashboard:
             node_label(first.cfg, first.population, i) for i in range(first.cfg.n_nodes)
         )
         if self.arena_dropdown.value != show.arena:
-            self.arena_dropdown.value = show.arena
+            _set(self.arena_dropdown, show.arena)
         if self.start_dropdown.value != str(show.start):
-            self.start_dropdown.value = str(show.start)
+            _set(self.start_dropdown, str(show.start))
         plots.set_reward_series(self.reward_plot, [r.label for r in show.robots])
         robots = ", ".join(
             f"<span style='color:{_hex(ROBOT_COLORS[i])}'>●</span> {r.label} "
@@ -458,7 +471,7 @@ class Dashboard:
         self._refresh_inspector()
         label = self.node_dropdown.options[node]
         if self.node_dropdown.value != label:
-            self.node_dropdown.value = label
+            _set(self.node_dropdown, label)
 
     def _refresh_inspector(self) -> None:
         session, node = self.session, self.graph_view.selected
@@ -519,9 +532,9 @@ class Dashboard:
             current = dropdown.value
             dropdown.options = good
             if current in good:
-                dropdown.value = current
+                _set(dropdown, current)
         if len(good) > 1 and self.compare_b.value == self.compare_a.value:
-            self.compare_b.value = good[1]
+            _set(self.compare_b, good[1])
         if not runs:
             self.runs_md.content = f"No runs in `{self.runs_dir}` yet: train one in the Train tab."
             return
@@ -546,19 +559,20 @@ class Dashboard:
             self.loaded.close()
         self.loaded = reader
         if self.runs_dropdown.value != name and name in self.runs_dropdown.options:
-            self.runs_dropdown.value = name
+            _set(self.runs_dropdown, name)
         history = reader.history()
         plots.set_fitness(self.fitness_plot, history.best_fitness, history.mean_fitness)
         self._fitness_points = len(history.best_fitness)
         config = reader.config
         impls = reader.implementation_names()
+        best = float(history.best_fitness.max()) if len(history.best_fitness) else 0.0
         self.run_md.content = (
             f"**{name}**: {config.controller.method} "
             f"{'fuzzy' if config.controller.fuzzy else 'crisp'}, population "
             f"{config.training.population}, {reader.generations_done}/"
             f"{config.training.generations} generations, T = {config.training.steps}, "
             f"σ = {config.training.noise_sigma:g}, seed {config.seed}  \n"
-            f"best fitness {float(history.best_fitness.max()) if len(history.best_fitness) else 0:.4f}"
+            f"best fitness {best:.4f}"
             f" · implementations: {', '.join(impls) or 'none'}"
         )
         if impls:
@@ -660,12 +674,12 @@ class Dashboard:
         if name not in PRESET_NAMES:
             return
         preset = load_preset(name)
-        self.train_method.value = preset.controller.method
-        self.train_judgment.value = "fuzzy" if preset.controller.fuzzy else "crisp"
-        self.train_population.value = preset.training.population
-        self.train_generations.value = preset.training.generations
-        self.train_steps.value = preset.training.steps
-        self.train_noise.value = preset.training.noise_sigma
+        _set(self.train_method, preset.controller.method)
+        _set(self.train_judgment, "fuzzy" if preset.controller.fuzzy else "crisp")
+        _set(self.train_population, preset.training.population)
+        _set(self.train_generations, preset.training.generations)
+        _set(self.train_steps, preset.training.steps)
+        _set(self.train_noise, preset.training.noise_sigma)
 
     def _start_training(self) -> None:
         if self.job is not None and self.job.active:
@@ -757,7 +771,7 @@ class Dashboard:
                 f"training: {state} · generation {done}/{total}{best} · {elapsed:.0f} s {eta_text}"
             )
         self._training_line = line.rstrip()
-        self.train_progress.value = progress
+        _set(self.train_progress, progress)
         self.train_md.content = self._training_line.removeprefix("training: ").capitalize()
         if not job.active and state != "paused":
             if state in ("finished", "stopped", "failed"):

@@ -33,7 +33,7 @@ def genome_view(cfg: gnp.GnpConfig, population: gnp.Population) -> GenomeView:
     kinds = np.asarray(cfg.node_type, np.int64)
     function = population.function[0]
     conn = population.conn[0]  # (V, m, 2, U)
-    pairs = []
+    pairs: list[tuple[int, int]] = []
     for node, kind in enumerate(kinds):
         if kind == START:
             targets = conn[node, 0, 0, :1]

@@ -124,13 +124,14 @@ def block_mean(values: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndar
 
 def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
     """Mean reward per step over the trials of an implementation phase; the fault step."""
+    series: tuple[Any, ...] = (
+        {"label": "step"},
+        {"label": "mean reward/step over trials", "stroke": "#8a3ab9", "width": 2.0},
+        {"label": "sensors broken", "scale": "n", **FAULT_STYLE},
+    )
     return gui.add_uplot(
         data=_empty(3),
-        series=(
-            {"label": "step"},
-            {"label": "mean reward/step over trials", "stroke": "#8a3ab9", "width": 2.0},
-            {"label": "sensors broken", "scale": "n", **FAULT_STYLE},
-        ),
+        series=series,
         title="Implementation phase",
         scales={**X_NOT_TIME, "n": {"range": (0.0, 1.0)}},
         axes=({}, {}, {"scale": "n", "show": False}),

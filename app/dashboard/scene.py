@@ -78,19 +78,20 @@ class ArenaView:
 
     def _add_robot(self, i: int) -> dict[str, viser.LineSegmentsHandle]:
         blank = np.zeros((1, 2, 3))
+        black = np.zeros((1, 2, 3), np.uint8)
         root = f"{self._root}/robot{i}"
         return {
             "trail": self._server.scene.add_line_segments(
-                f"{root}/trail", blank, (0, 0, 0), thickness=3.0, thickness_units="screen"
+                f"{root}/trail", blank, black, thickness=3.0, thickness_units="screen"
             ),
             "body": self._server.scene.add_line_segments(
-                f"{root}/body", blank, (0, 0, 0), thickness=2.5, thickness_units="screen"
+                f"{root}/body", blank, black, thickness=2.5, thickness_units="screen"
             ),
             "rays": self._server.scene.add_line_segments(
-                f"{root}/rays", blank, (0, 0, 0), thickness=2.0, thickness_units="screen"
+                f"{root}/rays", blank, black, thickness=2.0, thickness_units="screen"
             ),
             "faults": self._server.scene.add_line_segments(
-                f"{root}/faults", blank, BROKEN_RED, thickness=4.0, thickness_units="screen"
+                f"{root}/faults", blank, black, thickness=4.0, thickness_units="screen"
             ),
         }
 
@@ -194,16 +195,20 @@ class GraphView:
 
     RECENT = 12
 
-    def __init__(self, server: viser.ViserServer, origin: tuple[float, float], size: float):
+    def __init__(
+        self, server: viser.ViserServer, origin: tuple[float, float], width: float, height: float
+    ):
         self._server = server
         self._origin = np.array(origin)
-        self._size = size
+        self._width, self._height = width, height
+        self._size = size = min(width, height)
         root = "/graph"
         blank = np.zeros((1, 2, 3))
+        black = np.zeros((1, 2, 3), np.uint8)
         self._edges = server.scene.add_line_segments(
-            f"{root}/edges", blank, (215, 215, 222), thickness=1.0, thickness_units="screen"
+            f"{root}/edges", blank, black, thickness=1.0, thickness_units="screen"
         )
-        self._node_radius = 0.016 * size
+        self._node_radius = 0.02 * size
         self._nodes = server.scene.add_batched_meshes_simple(
             f"{root}/nodes",
             *_disc_mesh(self._node_radius),
@@ -215,7 +220,7 @@ class GraphView:
             side="double",
         )
         self._recent = server.scene.add_line_segments(
-            f"{root}/recent", blank, (0, 0, 0), thickness=3.0, thickness_units="screen"
+            f"{root}/recent", blank, black, thickness=3.0, thickness_units="screen"
         )
         self._current = server.scene.add_line_segments(
             f"{root}/current", blank, (240, 30, 30), thickness=3.5, thickness_units="screen"
@@ -227,7 +232,7 @@ class GraphView:
         self._title = server.scene.add_label(
             f"{root}/title",
             "node-transition graph",
-            position=(*(self._origin + np.array([0.0, 1.08 * size])), 0.0),
+            position=(*(self._origin + np.array([0.0, 1.06 * height])), 0.0),
             anchor="bottom-left",
         )
         self.layout: GraphLayout | None = None
@@ -251,7 +256,7 @@ class GraphView:
     def set_genome(self, genome: GenomeView) -> None:
         """Lay out and draw the static graph of an individual."""
         self.genome = genome
-        layout = graph_layout(genome.kinds, genome.column_function, self._size * 1.25, self._size)
+        layout = graph_layout(genome.kinds, genome.column_function, self._width, self._height)
         self.layout = layout
         positions = self._origin + layout.positions
         edges = genome.edges
@@ -263,7 +268,7 @@ class GraphView:
         self._edges.colors = np.broadcast_to(
             np.array([215, 215, 222], np.uint8), points.shape
         ).copy()
-        node_colors = np.array([[60, 60, 60], [70, 130, 190], [60, 160, 80]], np.uint8)
+        node_colors = np.array([[50, 50, 50], [40, 100, 170], [30, 140, 60]], np.uint8)
         n_nodes = len(positions)
         with self._server.atomic():
             self._nodes.batched_positions = geo.flat_to_3d(positions[None])[0].astype(np.float32)
