@@ -41,8 +41,8 @@ class GnpConfig(BaseModel):
         description="RL: sub node selection only; BS: + branch connections; CS: + credit",
     )
     fuzzy: bool = Field(default=True, description="fuzzy (Eq. 2.1–2.2) or crisp judgment")
-    n_judgment: int = Field(default=40, ge=1, le=10_000, description="judgment nodes")
-    n_processing: int = Field(default=20, ge=1, le=10_000, description="processing nodes")
+    n_judgment: int = Field(default=40, ge=1, le=16_000, description="judgment nodes")
+    n_processing: int = Field(default=20, ge=1, le=16_000, description="processing nodes")
     n_sub: int = Field(default=2, ge=1, le=64, description="sub nodes m per node")
     n_branch: int = Field(
         default=2, ge=1, le=64, description="branch connections U per connection (BS)"

@@ -18,6 +18,7 @@ node it leads to (Eq. 3.2's r_{t+1}).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 from numba import njit
@@ -30,7 +31,7 @@ from gnp.config import (
     GnpConfig,
     GnpError,
 )
-from gnp.population import Population, field_shapes
+from gnp.population import Population
 from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
@@ -118,14 +119,79 @@ def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = Non
 
 
 def _per_controller(value: float | np.ndarray, n: int, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    elif arr.shape != (n,):
+    if np.ndim(value) == 0:
+        v = float(value)
+        if not 0.0 <= v <= 1.0:
+            raise GnpError(f"{name} must lie in [0, 1], got {v}")
+        return np.full(n, v)
+    arr = np.ascontiguousarray(value, dtype=np.float64)
+    if arr.shape != (n,):
         raise GnpError(f"{name} must be a scalar or shape ({n},), got {arr.shape}")
-    if not np.all((arr >= 0.0) & (arr <= 1.0)):
+    if n and not (arr.min() >= 0.0 and arr.max() <= 1.0):
         raise GnpError(f"{name} must lie in [0, 1]")
-    return np.ascontiguousarray(arr)
+    return arr
+
+
+# Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
+_NO_TRACE = np.empty((0, 0), np.int32)
+_NO_COUNT = np.empty(0, np.int32)
+
+
+@overload
+def step(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    observations: np.ndarray,
+    reward: np.ndarray,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    learn: bool = ...,
+    trace: Literal[False] = ...,
+) -> np.ndarray: ...
+
+
+@overload
+def step(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    observations: np.ndarray,
+    reward: np.ndarray,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    learn: bool,
+    trace: Literal[True],
+) -> tuple[np.ndarray, StepTrace]: ...
+
+
+@overload
+def step(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    observations: np.ndarray,
+    reward: np.ndarray,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    learn: bool = ...,
+    *,
+    trace: Literal[True],
+) -> tuple[np.ndarray, StepTrace]: ...
+
+
+@overload
+def step(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    observations: np.ndarray,
+    reward: np.ndarray,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    learn: bool = ...,
+    trace: bool = ...,
+) -> np.ndarray | tuple[np.ndarray, StepTrace]: ...
 
 
 def step(
@@ -158,11 +224,12 @@ def step(
     n = state.size
     if pop.size != n:
         raise GnpError(f"population has {pop.size} individuals, state {n} controllers")
-    if pop.q_bs.shape[1:] != field_shapes(cfg)["q_bs"] or pop.q_ss.shape[1:] != (
-        cfg.n_nodes,
-        cfg.n_sub,
-    ):
-        raise GnpError("population does not match the config (node, sub node or branch counts)")
+    expected = (cfg.n_nodes, cfg.n_sub, 2, cfg.n_conn_branches)
+    if pop.q_bs.shape[1:] != expected:
+        raise GnpError(
+            f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
+            f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
+        )
     obs = np.ascontiguousarray(observations, dtype=np.float64)
     if obs.shape != (n, 8):
         raise GnpError(f"observations must have shape ({n}, 8), got {obs.shape}")
@@ -171,19 +238,19 @@ def step(
         raise GnpError(f"reward must have shape ({n},), got {rew.shape}")
     eps = _per_controller(epsilon, n, "epsilon")
     alp = _per_controller(alpha, n, "alpha")
-    k = cfg.max_visits_per_step if trace else 0
-    t_node = np.full((n, k), -1, np.int32)
-    t_sub = np.full((n, k), -1, np.int32)
-    t_branch = np.full((n, k), -1, np.int32)
-    t_u = np.full((n, k), -1, np.int32)
-    t_skip = np.full((n, k), -1, np.int32)
-    t_count = np.zeros(n, np.int32)
+    if trace:
+        k = cfg.max_visits_per_step
+        t_node, t_sub, t_branch, t_u, t_skip = (np.full((n, k), -1, np.int32) for _ in range(5))
+        t_count = np.zeros(n, np.int32)
+    else:
+        t_node = t_sub = t_branch = t_u = t_skip = _NO_TRACE
+        t_count = _NO_COUNT
     _step_kernel(
         METHOD_CODE[cfg.method],
         cfg.fuzzy,
         cfg.gamma,
-        np.asarray(cfg.node_type, np.int8),
-        np.asarray(cfg.node_cost, np.int32),
+        cfg.node_type,
+        cfg.node_cost,
         pop.function,
         pop.mu_beta,
         pop.mu_alpha,
@@ -218,32 +285,31 @@ def step(
 
 
 @njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
-    """ε-greedy over the 1-D values q: (new stream state, chosen index).
+def _egreedy(q: np.ndarray, row: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+    """ε-greedy over the values q[row, :]: (new stream state, chosen index).
 
     Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima.
+    (Rows of a 2-D view rather than 1-D slices: slicing in the hot loop costs more.)
     """
-    k = q.shape[0]
+    k = q.shape[1]
     s, u = next_uniform(s)
     if u < eps:
         s, v = next_uniform(s)
         return s, min(int(v * k), k - 1)
-    best = q[0]
+    best = q[row, 0]
     ties = 1
     for a in range(1, k):
-        if q[a] > best:
-            best = q[a]
+        if q[row, a] > best:
+            best = q[row, a]
             ties = 1
-        elif q[a] == best:
+        elif q[row, a] == best:
             ties += 1
-    if ties == 1:
-        for a in range(k):
-            if q[a] == best:
-                return s, a
-    s, v = next_uniform(s)
-    pick = min(int(v * ties), ties - 1)
+    pick = 0
+    if ties > 1:
+        s, v = next_uniform(s)
+        pick = min(int(v * ties), ties - 1)
     for a in range(k):
-        if q[a] == best:
+        if q[row, a] == best:
             if pick == 0:
                 return s, a
             pick -= 1
@@ -285,6 +351,12 @@ def _step_kernel(
     t_count,
 ):  # pragma: no cover - compiled
     n_ctrl = cur_node.shape[0]
+    n_nodes = q_ss.shape[1]
+    n_sub = q_ss.shape[2]
+    # 2-D views whose rows are the action values of one ε-greedy choice.
+    q_ss_rows = q_ss.reshape(n_ctrl * n_nodes, n_sub)
+    q_cs_rows = q_cs.reshape(n_ctrl * n_nodes * n_sub, 2)
+    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, q_bs.shape[4])
     for c in range(n_ctrl):
         s = rng[c]
         node = cur_node[c]
@@ -308,10 +380,10 @@ def _step_kernel(
                 k += 1
                 node = conn[c, node, 0, 0, 0]
                 continue
-            s, p = _egreedy(q_ss[c, node], eps, s)
+            s, p = _egreedy(q_ss_rows, c * n_nodes + node, eps, s)
             cs = 0
             if method == _CS:
-                s, cs = _egreedy(q_cs[c, node, p], eps, s)
+                s, cs = _egreedy(q_cs_rows, (c * n_nodes + node) * n_sub + p, eps, s)
             if learn and pending[c, 0] >= 0:
                 pn = pending[c, 0]
                 pp = pending[c, 1]
@@ -361,7 +433,9 @@ def _step_kernel(
                     branch = 0
                 u = 0
                 if method == _BS:
-                    s, u = _egreedy(q_bs[c, node, p, branch], eps, s)
+                    s, u = _egreedy(
+                        q_bs_rows, ((c * n_nodes + node) * n_sub + p) * 2 + branch, eps, s
+                    )
                 nxt = conn[c, node, p, branch, u]
             if trace:
                 t_node[c, k] = node
@@ -381,4 +455,5 @@ def _step_kernel(
             node = nxt
         cur_node[c] = node
         rng[c] = s
-        t_count[c] = k
+        if trace:
+            t_count[c] = k
