@@ -30,32 +30,28 @@ _REACH = BODY_RADIUS_MM + IR_RANGE_MM + 1.0
 """No ray reaches a wall farther than this from the robot's centre."""
 
 
-@nb.njit(cache=True, inline="always")
-def _ray_hit(
-    ax: float, ay: float, dx: float, dy: float, length: float, p: np.ndarray, q: np.ndarray
-) -> float:
-    """Distance along the ray a + t·d (|d| = 1, 0 ≤ t ≤ length) to segment pq, or inf."""
-    ex = q[0] - p[0]
-    ey = q[1] - p[1]
-    denom = dx * ey - dy * ex
-    if denom == 0.0:
-        return np.inf  # parallel: a grazing ray sees the wall edge-on, i.e. nothing
-    wx = p[0] - ax
-    wy = p[1] - ay
-    t = (wx * ey - wy * ex) / denom
-    u = (wx * dy - wy * dx) / denom
-    if u < 0.0 or u > 1.0 or t < 0.0 or t > length:
-        return np.inf
-    return t
+def wall_table(walls: np.ndarray) -> np.ndarray:
+    """(K, 5) rows of px, py, ex, ey, 1/|e|² for wall segments (K, 2, 2) from p to p + e."""
+    p = walls[:, 0]
+    e = walls[:, 1] - walls[:, 0]
+    return np.ascontiguousarray(
+        np.column_stack([p, e, 1.0 / np.einsum("ij,ij->i", e, e)]), dtype=np.float64
+    )
 
 
 @nb.njit(cache=True)
-def ir_readings(poses: np.ndarray, walls: np.ndarray, out: np.ndarray) -> None:
-    """True IR readings (N, 8) for poses (N, 3) in the frame of walls (K, 2, 2), into out."""
+def ir_readings(poses: np.ndarray, table: np.ndarray, out: np.ndarray) -> None:
+    """True IR readings (N, 8) into out, for poses (N, 3) among walls given by ``wall_table``.
+
+    Each ray starts ``IR_BACKOFF_MM`` behind its sensor and is intersected with every wall
+    within reach of the body: t = ((p − a) × e) / (d × e), u = ((p − a) × d) / (d × e), a hit
+    iff 0 ≤ u ≤ 1 and 0 ≤ t ≤ length. Parallel walls are not seen (edge-on).
+    """
     n = poses.shape[0]
-    k = walls.shape[0]
+    k = table.shape[0]
     near = np.empty(k, dtype=np.int64)
     length = IR_RANGE_MM + IR_BACKOFF_MM
+    reach2 = _REACH * _REACH
     for i in range(n):
         x = poses[i, 0]
         y = poses[i, 1]
@@ -63,15 +59,14 @@ def ir_readings(poses: np.ndarray, walls: np.ndarray, out: np.ndarray) -> None:
         s = np.sin(poses[i, 2])
         m = 0
         for w in range(k):  # only walls within reach of the body's rays
-            px = walls[w, 0, 0]
-            py = walls[w, 0, 1]
-            ex = walls[w, 1, 0] - px
-            ey = walls[w, 1, 1] - py
-            t = ((x - px) * ex + (y - py) * ey) / (ex * ex + ey * ey)
-            t = min(1.0, max(0.0, t))
+            px = table[w, 0]
+            py = table[w, 1]
+            ex = table[w, 2]
+            ey = table[w, 3]
+            t = min(1.0, max(0.0, ((x - px) * ex + (y - py) * ey) * table[w, 4]))
             cx = px + t * ex - x
             cy = py + t * ey - y
-            if cx * cx + cy * cy <= _REACH * _REACH:
+            if cx * cx + cy * cy <= reach2:
                 near[m] = w
                 m += 1
         for j in range(N_SENSORS):
@@ -82,37 +77,84 @@ def ir_readings(poses: np.ndarray, walls: np.ndarray, out: np.ndarray) -> None:
             best = np.inf
             for q in range(m):
                 w = near[q]
-                t = _ray_hit(ax, ay, dx, dy, length, walls[w, 0], walls[w, 1])
-                best = min(best, t)
+                ex = table[w, 2]
+                ey = table[w, 3]
+                denom = dx * ey - dy * ex
+                if denom == 0.0:
+                    continue
+                wx = table[w, 0] - ax
+                wy = table[w, 1] - ay
+                t = (wx * ey - wy * ex) / denom
+                if t < 0.0 or t >= best or t > length:
+                    continue
+                u = (wx * dy - wy * dx) / denom
+                if 0.0 <= u <= 1.0:
+                    best = t
             d = max(0.0, best - IR_BACKOFF_MM)
             out[i, j] = IR_MAX * max(0.0, 1.0 - d / IR_RANGE_MM)
 
 
 @nb.njit(cache=True)
 def drive_forces(
-    angles: np.ndarray, commands: np.ndarray, rows: np.ndarray, dt: float, out: np.ndarray
+    angles: np.ndarray,
+    spins: np.ndarray,
+    commands: np.ndarray,
+    rows: np.ndarray,
+    dt: float,
+    out: np.ndarray,
 ) -> None:
-    """Force and torque that give each robot its commanded wheel speeds after one substep.
+    """Forces and torques that drive each robot at its wheel commands, for every substep.
 
-    The space has damping 0, so a body's velocity after a substep is exactly force·dt/m (then
-    contacts act): F = m·v/dt and τ = I·ω/dt, with no memory of the previous velocity.
+    The space has damping 0, so after a physics step a body's velocity is force·dt/m (then the
+    contacts act, and frictionless contacts on a disc exert no torque): F = m·v/dt, τ = I·ω/dt.
+    Chipmunk moves a body with the velocity set in the step before, so the velocity set in
+    substep j is aimed along the heading halfway through substep j + 1: the chord of the arc.
 
     Args:
-        angles: (N,) robot headings.
+        angles: (N,) headings now.
+        spins: (N,) angular velocities the bodies carry into the first substep.
         commands: (N, 2) left, right wheel commands (rad/s), already clipped.
-        rows: (N,) each robot's row in out.
+        rows: (N,) each robot's body row in out.
         dt: Substep length (s).
-        out: (B, 3) rows of fx, fy, τ for every body of the space; other rows are untouched.
+        out: (K, B, 3) fx, fy, τ for K substeps and every body of the space; rows of other
+            bodies are left as they are.
     """
     for i in range(commands.shape[0]):
         left = commands[i, 0] * WHEEL_RADIUS_MM
         right = commands[i, 1] * WHEEL_RADIUS_MM
-        speed = 0.5 * (left + right)
+        force = MASS * 0.5 * (left + right) / dt
         spin = (right - left) / AXLE_MM
+        torque = MOMENT * spin / dt
+        heading = angles[i] + spins[i] * dt + 0.5 * spin * dt
+        c = np.cos(heading)  # direction in substep 0, then turned by spin·dt per substep
+        s = np.sin(heading)
+        turn_c = np.cos(spin * dt)
+        turn_s = np.sin(spin * dt)
         r = rows[i]
-        out[r, 0] = MASS * speed * np.cos(angles[i]) / dt
-        out[r, 1] = MASS * speed * np.sin(angles[i]) / dt
-        out[r, 2] = MOMENT * spin / dt
+        for j in range(out.shape[0]):
+            out[j, r, 0] = force * c
+            out[j, r, 1] = force * s
+            out[j, r, 2] = torque
+            c, s = c * turn_c - s * turn_s, s * turn_c + c * turn_s
+
+
+@nb.njit(cache=True)
+def wheel_spins(commands: np.ndarray, out: np.ndarray) -> None:
+    """Angular velocities (N,) of robots driven at commands (N, 2)."""
+    for i in range(commands.shape[0]):
+        out[i] = (commands[i, 1] - commands[i, 0]) * WHEEL_RADIUS_MM / AXLE_MM
+
+
+@nb.njit(cache=True)
+def gather_poses(
+    buffer: np.ndarray, rows: np.ndarray, offsets: np.ndarray, out: np.ndarray
+) -> None:
+    """Arena-local poses (n, 3) from a pymunk batch buffer of x, y, angle rows."""
+    for i in range(rows.shape[0]):
+        r = 3 * rows[i]
+        out[i, 0] = buffer[r] - offsets[i, 0]
+        out[i, 1] = buffer[r + 1] - offsets[i, 1]
+        out[i, 2] = buffer[r + 2]
 
 
 @nb.njit(cache=True)
@@ -133,9 +175,9 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
 _MIX2 = np.uint64(0x94D049BB133111EB)
 _TWO_PI = 2.0 * np.pi
-_DRAW_NORMAL_A = 0
-_DRAW_NORMAL_B = 1
-_DRAW_UNIFORM = 2
+_INV_2_32 = 1.0 / 4294967296.0
+_BLOCK_NORMAL = 0  # blocks 0..3: one Box–Muller pair each, for sensors 2b and 2b + 1
+_BLOCK_UNIFORM = 4  # blocks 4..7: two uniforms each, for random faults of sensors 2b, 2b + 1
 
 
 @nb.njit(cache=True, inline="always")
@@ -148,11 +190,17 @@ def splitmix64(z: np.uint64) -> np.uint64:
 
 
 @nb.njit(cache=True, inline="always")
-def _uniform(key: np.uint64, step: np.uint64, sensor: int, draw: int) -> float:
-    """A uniform float in [0, 1) from (key, step, sensor, draw)."""
-    counter = (step << np.uint64(8)) | np.uint64(sensor * 4 + draw)
-    h = splitmix64(key ^ splitmix64(counter))
-    return float(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+def _hash(key: np.uint64, step: np.uint64, block: int) -> np.uint64:
+    """64 random bits from (robot key, step, block): a counter-based generator."""
+    return splitmix64(key ^ splitmix64((step << np.uint64(4)) | np.uint64(block)))
+
+
+@nb.njit(cache=True, inline="always")
+def _halves(h: np.uint64) -> tuple[float, float]:
+    """Two uniforms from 64 bits: the high half in (0, 1], the low half in [0, 1)."""
+    hi = float(h >> np.uint64(32))
+    lo = float(h & np.uint64(0xFFFFFFFF))
+    return (hi + 1.0) * _INV_2_32, lo * _INV_2_32
 
 
 @nb.njit(cache=True)
@@ -195,15 +243,26 @@ def observe(
         stuck: (N, 8) the value a ``stuck`` sensor keeps.
         out: (N, 8) result.
     """
+    noise = np.zeros(N_SENSORS)
+    uniform = np.zeros(N_SENSORS)
     for i in range(true.shape[0]):
         key = keys[i]
+        if sigma > 0.0:
+            for b in range(N_SENSORS // 2):
+                u1, u2 = _halves(_hash(key, step, _BLOCK_NORMAL + b))
+                r = sigma * np.sqrt(-2.0 * np.log(u1))
+                noise[2 * b] = r * np.cos(_TWO_PI * u2)
+                noise[2 * b + 1] = r * np.sin(_TWO_PI * u2)
+        has_random = False
+        for j in range(N_SENSORS):
+            has_random |= mode[i, j] == 4
+        if has_random:
+            for b in range(N_SENSORS // 2):
+                uniform[2 * b + 1], uniform[2 * b] = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
         for j in range(N_SENSORS):
             x = true[i, j]
             if sigma > 0.0:
-                u1 = 1.0 - _uniform(key, step, j, _DRAW_NORMAL_A)  # in (0, 1]
-                u2 = _uniform(key, step, j, _DRAW_NORMAL_B)
-                x += sigma * np.sqrt(-2.0 * np.log(u1)) * np.cos(_TWO_PI * u2)
-                x = min(IR_MAX, max(0.0, x))
+                x = min(IR_MAX, max(0.0, x + noise[j]))
             f = mode[i, j]
             if f == 1:  # dead
                 x = 0.0
@@ -212,5 +271,5 @@ def observe(
             elif f == 3:  # stuck
                 x = stuck[i, j]
             elif f == 4:  # random
-                x = IR_MAX * _uniform(key, step, j, _DRAW_UNIFORM)
+                x = IR_MAX * uniform[j]
             out[i, j] = x
