@@ -362,11 +362,25 @@ def _step_kernel(
         node = cur_node[c]
         eps = eps_arr[c]
         lr = alpha_arr[c]
-        # The pending visit was the last of the previous world step: it earns that step's
-        # reward, unless it was a credit skip (reward 0, Eq. 5.3).
-        pend_r = 0.0
-        if pending[c, 0] >= 0 and pending[c, 4] != 1:
-            pend_r = reward[c]
+        # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
+        # Q_BS update), kept in locals while the controller runs: (node, sub, branch, u, credit).
+        pn, pp, pb, pu, pc = (
+            pending[c, 0],
+            pending[c, 1],
+            pending[c, 2],
+            pending[c, 3],
+            pending[c, 4],
+        )
+        bn, bp, bb, bu, bc = (
+            pending_bs[c, 0],
+            pending_bs[c, 1],
+            pending_bs[c, 2],
+            pending_bs[c, 3],
+            pending_bs[c, 4],
+        )
+        # The last visit was the last of the previous world step: it earns that step's reward,
+        # unless it was a credit skip (reward 0, Eq. 5.3).
+        pend_r = reward[c] if pn >= 0 and pc != 1 else 0.0
         used = 0
         k = 0
         while used < STEP_BUDGET:
@@ -384,24 +398,15 @@ def _step_kernel(
             cs = 0
             if method == _CS:
                 s, cs = _egreedy(q_cs_rows, (c * n_nodes + node) * n_sub + p, eps, s)
-            if learn and pending[c, 0] >= 0:
-                pn = pending[c, 0]
-                pp = pending[c, 1]
+            if learn and pn >= 0:
                 q_ss[c, pn, pp] += lr * (pend_r + gamma * q_ss[c, node, p] - q_ss[c, pn, pp])
                 if method == _CS:
-                    pc = pending[c, 4]
                     q_cs[c, pn, pp, pc] += lr * (
                         pend_r + gamma * q_cs[c, node, p, cs] - q_cs[c, pn, pp, pc]
                     )
-                if method == _BS and pending_bs[c, 0] >= 0:
-                    bn = pending_bs[c, 0]
-                    bp = pending_bs[c, 1]
-                    bb = pending_bs[c, 2]
-                    bu = pending_bs[c, 3]
+                if method == _BS and bn >= 0:
                     q_bs[c, bn, bp, bb, bu] += lr * (
-                        pend_r
-                        + gamma * q_bs[c, pn, pp, pending[c, 2], pending[c, 3]]
-                        - q_bs[c, bn, bp, bb, bu]
+                        pend_r + gamma * q_bs[c, pn, pp, pb, pu] - q_bs[c, bn, bp, bb, bu]
                     )
             if cs == 1:
                 used += SKIP_COST
@@ -444,16 +449,20 @@ def _step_kernel(
                 t_u[c, k] = u
                 t_skip[c, k] = cs
             k += 1
-            for j in range(5):
-                pending_bs[c, j] = pending[c, j]
-            pending[c, 0] = node
-            pending[c, 1] = p
-            pending[c, 2] = branch
-            pending[c, 3] = u
-            pending[c, 4] = cs
+            bn, bp, bb, bu, bc = pn, pp, pb, pu, pc
+            pn, pp, pb, pu, pc = node, p, branch, u, cs
             pend_r = 0.0
             node = nxt
         cur_node[c] = node
         rng[c] = s
+        pending[c, 0], pending[c, 1], pending[c, 2], pending[c, 3], pending[c, 4] = (
+            pn,
+            pp,
+            pb,
+            pu,
+            pc,
+        )
+        pending_bs[c, 0], pending_bs[c, 1], pending_bs[c, 2] = bn, bp, bb
+        pending_bs[c, 3], pending_bs[c, 4] = bu, bc
         if trace:
             t_count[c] = k
