@@ -112,18 +112,9 @@ class _Chunk:
                 seg.elasticity = 0.0
                 walls.append(seg)
         self.space.add(*walls)
-        self.bodies = []
-        self.shapes = []
-        for _ in offsets:
-            body = pymunk.Body(MASS, MOMENT)
-            shape = pymunk.Circle(body, BODY_RADIUS_MM)
-            shape.filter = ROBOT_FILTER
-            shape.friction = 0.0
-            shape.elasticity = 0.0
-            self.bodies.append(body)
-            self.shapes.append(shape)
-        self.ids = {body.id: i for i, body in enumerate(self.bodies)}
-        self.added = np.zeros(len(offsets), dtype=bool)
+        self.bodies: list[pymunk.Body | None] = [None] * len(offsets)
+        self.shapes: list[pymunk.Circle | None] = [None] * len(offsets)
+        self.ids: dict[int, int] = {}  # pymunk body id -> robot
         self.buffer = pb.Buffer()  # for reading; chipmunk owns (and grows) its arrays
         self.rows = np.arange(len(offsets))  # buffer row of each robot
         self.forces = np.zeros((0, 0, 3))  # (substeps, bodies, 3)
@@ -132,17 +123,21 @@ class _Chunk:
     def place(self, local: Sequence[int], poses: np.ndarray) -> None:
         """Remove robots ``local`` and add them back, at rest, at arena-local ``poses``."""
         for i, pose in zip(local, poses, strict=True):
-            body, shape = self.bodies[i], self.shapes[i]
-            if self.added[i]:
-                self.space.remove(body, shape)
+            old_body, old_shape = self.bodies[i], self.shapes[i]
+            if old_body is not None and old_shape is not None:
+                self.space.remove(old_body, old_shape)
+                del self.ids[old_body.id]
+            # A new body: a reused one would carry chipmunk's contact bias velocity along.
+            body = pymunk.Body(MASS, MOMENT)
             body.position = (pose[0] + self.offsets[i, 0], pose[1] + self.offsets[i, 1])
             body.angle = pose[2]
-            body.velocity = (0.0, 0.0)
-            body.angular_velocity = 0.0
-            body.force = (0.0, 0.0)
-            body.torque = 0.0
+            shape = pymunk.Circle(body, BODY_RADIUS_MM)
+            shape.filter = ROBOT_FILTER
+            shape.friction = 0.0
+            shape.elasticity = 0.0
             self.space.add(body, shape)
-            self.added[i] = True
+            self.bodies[i], self.shapes[i] = body, shape
+            self.ids[body.id] = i
         # Removing and adding bodies reorders them in the space: map robots to buffer rows.
         self.buffer.clear()
         pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, self.buffer)

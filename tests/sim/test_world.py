@@ -1,0 +1,344 @@
+"""The world: motion, contacts, per-robot determinism, noise and faults."""
+
+import numpy as np
+import pytest
+
+import sim
+from sim.arena import ArenaSpec, StartPoseSpec, arena_from_spec
+from sim.check import MAX_PENETRATION_MM
+from sim.khepera import (
+    AXLE_MM,
+    BODY_RADIUS_MM,
+    CONTROL_PERIOD_S,
+    IR_MAX,
+    MAX_WHEEL_SPEED_MM_S,
+    WHEEL_RADIUS_MM,
+)
+
+TRAINING = sim.load_arena("training")
+
+
+def box(size: float = 2000.0) -> sim.Arena:
+    spec = ArenaSpec(
+        name="box",
+        outer_wall=[(0, 0), (size, 0), (size, size), (0, size), (0, 0)],
+        start_poses=[
+            StartPoseSpec(name=f"p{i}", x=size / 2, y=size / 2, heading_deg=0) for i in range(10)
+        ],
+    )
+    return arena_from_spec(spec)
+
+
+def held_commands(rng: np.random.Generator, steps: int, n: int, hold: int = 8) -> np.ndarray:
+    """Random commands held for a few steps and mostly forward, so robots reach the walls."""
+    blocks = rng.uniform(-10, 10, (steps // hold + 1, n, 2))
+    forward = rng.random((steps // hold + 1, n, 1)) < 0.6
+    blocks = np.where(forward, np.abs(blocks), blocks)
+    return np.repeat(blocks, hold, axis=0)[:steps]
+
+
+# --- motion ---
+
+
+def test_driving_straight_covers_75_mm_per_second() -> None:
+    world = sim.World(box(), n=1)
+    world.reset(np.array([[1000.0, 1000.0, 0.0]]))
+    steps = 100
+    for _ in range(steps):
+        world.step(np.array([[10.0, 10.0]]))
+    # The first substep of the first step only sets the velocity (one substep of delay).
+    travelled = world.poses[0, 0] - 1000.0
+    expected = MAX_WHEEL_SPEED_MM_S * CONTROL_PERIOD_S * (steps - 1 / world.substeps)
+    assert travelled == pytest.approx(expected, rel=1e-9)
+    assert world.poses[0, 1] == pytest.approx(1000.0, abs=1e-9)
+
+
+def test_opposite_wheels_turn_in_place_at_the_axle_rate() -> None:
+    world = sim.World(box(), n=1)
+    world.reset(np.array([[1000.0, 1000.0, 0.0]]))
+    for _ in range(10):
+        world.step(np.array([[-5.0, 5.0]]))
+    rate = 2 * 5.0 * WHEEL_RADIUS_MM / AXLE_MM
+    assert world.poses[0, 2] == pytest.approx(rate * CONTROL_PERIOD_S * (10 - 1 / 3), rel=1e-9)
+    np.testing.assert_allclose(world.poses[0, :2], [1000.0, 1000.0], atol=1e-9)
+
+
+def test_an_arc_follows_differential_drive_kinematics() -> None:
+    world = sim.World(box(), n=1)
+    start = np.array([1000.0, 1000.0, 0.3])
+    world.reset(start[None])
+    left, right = 4.0, 9.0
+    for _ in range(60):
+        world.step(np.array([[left, right]]))
+    speed = WHEEL_RADIUS_MM * (left + right) / 2
+    spin = WHEEL_RADIUS_MM * (right - left) / AXLE_MM
+    t = CONTROL_PERIOD_S * (60 - 1 / 3)  # one substep of actuation delay
+    heading = start[2] + spin * t
+    x = start[0] + speed / spin * (np.sin(heading) - np.sin(start[2]))
+    y = start[1] - speed / spin * (np.cos(heading) - np.cos(start[2]))
+    np.testing.assert_allclose(world.poses[0], [x, y, heading], atol=0.05)
+
+
+def test_commands_are_clipped_to_the_wheel_range() -> None:
+    a, b = sim.World(box(), n=1), sim.World(box(), n=1)
+    for w in (a, b):
+        w.reset(np.array([[1000.0, 1000.0, 0.0]]))
+    for _ in range(5):
+        a.step(np.array([[10.0, -10.0]]))
+        b.step(np.array([[50.0, -1e9]]))
+    np.testing.assert_array_equal(a.poses, b.poses)
+
+
+def test_random_driving_never_enters_a_wall_nor_leaves_the_arena() -> None:
+    """300 robots, 10,000 steps of random commands (the expensive one)."""
+    n, steps = 300, 10_000
+    rng = np.random.default_rng(3)
+    world = sim.World(TRAINING, n=n, seed=3)
+    world.reset(TRAINING.start_poses[rng.integers(0, 10, n)])
+    commands = held_commands(rng, steps, n)
+    deepest, touching = 0.0, 0
+    for t in range(steps):
+        world.step(commands[t])
+        if t % 4 == 0:
+            poses = world.poses[:, :2]
+            depth = BODY_RADIUS_MM - TRAINING.clearance(poses)
+            deepest = max(deepest, float(depth.max()))
+            touching += int(np.count_nonzero(depth > 0))
+            assert np.all(TRAINING.contains(poses)), f"a robot left the arena at step {t}"
+    assert deepest <= MAX_PENETRATION_MM
+    assert touching > 10_000  # robots did press on walls, many times
+
+
+def test_robots_do_not_collide_with_each_other() -> None:
+    """Two robots placed on the same spot pass through each other (each is alone)."""
+    world = sim.World(box(), n=2)
+    world.reset(np.array([[1000.0, 1000.0, 0.0], [1000.0, 1000.0, np.pi]]))
+    for _ in range(20):
+        world.step(np.array([[10.0, 10.0], [10.0, 10.0]]))
+    np.testing.assert_allclose(world.poses[:, 1], 1000.0, atol=1e-9)
+    assert world.poses[0, 0] - 1000 == pytest.approx(1000 - world.poses[1, 0], rel=1e-12)
+
+
+# --- determinism ---
+
+
+def run(
+    poses: np.ndarray, seeds: np.ndarray, commands: np.ndarray, sigma: float = 50.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    world = sim.World(TRAINING, n=len(poses), seed=99, noise_sigma=sigma)
+    world.reset(poses, seeds)
+    track, seen, true = [], [], []
+    for command in commands:
+        seen.append(world.observe())
+        true.append(world.sense())
+        world.step(command)
+        track.append(world.poses)
+    return np.array(track), np.array(seen), np.array(true)
+
+
+def test_a_robot_is_bit_identical_alone_in_a_batch_and_in_a_split_batch() -> None:
+    n, steps = 300, 400
+    rng = np.random.default_rng(11)
+    poses = TRAINING.start_poses[rng.integers(0, 10, n)]
+    seeds = rng.integers(0, 2**62, n)
+    # Each robot's commands come from its own generator.
+    commands = np.stack(
+        [held_commands(np.random.default_rng([11, i]), steps, 1)[:, 0] for i in range(n)], axis=1
+    )
+    batch = run(poses, seeds, commands)
+    depth = BODY_RADIUS_MM - TRAINING.clearance(batch[0][..., :2])
+    assert np.count_nonzero(depth > 0) > 1000  # plenty of wall contacts to get wrong
+    for i in (0, 1, 137, 299):
+        alone = run(poses[i : i + 1], seeds[i : i + 1], commands[:, i : i + 1])
+        for a, b in zip(alone, batch, strict=True):
+            np.testing.assert_array_equal(a[:, 0], b[:, i])
+    for part in (slice(0, 113), slice(113, 300)):
+        split = run(poses[part], seeds[part], commands[:, part])
+        for a, b in zip(split, batch, strict=True):
+            np.testing.assert_array_equal(a, b[:, part])
+
+
+def test_reset_matches_a_fresh_world_bit_for_bit() -> None:
+    n, steps = 40, 200
+    rng = np.random.default_rng(5)
+    poses = TRAINING.start_poses[rng.integers(0, 10, n)]
+    seeds = rng.integers(0, 2**62, n)
+    commands = held_commands(rng, steps, n)
+    used = sim.World(TRAINING, n=n, noise_sigma=30.0)
+    used.reset(TRAINING.start_poses[rng.integers(0, 10, n)])
+    for command in held_commands(rng, 150, n):
+        used.step(command)
+    used.reset(poses, seeds)
+    fresh = sim.World(TRAINING, n=n, noise_sigma=30.0)
+    fresh.reset(poses, seeds)
+    for command in commands:
+        np.testing.assert_array_equal(used.observe(), fresh.observe())
+        used.step(command)
+        fresh.step(command)
+        np.testing.assert_array_equal(used.poses, fresh.poses)
+
+
+def test_default_seeds_come_from_the_world_seed_and_change_every_episode() -> None:
+    a, b, c = (sim.World(TRAINING, n=4, seed=s, noise_sigma=40.0) for s in (1, 1, 2))
+    np.testing.assert_array_equal(a.seeds, b.seeds)
+    assert not np.array_equal(a.seeds, c.seeds)
+    first = a.seeds
+    a.reset(TRAINING.start_poses[:4])
+    assert len(set(a.seeds.tolist()) | set(first.tolist())) == 8
+    np.testing.assert_array_equal(
+        b.observe(), sim.World(TRAINING, n=4, seed=1, noise_sigma=40.0).observe()
+    )
+
+
+def test_place_moves_robots_but_keeps_clock_and_faults() -> None:
+    world = sim.World(TRAINING, n=3, noise_sigma=10.0)
+    world.reset(TRAINING.start_poses[:3])
+    for _ in range(5):
+        world.step(np.full((3, 2), 5.0))
+    world.break_sensors([1], "dead", robots=[2])
+    world.place(TRAINING.start_poses[7:8], robots=[1])
+    assert world.t == 5
+    np.testing.assert_allclose(world.poses[1], TRAINING.start_poses[7])
+    assert world.broken[2, 1] and world.broken.sum() == 1
+    reference = sim.World(TRAINING, n=1)
+    reference.reset(TRAINING.start_poses[7:8])
+    np.testing.assert_array_equal(world.sense()[1], reference.sense()[0])
+
+
+# --- noise ---
+
+
+def still_world(n: int, sigma: float) -> sim.World:
+    """Robots parked at one start pose whose true readings span 0..~530."""
+    world = sim.World(TRAINING, n=n, seed=4, noise_sigma=sigma)
+    world.reset(np.repeat(TRAINING.start_poses[:1], n, axis=0))
+    return world
+
+
+def test_noise_has_the_configured_standard_deviation() -> None:
+    sigma = 50.0
+    world = still_world(200, sigma)
+    true = world.sense()
+    assert 300 < true[0, 5] < 700  # s5 reads mid-range: no clipping within a few σ
+    draws = []
+    for _ in range(50):
+        draws.append(world.observe() - true)
+        world.step(np.zeros((200, 2)))
+    noise = np.array(draws)[..., 5].ravel()  # 10,000 draws
+    assert abs(noise.mean()) < 4 * sigma / np.sqrt(noise.size)
+    assert noise.std() == pytest.approx(sigma, rel=0.03)
+    pair = np.array(draws)[..., 4:6].reshape(-1, 2)  # s4 and s5 share a Box–Muller draw
+    assert abs(np.corrcoef(pair.T)[0, 1]) < 0.05
+    # Readings at 0 are clipped: never negative, so their mean is pushed up.
+    zero = np.array(draws)[..., 2].ravel()
+    assert zero.min() == 0.0 and zero.mean() > 0.3 * sigma
+
+
+def test_noise_is_off_at_sigma_zero_and_can_change_between_steps() -> None:
+    world = still_world(5, 0.0)
+    np.testing.assert_array_equal(world.observe(), world.sense())
+    world.noise_sigma = 20.0
+    assert not np.array_equal(world.observe(), world.sense())
+    np.testing.assert_array_equal(world.observe(), world.observe())  # same step, same draw
+    with pytest.raises(sim.WorldError, match="noise_sigma"):
+        world.noise_sigma = -1.0
+
+
+# --- faults ---
+
+
+def test_each_fault_mode_reads_as_documented() -> None:
+    world = still_world(4, 30.0)
+    for robot, mode in enumerate(sim.FAULT_MODES):
+        world.break_sensors([4, 5], mode, robots=[robot])
+    stuck_at = world.observe()[2, [4, 5]]
+    assert not np.any(world.broken[:, [0, 1, 2, 3, 6, 7]])
+    seen = []
+    for _ in range(300):
+        world.step(np.zeros((4, 2)))
+        seen.append(world.observe())
+    seen_arr = np.array(seen)
+    assert np.all(seen_arr[:, 0, [4, 5]] == 0.0)  # dead
+    assert np.all(seen_arr[:, 1, [4, 5]] == IR_MAX)  # saturated
+    assert np.all(seen_arr[:, 2, [4, 5]] == stuck_at)  # stuck: the value shown when it broke
+    random = seen_arr[:, 3, [4, 5]]
+    assert random.min() >= 0 and random.max() <= IR_MAX
+    assert random.mean() == pytest.approx(IR_MAX / 2, abs=40)
+    assert random.std() == pytest.approx(IR_MAX / np.sqrt(12), rel=0.1)  # uniform
+    assert abs(np.corrcoef(random.T)[0, 1]) < 0.15
+    # Healthy sensors of the same robots still see the wall with noise.
+    assert seen_arr[:, :, 3].std() > 0
+
+
+def test_stuck_keeps_a_dead_sensor_at_zero_and_repair_restores_readings() -> None:
+    world = still_world(2, 0.0)
+    world.break_sensors(5, "dead")
+    world.break_sensors(5, "stuck", robots=[0])
+    world.step(np.zeros((2, 2)))
+    assert np.all(world.observe()[:, 5] == 0.0)
+    world.repair(robots=[1])
+    assert world.broken[0, 5] and not world.broken[1].any()
+    np.testing.assert_array_equal(world.observe()[1], world.sense()[1])
+    world.repair()
+    assert not world.broken.any()
+
+
+def test_scheduled_faults_fire_at_their_step_in_every_episode() -> None:
+    world = still_world(3, 0.0)
+    world.schedule_faults(
+        [
+            sim.Fault(step=5, sensors=(2, 3)),
+            sim.Fault(step=8, sensors=(0,), mode="saturated", robots=(1,)),
+        ]
+    )
+    for _ in range(2):
+        for t in range(10):
+            assert world.t == t
+            assert world.broken[:, 2].all() == (t >= 5)
+            assert world.broken[1, 0] == (t >= 8) and not world.broken[[0, 2], 0].any()
+            if t >= 5:
+                assert np.all(world.observe()[:, [2, 3]] == 0.0)
+            world.step(np.zeros((3, 2)))
+        world.reset(np.repeat(TRAINING.start_poses[:1], 3, axis=0))
+        assert not world.broken.any()
+
+
+def test_a_fault_scheduled_for_a_past_step_fires_at_once() -> None:
+    world = still_world(2, 0.0)
+    for _ in range(3):
+        world.step(np.zeros((2, 2)))
+    world.schedule_faults([sim.Fault(step=1, sensors=(7,), mode="saturated")])
+    assert np.all(world.observe()[:, 7] == IR_MAX)
+
+
+def test_live_injection_between_steps_is_seen_at_once() -> None:
+    world = still_world(2, 10.0)
+    before = world.observe()
+    world.break_sensors([5], "dead", robots=np.array([False, True]))
+    after = world.observe()
+    assert after[1, 5] == 0.0 and after[0, 5] == before[0, 5]
+    np.testing.assert_array_equal(after[:, :5], before[:, :5])
+
+
+# --- bad input ---
+
+
+def test_bad_input_raises_world_errors_naming_the_problem() -> None:
+    world = sim.World(TRAINING, n=2)
+    cases = [
+        (lambda: world.step(np.zeros((3, 2))), r"commands must have shape \(2, 2\)"),
+        (lambda: world.step(np.full((2, 2), np.nan)), "NaN"),
+        (lambda: world.reset(np.zeros((2, 3))), "pose 0 .* not in free space"),
+        (lambda: world.reset(TRAINING.start_poses[:1]), r"poses must have shape \(2, 3\)"),
+        (lambda: world.reset(TRAINING.start_poses[:2], seeds=[1]), "seeds must be 2 ints"),
+        (lambda: world.break_sensors([8]), "sensor index 8"),
+        (lambda: world.break_sensors([1], "melted"), "unknown fault mode"),  # type: ignore[arg-type]
+        (lambda: world.break_sensors([1], robots=[5]), r"robot indices must be in 0..1"),
+        (lambda: sim.Fault(step=-1, sensors=(1,)), "step must be ≥ 0"),
+        (lambda: world.schedule_faults(["dead"]), "sim.Fault"),  # type: ignore[list-item]
+        (lambda: sim.World(TRAINING, n=0), "positive int"),
+        (lambda: sim.World("training"), "sim.Arena"),  # type: ignore[arg-type]
+    ]
+    for call, message in cases:
+        with pytest.raises(sim.WorldError, match=message):
+            call()
