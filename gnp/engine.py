@@ -36,8 +36,6 @@ from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
 _BS, _CS = 1, 2
-#: Columns of EngineState.pending / pending_bs: one remembered node visit.
-V_NODE, V_SUB, V_BRANCH, V_U, V_CREDIT = range(5)
 
 
 @dataclass(frozen=True)
@@ -285,31 +283,31 @@ def step(
 
 
 @njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, row: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
-    """ε-greedy over the values q[row, :]: (new stream state, chosen index).
+def _egreedy(q: np.ndarray, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+    """ε-greedy over the 1-D action values q: (new stream state, chosen index).
 
-    Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima.
-    (Rows of a 2-D view rather than 1-D slices: slicing in the hot loop costs more.)
+    Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima (one
+    more draw only when there is a tie).
     """
-    k = q.shape[1]
+    k = q.shape[0]
     s, u = next_uniform(s)
     if u < eps:
         s, v = next_uniform(s)
         return s, min(int(v * k), k - 1)
-    best = q[row, 0]
+    best = q[0]
     ties = 1
     for a in range(1, k):
-        if q[row, a] > best:
-            best = q[row, a]
+        if q[a] > best:
+            best = q[a]
             ties = 1
-        elif q[row, a] == best:
+        elif q[a] == best:
             ties += 1
     pick = 0
     if ties > 1:
         s, v = next_uniform(s)
         pick = min(int(v * ties), ties - 1)
     for a in range(k):
-        if q[row, a] == best:
+        if q[a] == best:
             if pick == 0:
                 return s, a
             pick -= 1
@@ -351,12 +349,6 @@ def _step_kernel(
     t_count,
 ):  # pragma: no cover - compiled
     n_ctrl = cur_node.shape[0]
-    n_nodes = q_ss.shape[1]
-    n_sub = q_ss.shape[2]
-    # 2-D views whose rows are the action values of one ε-greedy choice.
-    q_ss_rows = q_ss.reshape(n_ctrl * n_nodes, n_sub)
-    q_cs_rows = q_cs.reshape(n_ctrl * n_nodes * n_sub, 2)
-    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, q_bs.shape[4])
     for c in range(n_ctrl):
         s = rng[c]
         node = cur_node[c]
@@ -394,10 +386,10 @@ def _step_kernel(
                 k += 1
                 node = conn[c, node, 0, 0, 0]
                 continue
-            s, p = _egreedy(q_ss_rows, c * n_nodes + node, eps, s)
+            s, p = _egreedy(q_ss[c, node], eps, s)
             cs = 0
             if method == _CS:
-                s, cs = _egreedy(q_cs_rows, (c * n_nodes + node) * n_sub + p, eps, s)
+                s, cs = _egreedy(q_cs[c, node, p], eps, s)
             if learn and pn >= 0:
                 q_ss[c, pn, pp] += lr * (pend_r + gamma * q_ss[c, node, p] - q_ss[c, pn, pp])
                 if method == _CS:
@@ -438,9 +430,7 @@ def _step_kernel(
                     branch = 0
                 u = 0
                 if method == _BS:
-                    s, u = _egreedy(
-                        q_bs_rows, ((c * n_nodes + node) * n_sub + p) * 2 + branch, eps, s
-                    )
+                    s, u = _egreedy(q_bs[c, node, p, branch], eps, s)
                 nxt = conn[c, node, p, branch, u]
             if trace:
                 t_node[c, k] = node
