@@ -26,8 +26,8 @@ FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
 
 WALL_CATEGORY = 0b01
 ROBOT_CATEGORY = 0b10
-WALL_FILTER = pymunk.ShapeFilter(categories=WALL_CATEGORY, mask=ROBOT_CATEGORY)
-"""Walls collide with robots only."""
+WALL_FILTER = pymunk.ShapeFilter()
+"""Walls keep pymunk's default filter (every category, every mask): they collide with robots."""
 ROBOT_FILTER = pymunk.ShapeFilter(categories=ROBOT_CATEGORY, mask=WALL_CATEGORY)
 """Robots collide with walls only: robots in one space never touch each other."""
 RAY_FILTER = pymunk.ShapeFilter(mask=WALL_CATEGORY)
@@ -103,15 +103,15 @@ class _Chunk:
         self.space.damping = 0.0  # velocity = force·dt/m each substep: the force drive
         self.space.gravity = (0.0, 0.0)
         self.space.iterations = SOLVER_ITERATIONS
-        walls = []
-        for offset in offsets:
-            for a, b in arena.walls + offset:
-                seg = pymunk.Segment(self.space.static_body, tuple(a), tuple(b), 0.0)
-                seg.filter = WALL_FILTER
-                seg.friction = 0.0
-                seg.elasticity = 0.0
-                walls.append(seg)
-        self.space.add(*walls)
+        # pymunk's defaults are what the walls need: no friction, no bounce, WALL_FILTER.
+        static = self.space.static_body
+        self.space.add(
+            *(
+                pymunk.Segment(static, (ax, ay), (bx, by), 0.0)
+                for offset in offsets
+                for (ax, ay), (bx, by) in (arena.walls + offset).tolist()
+            )
+        )
         self.bodies: list[pymunk.Body | None] = [None] * len(offsets)
         self.shapes: list[pymunk.Circle | None] = [None] * len(offsets)
         self.ids: dict[int, int] = {}  # pymunk body id -> robot
@@ -132,9 +132,7 @@ class _Chunk:
             body.position = (pose[0] + self.offsets[i, 0], pose[1] + self.offsets[i, 1])
             body.angle = pose[2]
             shape = pymunk.Circle(body, BODY_RADIUS_MM)
-            shape.filter = ROBOT_FILTER
-            shape.friction = 0.0
-            shape.elasticity = 0.0
+            shape.filter = ROBOT_FILTER  # friction and elasticity stay at pymunk's default, 0
             self.space.add(body, shape)
             self.bodies[i], self.shapes[i] = body, shape
             self.ids[body.id] = i
