@@ -368,7 +368,9 @@ class World:
         index = index.astype(np.int64)
         if np.any((index < 0) | (index >= self.n)):
             raise WorldError(f"robot indices must be in 0..{self.n - 1}, got {index.tolist()}")
-        return np.unique(index)
+        if len(np.unique(index)) != len(index):
+            raise WorldError(f"robot indices repeat: {index.tolist()}")
+        return index  # in the caller's order: place() pairs them with poses
 
     def _read_poses(self) -> None:
         cap = self._capacity

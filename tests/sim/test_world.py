@@ -158,6 +158,21 @@ def test_a_robot_is_bit_identical_alone_in_a_batch_and_in_a_split_batch() -> Non
             np.testing.assert_array_equal(a, b[:, part])
 
 
+def test_robots_spill_into_more_spaces_without_changing_a_bit() -> None:
+    """Past one space's capacity (784 copies of a 1 m arena) robots go to a second space."""
+    n, steps, robot = 800, 150, 790
+    rng = np.random.default_rng(13)
+    poses = TRAINING.start_poses[rng.integers(0, 10, n)]
+    seeds = rng.integers(0, 2**62, n)
+    commands = held_commands(rng, steps, n)
+    world = sim.World(TRAINING, n=n)
+    assert world.space_of(robot)[0] is not world.space_of(0)[0]
+    batch = run(poses, seeds, commands)
+    alone = run(poses[robot : robot + 1], seeds[robot : robot + 1], commands[:, robot : robot + 1])
+    for a, b in zip(alone, batch, strict=True):
+        np.testing.assert_array_equal(a[:, 0], b[:, robot])
+
+
 def test_reset_matches_a_fresh_world_bit_for_bit() -> None:
     n, steps = 40, 200
     rng = np.random.default_rng(5)
@@ -203,6 +218,10 @@ def test_place_moves_robots_but_keeps_clock_and_faults() -> None:
     reference = sim.World(TRAINING, n=1)
     reference.reset(TRAINING.start_poses[7:8])
     np.testing.assert_array_equal(world.sense()[1], reference.sense()[0])
+    world.place(TRAINING.start_poses[[4, 5]], robots=[2, 0])  # poses pair with robots in order
+    moved, wanted = world.poses[[2, 0]], TRAINING.start_poses[[4, 5]]
+    np.testing.assert_allclose(moved[:, :2], wanted[:, :2])
+    np.testing.assert_allclose(np.exp(1j * moved[:, 2]), np.exp(1j * wanted[:, 2]), atol=1e-12)
 
 
 # --- noise ---
@@ -334,6 +353,7 @@ def test_bad_input_raises_world_errors_naming_the_problem() -> None:
         (lambda: world.break_sensors([8]), "sensor index 8"),
         (lambda: world.break_sensors([1], "melted"), "unknown fault mode"),  # type: ignore[arg-type]
         (lambda: world.break_sensors([1], robots=[5]), r"robot indices must be in 0..1"),
+        (lambda: world.place(TRAINING.start_poses[:2], robots=[1, 1]), "robot indices repeat"),
         (lambda: sim.Fault(step=-1, sensors=(1,)), "step must be ≥ 0"),
         (lambda: world.schedule_faults(["dead"]), "sim.Fault"),  # type: ignore[list-item]
         (lambda: sim.World(TRAINING, n=0), "positive int"),
