@@ -46,6 +46,10 @@ SOLVER_ITERATIONS = 5
 walls converges in a few; measured, fewer iterations leave the penetration unchanged."""
 
 
+_POSE_FIELDS = pb.BodyFields.POSITION | pb.BodyFields.ANGLE
+_DRIVE_FIELDS = pb.BodyFields.FORCE | pb.BodyFields.TORQUE
+
+
 class WorldError(ValueError):
     """Bad input to a ``World`` (shapes, ranges, sensor or robot indices, fault modes)."""
 
@@ -149,7 +153,7 @@ class _Chunk:
     def read_poses(self, out: np.ndarray) -> None:
         """Arena-local poses of this chunk's robots into out (n, 3)."""
         self.buffer.clear()
-        pb.get_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self.buffer)
+        pb.get_space_bodies(self.space, _POSE_FIELDS, self.buffer)
         kernels.gather_poses(np.frombuffer(self.buffer.float_buf()), self.rows, self.offsets, out)
 
     def advance(
@@ -164,9 +168,8 @@ class _Chunk:
                 buffer.set_float_buf(forces.reshape(-1))
                 self.set_buffers.append(buffer)
         kernels.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
-        fields = pb.BodyFields.FORCE | pb.BodyFields.TORQUE
         for buffer in self.set_buffers:
-            pb.set_space_bodies(self.space, fields, buffer)
+            pb.set_space_bodies(self.space, _DRIVE_FIELDS, buffer)
             self.space.step(dt)
 
 

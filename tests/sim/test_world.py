@@ -2,6 +2,9 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 import sim
 from sim.arena import ArenaSpec, StartPoseSpec, arena_from_spec
@@ -107,6 +110,26 @@ def test_random_driving_never_enters_a_wall_nor_leaves_the_arena() -> None:
             assert np.all(TRAINING.contains(poses)), f"a robot left the arena at step {t}"
     assert deepest <= MAX_PENETRATION_MM
     assert touching > 10_000  # robots did press on walls, many times
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    start=st.integers(0, 9),
+    commands=arrays(np.float64, (60, 2), elements=st.floats(-12, 12)),
+    hold=st.integers(1, 20),
+)
+def test_any_commands_keep_a_robot_in_its_arena(
+    start: int, commands: np.ndarray, hold: int
+) -> None:
+    world = sim.World(TRAINING, n=1, noise_sigma=20.0)
+    world.reset(TRAINING.start_poses[start : start + 1])
+    for command in np.repeat(commands, hold, axis=0)[:300]:
+        world.step(command[None])
+        pose = world.poses[:, :2]
+        assert TRAINING.contains(pose)[0]
+        assert BODY_RADIUS_MM - TRAINING.clearance(pose)[0] <= MAX_PENETRATION_MM
+        seen = world.observe()
+        assert np.all((seen >= 0) & (seen <= IR_MAX))
 
 
 def test_robots_do_not_collide_with_each_other() -> None:
@@ -271,6 +294,7 @@ def test_each_fault_mode_reads_as_documented() -> None:
     for robot, mode in enumerate(sim.FAULT_MODES):
         world.break_sensors([4, 5], mode, robots=[robot])
     stuck_at = world.observe()[2, [4, 5]]
+    true = world.sense()
     assert not np.any(world.broken[:, [0, 1, 2, 3, 6, 7]])
     seen = []
     for _ in range(300):
@@ -285,8 +309,9 @@ def test_each_fault_mode_reads_as_documented() -> None:
     assert random.mean() == pytest.approx(IR_MAX / 2, abs=40)
     assert random.std() == pytest.approx(IR_MAX / np.sqrt(12), rel=0.1)  # uniform
     assert abs(np.corrcoef(random.T)[0, 1]) < 0.15
-    # Healthy sensors of the same robots still see the wall with noise.
+    # Healthy sensors of the same robots still see the wall with noise; the truth is untouched.
     assert seen_arr[:, :, 3].std() > 0
+    np.testing.assert_array_equal(world.sense(), true)
 
 
 def test_stuck_keeps_a_dead_sensor_at_zero_and_repair_restores_readings() -> None:
