@@ -1,7 +1,7 @@
 """numba kernels of the hot loop: IR ray casting, the force drive and per-robot random streams.
 
-The random streams are counter-based: a value is a hash of (robot key, step, sensor, draw), so a
-robot's draws depend on nothing but its own key and clock (see docs/decisions/sim.md).
+The random streams are counter-based: 64 random bits are a hash of (robot key, step, block), so
+a robot's draws depend on nothing but its own key and clock (see docs/decisions/sim.md).
 """
 
 import numba as nb
@@ -258,7 +258,7 @@ def observe(
             has_random |= mode[i, j] == 4
         if has_random:
             for b in range(N_SENSORS // 2):
-                uniform[2 * b + 1], uniform[2 * b] = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
+                uniform[2 * b], uniform[2 * b + 1] = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
         for j in range(N_SENSORS):
             x = true[i, j]
             if sigma > 0.0:
