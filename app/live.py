@@ -292,14 +292,18 @@ class LiveSession:
     def step(self, n: int = 1) -> None:
         """Advance every robot by `n` control steps."""
         with self._lock:
+            self._apply_pending_fault()
             for _ in range(n):
-                pending = self._pending_fault
-                if pending is not None and self._robots[0].t >= pending[0]:
-                    for robot in self._robots:
-                        robot.break_sensors(pending[1], pending[2])
-                    self._pending_fault = None
                 for robot in self._robots:
                     robot.step(self.learning)
+                self._apply_pending_fault()
+
+    def _apply_pending_fault(self) -> None:
+        pending = self._pending_fault
+        if pending is not None and self._robots[0].t >= pending[0]:
+            for robot in self._robots:
+                robot.break_sensors(pending[1], pending[2])
+            self._pending_fault = None
 
     def schedule_fault(self, step: int, sensors: Sequence[int], mode: str) -> None:
         """Break `sensors` of every robot when they reach control step `step` (t')."""

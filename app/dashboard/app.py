@@ -37,10 +37,17 @@ from app.dashboard.genome import genome_view, node_label, node_markdown
 from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
 from app.dashboard.jobs import TrainingJob
 from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, ArenaView, GraphView
-from app.live import FAULT_MODES, LearningSettings, LiveError, LiveSession, RobotSpec
+from app.live import (
+    FAULT_MODES,
+    LearningSettings,
+    LiveError,
+    LiveSession,
+    RobotSnapshot,
+    RobotSpec,
+)
 
-FRAME_SECONDS = 1 / 20
-PLOT_SECONDS = 0.25
+FRAME_SECONDS = 1 / 10
+PLOT_SECONDS = 0.5
 FOLLOW_SECONDS = 0.5
 
 
@@ -88,9 +95,12 @@ class Dashboard:
         self.job: TrainingJob | None = None
         self.job_reader: store.RunReader | None = None
         self.job_shown_generation = -1
+        self._job_history: store.History | None = None
+        self._job_retries = 0
         self.implementation: ImplementationJob | None = None
         self.loaded: store.RunReader | None = None
         self._status = "starting"
+        self._show_line = "on show: nothing"
         self._training_line = "training: idle"
         self._implementation_line = "implementation: none run"
         self._fitness_points = 0
@@ -98,7 +108,7 @@ class Dashboard:
         server.gui.configure_theme(control_width="large", show_share_button=False)
         server.gui.set_panel_label("GNP Lab")
         server.gui.main_panel.dock_right()
-        server.gui.main_panel.set_width(400)
+        server.gui.main_panel.set_width(370)
         self._build_scene()
         self._build_controls()
         self._build_plots()
@@ -342,7 +352,7 @@ class Dashboard:
             self.fitness_plot = plots.fitness_plot(gui)
             self.implementation_plot = plots.implementation_plot(gui)
         panel.dock_left()
-        panel.set_width(430)
+        panel.set_width(360)
 
     # --- helpers ------------------------------------------------------------------------
 
@@ -363,13 +373,10 @@ class Dashboard:
         self.status_md.content = f"**Status:** {text}"
 
     def _readout(self) -> str:
-        lines = [self._status_line_show(), self._training_line]
+        lines = [self._show_line, self._training_line]
         lines.append(f"fitness plot: {self._fitness_points} generations")
         lines.append(self._implementation_line)
         return "  \n".join(lines)
-
-    def _status_line_show(self) -> str:
-        return getattr(self, "_show_line", "on show: nothing")
 
     # --- what is on show ----------------------------------------------------------------
 
@@ -709,6 +716,8 @@ class Dashboard:
             self.job_reader = None
         self.job = TrainingJob(config, out)
         self.job_shown_generation = -1
+        self._job_history = None
+        self._job_retries = 0
         plots.set_fitness(self.fitness_plot, np.zeros(0), np.zeros(0))
         self._fitness_points = 0
         self._training_line = f"training: started {out.name}"
@@ -721,67 +730,81 @@ class Dashboard:
         getattr(job, action)()
         self._set_status(f"training {action}d" if action != "stop" else "training stopped")
 
+    def _read_training(self, job: TrainingJob) -> store.History | None:
+        """The run file's history so far, or None if it cannot be read right now.
+
+        A SWMR reader can catch the writer mid-flush (h5py then raises); the reader is dropped
+        and the file reopened at the next poll, which sees a consistent state again.
+        """
+        if not job.out.exists():
+            return None
+        try:
+            if self.job_reader is None:
+                self.job_reader = store.RunReader(job.out)
+            else:
+                self.job_reader.refresh()
+            history = self.job_reader.history()
+            done = len(history.best_fitness)
+            if done > 0 and done - 1 != self.job_shown_generation:
+                cfg, population = self.job_reader.best_genome(done - 1)
+                self.job_shown_generation = done - 1
+                current = self.show
+                self._stage(
+                    Show(
+                        f"best of generation {done - 1} (training {job.out.stem})",
+                        (RobotSpec(job.out.stem, cfg, population),),
+                        current.arena if current else "training",
+                        current.start if current else 0,
+                    )
+                )
+            return history
+        except Exception:  # a torn SWMR read, or a file not yet complete: retry next poll
+            if self.job_reader is not None:
+                self.job_reader.close()
+            self.job_reader = None
+            return None
+
     def _follow_training(self) -> None:
+        """Poll the training process and its run file: plot, replay each new best, progress."""
         job = self.job
         if job is None:
             return
+        state = job.state  # before reading: a finished job's file is complete
+        history = self._read_training(job)
+        if history is not None:
+            self._job_history = history
+            if len(history.best_fitness) != self._fitness_points:
+                plots.set_fitness(self.fitness_plot, history.best_fitness, history.mean_fitness)
+                self._fitness_points = len(history.best_fitness)
         total = job.config.training.generations
-        if self.job_reader is None and job.out.exists():
-            try:
-                self.job_reader = store.RunReader(job.out)
-            except store.RunFileError:
-                self.job_reader = None  # not written far enough yet
-        reader = self.job_reader
-        done = 0
-        if reader is not None:
-            try:
-                reader.refresh()
-                done = reader.generations_done
-                if done != self._fitness_points:
-                    history = reader.history()
-                    plots.set_fitness(self.fitness_plot, history.best_fitness, history.mean_fitness)
-                    self._fitness_points = len(history.best_fitness)
-                if done > 0 and done - 1 != self.job_shown_generation:
-                    self.job_shown_generation = done - 1
-                    cfg, population = reader.best_genome(done - 1)
-                    current = self.show
-                    self._stage(
-                        Show(
-                            f"best of generation {done - 1} (training {job.out.stem})",
-                            (RobotSpec(job.out.stem, cfg, population),),
-                            current.arena if current else "training",
-                            current.start if current else 0,
-                        )
-                    )
-            except (store.RunFileError, OSError, KeyError, ValueError) as error:
-                self._training_line = f"training: reading {job.out.name}: {error}"
-        state = job.state
+        done = self._fitness_points
         elapsed = job.elapsed()
-        progress = 100.0 * done / total
-        eta = elapsed / done * (total - done) if done else float("nan")
-        best = ""
-        if reader is not None and self._fitness_points:
-            history = reader.history()
-            best = f" · best {history.best_fitness[-1]:.4f} · mean {history.mean_fitness[-1]:.4f}"
-        eta_text = f"ETA {eta:.0f} s" if np.isfinite(eta) and state == "running" else ""
         if state == "failed":
             line = f"training: failed: {job.error()}"
         else:
-            line = (
-                f"training: {state} · generation {done}/{total}{best} · {elapsed:.0f} s {eta_text}"
-            )
-        self._training_line = line.rstrip()
-        _set(self.train_progress, progress)
-        self.train_md.content = self._training_line.removeprefix("training: ").capitalize()
-        if not job.active and state != "paused":
-            if state in ("finished", "stopped", "failed"):
-                self._refresh_run_lists()
-            self.job = None
-            if state == "failed":
-                self._set_status(f"⚠ training failed: {job.error()}")
-            else:
-                self._set_status(f"training {state}: {job.out.stem}")
-            job.close()
+            line = f"training: {state} · generation {done}/{total}"
+            last = self._job_history
+            if last is not None and len(last.best_fitness):
+                line += f" · best {last.best_fitness[-1]:.4f} · mean {last.mean_fitness[-1]:.4f}"
+            line += f" · {elapsed:.0f} s"
+            if state == "running" and done:
+                line += f" · ETA {elapsed / done * (total - done):.0f} s"
+        self._training_line = line
+        _set(self.train_progress, 100.0 * done / total)
+        self.train_md.content = line.removeprefix("training: ").capitalize()
+        if job.active or (history is None and state == "finished" and self._job_retries < 5):
+            self._job_retries += state == "finished"
+            return
+        self.job = None
+        if self.job_reader is not None:
+            self.job_reader.close()
+            self.job_reader = None
+        self._refresh_run_lists()
+        if state == "failed":
+            self._set_status(f"⚠ training failed: {job.error()}")
+        else:
+            self._set_status(f"training {state}: {job.out.stem}")
+        job.close()
 
     # --- the loop -----------------------------------------------------------------------
 
@@ -826,16 +849,7 @@ class Dashboard:
             self.graph_view.update(robots[0])
             if with_plots:
                 plots.set_rewards(self.reward_plot, robots)
-                first = robots[0]
-                broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))
-                since = f" since step {first.fault_steps[-1]}" if first.fault_steps else ""
-                parts = [f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots]
-                self._show_line = (
-                    f"on show: step {first.t} · {' · '.join(parts)} · node "
-                    f"{first.current_node} · ε {first.epsilon:.3f} α {first.alpha:.3f}  \n"
-                    f"broken: {broken + f' ({first.fault_mode}){since}' if broken else 'none'}"
-                    f" · noise σ {self.noise_sigma:g} · reward plot: {len(first.rewards)} steps"
-                )
+                self._show_line = show_line(robots, self.noise_sigma)
                 self.readout_md.content = self._readout()
 
     def stop(self) -> None:
@@ -850,6 +864,32 @@ class Dashboard:
             for reader in (self.loaded, self.job_reader):
                 if reader is not None:
                     reader.close()
+
+
+def show_line(robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> str:
+    """The readout's lines about the robots on show (also what the browser tests read)."""
+    first = robots[0]
+    rewards = " · ".join(f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots)
+    lines = [
+        f"on show: step {first.t} · {rewards} · node {first.current_node} · "
+        f"ε {first.epsilon:.3f} α {first.alpha:.3f} · noise σ {noise_sigma:g}"
+    ]
+    broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))
+    if broken:
+        since = f" since step {first.fault_steps[-1]}" if first.fault_steps else ""
+        lines.append(f"broken: {broken} ({first.fault_mode}){since}")
+    else:
+        lines.append("broken: none")
+    plot = f"reward plot: {len(first.rewards)} steps"
+    if first.fault_steps:
+        fault = first.fault_steps[-1]
+        before = first.rewards[first.reward_steps < fault]
+        after = first.rewards[first.reward_steps >= fault]
+        plot += f" · fault marked at step {fault}"
+        if len(before) and len(after):
+            plot += f" · reward/step before {before.mean():.3f}, after {after.mean():.3f}"
+    lines.append(plot)
+    return "  \n".join(lines)
 
 
 def serve(host: str, port: int, runs_dir: Path, run: str | None) -> None:

@@ -101,13 +101,16 @@ class TrainingJob:
             self._paused_total += time.monotonic() - self._paused_at
             self._paused_at = None
 
-    def stop(self, timeout: float = 20.0) -> None:
-        """SIGTERM the group (the CLI writes what is complete and exits); SIGKILL if it hangs."""
+    def stop(self) -> None:
+        """Ask the run to stop: SIGTERM to the group (the CLI writes what is complete, exits)."""
         if not self.active:
             return
         self._stopped = True
         self._signal(signal.SIGTERM)
         self.resume()  # a stopped process only handles SIGTERM once continued
+
+    def wait(self, timeout: float = 20.0) -> None:
+        """Wait for the process to end; SIGKILL its group if it does not within `timeout`."""
         try:
             self._process.wait(timeout)
         except subprocess.TimeoutExpired:
@@ -125,5 +128,7 @@ class TrainingJob:
         return lines[-1] if lines else ""
 
     def close(self) -> None:
+        """Stop the run if it is still going, wait for it, and remove the temporary files."""
         self.stop()
+        self.wait()
         self._dir.cleanup()

@@ -1,0 +1,118 @@
+"""Fixtures of the dashboard tests: two tiny trained runs, a served dashboard, headless Chromium."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from app.config import RunConfig, build_config
+from app.training import train
+
+REPO = Path(__file__).resolve().parents[2]
+SCREENSHOTS = REPO / "test-output" / "dashboard"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def tiny_run_config(method: str, seed: int = 3) -> RunConfig:
+    """A run that trains in a second or two: 8 individuals, 80 steps, 2 generations."""
+    return build_config(
+        {
+            "seed": seed,
+            "controller": {"method": method},
+            "training": {"population": 8, "steps": 80, "generations": 2},
+            "implementation": {"steps": 200, "repeats": 1, "fault_step": 100},
+        }
+    )
+
+
+@pytest.fixture(scope="session")
+def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A runs directory holding two finished tiny runs, `bs` and `cs`."""
+    directory = tmp_path_factory.mktemp("runs")
+    train(tiny_run_config("BS"), directory / "bs.h5")
+    train(tiny_run_config("CS"), directory / "cs.h5")
+    return directory
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@pytest.fixture(scope="session")
+def dashboard_url(runs_dir: Path) -> Iterator[str]:
+    """`gnp-lab serve` on a free local port, in its own process, showing `cs` first."""
+    port = free_port()
+    command = [
+        sys.executable,
+        "-c",
+        "import sys; from app.cli import main; sys.exit(main())",
+        "serve",
+        "--port",
+        str(port),
+        "--runs-dir",
+        str(runs_dir),
+        "--run",
+        "cs",
+    ]
+    log = (runs_dir.parent / "server.log").open("wb")
+    process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, cwd=REPO)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 90
+    while True:
+        try:
+            urllib.request.urlopen(url, timeout=2).close()
+            break
+        except OSError:
+            if process.poll() is not None or time.monotonic() > deadline:
+                process.kill()
+                raise RuntimeError(
+                    "dashboard did not start: " + (runs_dir.parent / "server.log").read_text()
+                ) from None
+            time.sleep(0.3)
+    yield url
+    process.terminate()
+    try:
+        process.wait(20)
+    except subprocess.TimeoutExpired:
+        process.kill()
+    log.close()
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """Debian's headless Chromium driven by Playwright (never `playwright install`)."""
+    from playwright.sync_api import sync_playwright
+
+    executable = os.environ.get("GNP_LAB_CHROMIUM", "/usr/bin/chromium")
+    with sync_playwright() as playwright:
+        instance = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        yield instance
+        instance.close()
+
+
+@pytest.fixture(scope="session")
+def screenshots() -> Path:
+    """Where the browser tests save a PNG of each state (GNP_LAB_SCREENSHOTS overrides)."""
+    directory = Path(os.environ.get("GNP_LAB_SCREENSHOTS", SCREENSHOTS))
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory
