@@ -184,14 +184,29 @@ def _open_for_read(path: Path) -> h5py.File:
     if not h5py.is_hdf5(path):
         raise RunFileError(f"not an HDF5 file: {path}")
     try:
-        # SWMR read: works while a writer is live and after a writer was killed; no lock taken.
-        return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
-    except OSError:
-        pass
-    try:
         return h5py.File(path, "r", locking=False)
     except OSError as error:
+        if "already open for write" not in str(error):
+            raise RunFileError(f"cannot open {path}: {error}") from None
+    # A SWMR writer is live, or was killed: only a SWMR read opens the file. It skips HDF5's
+    # end-of-file check (the file grows), and on a truncated file it would retry reads for a
+    # long time, so check the length against the superblock first.
+    _check_length(path)
+    try:
+        return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
+    except OSError as error:
         raise RunFileError(f"cannot open {path}: {error}") from None
+
+
+def _check_length(path: Path) -> None:
+    """Refuse a file shorter than the end-of-file address in its (v2/v3) superblock."""
+    with path.open("rb") as handle:
+        head = handle.read(48)
+    if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] < 2 or head[9] != 8:
+        return  # a superblock this check does not parse (not written by gnp-lab)
+    stored_eof = int.from_bytes(head[28:36], "little")
+    if path.stat().st_size < stored_eof:
+        raise RunFileError(f"corrupt run file {path}: truncated")
 
 
 class RunReader:
