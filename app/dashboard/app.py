@@ -791,7 +791,8 @@ class Dashboard:
                 line += f" · ETA {elapsed / done * (total - done):.0f} s"
         self._training_line = line
         _set(self.train_progress, 100.0 * done / total)
-        self.train_md.content = line.removeprefix("training: ").capitalize()
+        detail = line.removeprefix("training: ")
+        self.train_md.content = detail[:1].upper() + detail[1:]
         if job.active or (history is None and state == "finished" and self._job_retries < 5):
             self._job_retries += state == "finished"
             return

@@ -136,12 +136,13 @@ def test_train_from_the_controls_grows_the_fitness_plot(page: Any, screenshots: 
 
 def test_pause_and_stop_training(page: Any) -> None:
     page.get_by_role("tab", name="Train").click()
-    type_into(page, "Generations", "200")
+    type_into(page, "Generations", "5000")
     page.get_by_role("button", name="Start").click()
     wait_for(page, r"training: running · generation [1-9]", timeout=120)
     page.get_by_role("button", name="Pause").click()
     paused = int(wait_for(page, r"training: paused · generation (\d+)").group(1))
-    page.wait_for_timeout(2000)
+    page.wait_for_timeout(1500)
+    # At most the generation in flight completes after SIGSTOP reached the group.
     assert int(wait_for(page, r"training: paused · generation (\d+)").group(1)) <= paused + 1
     before = step_of(page)
     page.wait_for_timeout(600)
@@ -149,7 +150,8 @@ def test_pause_and_stop_training(page: Any) -> None:
     page.get_by_role("button", name="Resume").click()
     wait_for(page, r"training: running", timeout=10)
     page.get_by_role("button", name="Stop").click()
-    wait_for(page, r"training: stopped", timeout=60)
+    stopped = wait_for(page, r"training: stopped · generation (\d+)/5000", timeout=60)
+    assert int(stopped.group(1)) < 5000
 
 
 def test_load_a_saved_run_replay_and_implement(page: Any, screenshots: Path) -> None:
@@ -193,9 +195,11 @@ def test_tabs_share_state_and_closing_one_leaves_the_server_healthy(
 ) -> None:
     first, second = open_page(browser, dashboard_url), open_page(browser, dashboard_url)
     first.get_by_role("tab", name="Faults").click()
+    first.get_by_role("button", name="Repair all").click()
+    wait_for(second, r"broken: none")
     type_into(first, "Sensors to break", "5")
     first.get_by_role("button", name="Break now").click()
-    wait_for(second, r"broken: s5 \(dead\)")  # the other tab sees the same robot
+    wait_for(second, r"broken: s5 \(")  # the other tab sees the same robot
     first.close()
     before = step_of(second)
     second.wait_for_timeout(1000)
