@@ -214,32 +214,44 @@ def _default_out(runs_dir: Path, config: RunConfig) -> Path:
     return runs_dir / f"{controller.method}-{kind}-seed{config.seed}-{stamp}.h5"
 
 
-class _GenerationBar:
-    """tqdm progress over generations with ETA and the current best and mean fitness."""
+class _Bar:
+    """A tqdm bar on stderr (ETA included), created at the first update so that an error
+    found before any work is the only thing printed."""
+
+    def __init__(self, total: int, initial: int, desc: str, unit: str, quiet: bool) -> None:
+        self._options = dict(
+            total=total, initial=initial, desc=desc, unit=unit, disable=quiet, dynamic_ncols=True
+        )
+        self._bar: Any = None
+
+    def update(self, done: int, **postfix: str) -> None:
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(file=sys.stderr, **self._options)
+        if postfix:
+            self._bar.set_postfix(postfix, refresh=False)
+        self._bar.update(done - self._bar.n)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+class _GenerationBar(_Bar):
+    """Progress over generations with the current best and mean fitness."""
 
     def __init__(self, total: int, initial: int, quiet: bool) -> None:
-        from tqdm import tqdm
-
-        self._bar = tqdm(
-            total=total,
-            initial=initial,
-            desc="train",
-            unit="gen",
-            file=sys.stderr,
-            disable=quiet,
-            dynamic_ncols=True,
-        )
+        super().__init__(total, initial, "train", "gen", quiet)
         self.best = float("nan")
 
     def __call__(self, summary: Any) -> None:
         self.best = summary.best_fitness
-        self._bar.set_postfix(
-            best=f"{summary.best_fitness:.3f}", mean=f"{summary.mean_fitness:.3f}"
+        self.update(
+            summary.generation + 1,
+            best=f"{summary.best_fitness:.3f}",
+            mean=f"{summary.mean_fitness:.3f}",
         )
-        self._bar.update(1)
-
-    def close(self) -> None:
-        self._bar.close()
 
 
 def _interrupted(stop: Exception, path: Path) -> int:
@@ -321,19 +333,10 @@ def cmd_implement(args: argparse.Namespace) -> int:
         source="implementation options",
     )
     settings: ImplementationSettings = config.implementation
-    from tqdm import tqdm
-
-    bar = tqdm(
-        total=settings.steps,
-        desc="implement",
-        unit="step",
-        file=sys.stderr,
-        disable=args.quiet,
-        dynamic_ncols=True,
-    )
+    bar = _Bar(settings.steps, 0, "implement", "step", args.quiet)
 
     def progress(done: int, total: int) -> None:
-        bar.update(done - bar.n)
+        bar.update(done)
 
     try:
         result = implement(path, settings, name=args.name, progress=progress)
@@ -422,7 +425,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from app.implementation import ImplementationError
     from app.training import TrainingError
 
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as stop:  # --help, or a usage error already reported on one line
+        return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     handlers = {
         "train": cmd_train,
         "implement": cmd_implement,

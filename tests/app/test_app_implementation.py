@@ -1,0 +1,105 @@
+"""The implementation phase: faults, schedules, per-trial independence, what is stored."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.config import ImplementationSettings
+from app.implementation import (
+    ImplementationError,
+    check_name,
+    default_name,
+    epsilon_alpha_at,
+    implement,
+    run_implementation,
+)
+from app.store import RunFileError, RunReader
+
+
+def test_epsilon_alpha_schedule_by_hand() -> None:
+    changing = ImplementationSettings(
+        schedule="changing", epsilon=0.01, alpha=0.1, steps=3000, fault_step=500
+    )
+    assert epsilon_alpha_at(changing, 0) == (0.01, 0.1)
+    assert epsilon_alpha_at(changing, 499) == (0.01, 0.1)
+    assert epsilon_alpha_at(changing, 500) == pytest.approx((0.015, 0.15))
+    assert epsilon_alpha_at(changing, 1750) == pytest.approx((0.0075, 0.075))  # halfway, n = 1
+    assert epsilon_alpha_at(changing, 3000) == pytest.approx((0.0, 0.0))
+    squared = changing.model_copy(update={"schedule_n": 2.0})
+    assert epsilon_alpha_at(squared, 1750) == pytest.approx((0.015 / 4, 0.15 / 4))
+    fixed = ImplementationSettings(epsilon=0.01, alpha=0.1)
+    assert epsilon_alpha_at(fixed, 2000) == (0.01, 0.1)
+
+
+def test_names() -> None:
+    assert check_name("break-2.dead_1") == "break-2.dead_1"
+    for bad in ("", "a/b", "../x", ".hidden", "x" * 65, "sp ace"):
+        with pytest.raises(ImplementationError):
+            check_name(bad)
+    assert default_name(ImplementationSettings(broken_sensors=(3, 2))) == "break-2-3-dead-fixed"
+    assert default_name(ImplementationSettings(noise_sigma=50)) == "no-fault-fixed-noise50"
+
+
+def _settings(**changes: object) -> ImplementationSettings:
+    base = {
+        "steps": 120,
+        "repeats": 1,
+        "fault_step": 60,
+        "broken_sensors": (2, 3),
+        "recorded_trials": 3,
+    }
+    base.update(changes)
+    return ImplementationSettings.model_validate(base)
+
+
+def test_dead_sensors_and_stored_results(tmp_path: Path, finished_run: Path) -> None:
+    path = tmp_path / "run.h5"
+    shutil.copy(finished_run, path)
+    result = implement(path, _settings(), name="dead")
+    with RunReader(path) as run:
+        stored = run.implementation("dead")
+        assert run.implementation_names() == ["dead"]
+    assert stored.generation == 2  # the final elite
+    assert stored.settings == _settings()
+    trials = stored.trials
+    assert trials.poses.shape == (3, 120, 3)
+    assert np.array_equal(stored.start_index, np.arange(10))
+    # dead sensors read 0 from the fault step on; before it they see walls somewhere
+    assert np.all(trials.observations[:, 60:, [2, 3]] == 0)
+    assert np.any(trials.observations[:, :60, [2, 3]] > 0)
+    # without noise, a healthy sensor shows the controller the true reading after the last step
+    healthy = [0, 1, 4, 5, 6, 7]
+    assert np.array_equal(trials.observations[:, 1:, healthy], trials.readings[:, :-1, healthy])
+    # means: per trial, per step, after the fault, agree with one another
+    assert np.allclose(trials.reward.mean(axis=1), stored.trial_mean_reward[:3])
+    assert np.allclose(trials.reward[:, 60:].mean(axis=1), stored.trial_mean_after_fault[:3])
+    assert stored.mean_reward == pytest.approx(stored.reward_per_step.mean())
+    assert stored.mean_after_fault == pytest.approx(stored.reward_per_step[60:].mean())
+    assert stored.mean_reward == pytest.approx(result.mean_reward)
+    assert trials.trace["node"].shape[:2] == (3, 120)
+
+
+def test_trials_do_not_depend_on_the_batch(finished_run: Path) -> None:
+    with RunReader(finished_run) as run:
+        cfg, individual = run.best_genome()
+    common = {"seed": 5, "control_period": 0.064, "name": "x", "generation": 2}
+    one = run_implementation(cfg, individual, _settings(repeats=1), **common)  # type: ignore[arg-type]
+    two = run_implementation(cfg, individual, _settings(repeats=2), **common)  # type: ignore[arg-type]
+    assert np.array_equal(one.trial_mean_reward, two.trial_mean_reward[:10])
+    assert np.array_equal(one.trials.poses, two.trials.poses)
+
+
+def test_refuses_unfinished_runs_and_taken_names(tmp_path: Path, finished_run: Path) -> None:
+    path = tmp_path / "run.h5"
+    shutil.copy(finished_run, path)
+    implement(path, _settings(recorded_trials=0), name="first")
+    before = path.read_bytes()
+    with pytest.raises(RunFileError, match="already has an implementation named 'first'"):
+        implement(path, _settings(), name="first")
+    assert path.read_bytes() == before
+    with RunReader(path) as run:
+        assert run.implementation("first").trials.poses.shape == (0, 120, 3)
