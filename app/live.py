@@ -248,7 +248,7 @@ class LiveSession:
         arena: the arena the robots live in.
         robots: one or two robots to show.
         start: index of the start pose (0..9) in `arena.start_poses`.
-        seed: seeds each robot's world and controller streams (robot i gets seed + i).
+        seed: seeds each robot's world and controller streams (the same for every robot).
         noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see.
         learning: online learning settings.
     """
@@ -274,12 +274,13 @@ class LiveSession:
         self._lock = threading.Lock()
         self._robots: list[LiveRobot] = []
         self._pending_fault: tuple[int, tuple[int, ...], FaultMode] | None = None
-        for i, spec in enumerate(robots):
-            world = sim.World(arena, n=1, seed=seed + i, noise_sigma=noise_sigma)
+        for spec in robots:
+            # Same seed for every robot: compared robots meet the same noise and random faults.
+            world = sim.World(arena, n=1, seed=seed, noise_sigma=noise_sigma)
             world.reset(arena.start_poses[start : start + 1])
             # Copy: online learning mutates Q tables, the caller's individual stays as loaded.
             population = gnp.take(spec.population, np.array([0]))
-            self._robots.append(LiveRobot(spec.label, spec.cfg, population, world, seed + i))
+            self._robots.append(LiveRobot(spec.label, spec.cfg, population, world, seed))
 
     @property
     def lock(self) -> threading.Lock:

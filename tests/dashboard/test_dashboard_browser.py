@@ -15,7 +15,8 @@ from typing import Any
 
 import pytest
 
-pytestmark = pytest.mark.browser
+# One server and one page per module, used in order (pytest-xdist: run with --dist loadgroup).
+pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
 
 def viewport() -> dict[str, int]:
@@ -136,6 +137,8 @@ def test_train_from_the_controls_grows_the_fitness_plot(page: Any, screenshots: 
 
 def test_pause_and_stop_training(page: Any) -> None:
     page.get_by_role("tab", name="Train").click()
+    type_into(page, "Population", "8")
+    type_into(page, "Life T (steps)", "60")
     type_into(page, "Generations", "5000")
     page.get_by_role("button", name="Start").click()
     wait_for(page, r"training: running · generation [1-9]", timeout=120)
@@ -191,20 +194,18 @@ def test_compare_two_runs_after_the_same_fault(page: Any, screenshots: Path) -> 
 
 
 def test_tabs_share_state_and_closing_one_leaves_the_server_healthy(
-    browser: Any, dashboard_url: str
+    page: Any, browser: Any, dashboard_url: str
 ) -> None:
-    first, second = open_page(browser, dashboard_url), open_page(browser, dashboard_url)
-    first.get_by_role("tab", name="Faults").click()
-    first.get_by_role("button", name="Repair all").click()
-    wait_for(second, r"broken: none")
-    type_into(first, "Sensors to break", "5")
-    first.get_by_role("button", name="Break now").click()
-    wait_for(second, r"broken: s5 \(")  # the other tab sees the same robot
-    first.close()
-    before = step_of(second)
-    second.wait_for_timeout(1000)
-    assert step_of(second) > before
-    second.get_by_role("tab", name="Faults").click()
-    second.get_by_role("button", name="Repair all").click()
-    wait_for(second, r"broken: none")
-    second.close()
+    other = open_page(browser, dashboard_url)
+    page.get_by_role("tab", name="Faults").click()
+    page.get_by_role("button", name="Repair all").click()
+    wait_for(other, r"broken: none")
+    type_into(page, "Sensors to break", "5")
+    page.get_by_role("button", name="Break now").click()
+    wait_for(other, r"broken: s5 \(")  # the other tab sees the same robot
+    other.close()
+    before = step_of(page)
+    page.wait_for_timeout(1000)
+    assert step_of(page) > before, "the server carries on after a tab closed"
+    page.get_by_role("button", name="Repair all").click()
+    wait_for(page, r"broken: none")
