@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Literal
@@ -11,6 +12,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from sim import kernels
 from sim.khepera import BODY_RADIUS_MM
 
 ARENA_NAMES: tuple[str, ...] = ("implementation", "training")
@@ -78,14 +80,33 @@ class Arena:
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Whether points (..., 2) lie in free space: inside the outer wall, outside solids."""
-        inside = point_in_polygon(points, self.outer)
+        flat = _as_points(points)
+        inside = np.empty(len(flat), dtype=bool)
+        kernels.in_polygon(flat, np.ascontiguousarray(self.outer), inside)
+        in_solid = np.empty(len(flat), dtype=bool)
         for solid in self.solids:
-            inside &= ~point_in_polygon(points, solid)
-        return inside
+            kernels.in_polygon(flat, np.ascontiguousarray(solid), in_solid)
+            inside &= ~in_solid
+        return inside.reshape(np.shape(points)[:-1])
 
     def clearance(self, points: np.ndarray) -> np.ndarray:
         """Distance (...,) from points (..., 2) to the nearest wall, mm."""
-        return point_segment_distance(points, self.walls).min(axis=-1)
+        flat = _as_points(points)
+        out = np.empty(len(flat))
+        kernels.wall_distances(flat, self.wall_table, out)
+        return out.reshape(np.shape(points)[:-1])
+
+    @cached_property
+    def wall_table(self) -> np.ndarray:
+        """The walls as ``sim.kernels.wall_table`` rows, for the numba kernels."""
+        return kernels.wall_table(self.walls)
+
+
+def _as_points(points: np.ndarray) -> np.ndarray:
+    flat = np.ascontiguousarray(points, dtype=np.float64)
+    if flat.shape[-1:] != (2,):
+        raise ValueError(f"points must have shape (..., 2), got {flat.shape}")
+    return flat.reshape(-1, 2)
 
 
 def load_arena(name_or_path: str | Path) -> Arena:

@@ -95,6 +95,43 @@ def ir_readings(poses: np.ndarray, table: np.ndarray, out: np.ndarray) -> None:
 
 
 @nb.njit(cache=True)
+def wall_distances(points: np.ndarray, table: np.ndarray, out: np.ndarray) -> None:
+    """Distance (N,) from each point (N, 2) to the nearest wall of ``wall_table``, into out."""
+    for i in range(points.shape[0]):
+        x = points[i, 0]
+        y = points[i, 1]
+        best = np.inf
+        for w in range(table.shape[0]):
+            px = table[w, 0]
+            py = table[w, 1]
+            ex = table[w, 2]
+            ey = table[w, 3]
+            t = min(1.0, max(0.0, ((x - px) * ex + (y - py) * ey) * table[w, 4]))
+            cx = px + t * ex - x
+            cy = py + t * ey - y
+            best = min(best, cx * cx + cy * cy)
+        out[i] = np.sqrt(best)
+
+
+@nb.njit(cache=True)
+def in_polygon(points: np.ndarray, polygon: np.ndarray, out: np.ndarray) -> None:
+    """Even-odd test: whether each point (N, 2) is inside polygon (M, 2), into out (N,)."""
+    m = polygon.shape[0]
+    for i in range(points.shape[0]):
+        x = points[i, 0]
+        y = points[i, 1]
+        inside = False
+        for k in range(m):
+            x0 = polygon[k, 0]
+            y0 = polygon[k, 1]
+            x1 = polygon[(k + 1) % m, 0]
+            y1 = polygon[(k + 1) % m, 1]
+            if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                inside = not inside
+        out[i] = inside
+
+
+@nb.njit(cache=True)
 def drive_forces(
     angles: np.ndarray,
     spins: np.ndarray,
