@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import sim
 from sim.arena import point_segment_distance
@@ -219,3 +221,41 @@ def test_non_finite_coordinate(tmp_path: Path) -> None:
 def test_arena_too_large_for_its_copies(tmp_path: Path) -> None:
     huge = [[0, 0], [5000, 0], [5000, 600], [0, 600], [0, 0]]
     assert "more than the" in load_error(tmp_path, square_room(outer_wall=huge))
+
+
+coordinate = st.floats(-100, 1100, allow_nan=False)
+point = st.tuples(coordinate, coordinate)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    outer=st.lists(point, min_size=3, max_size=8),
+    close=st.booleans(),
+    obstacle=st.lists(point, min_size=2, max_size=5),
+    shape=st.sampled_from(["polygon", "polyline"]),
+    starts=st.lists(point, min_size=10, max_size=10),
+)
+def test_any_arena_file_loads_or_fails_with_an_arena_error(
+    tmp_path_factory: pytest.TempPathFactory,
+    outer: list[tuple[float, float]],
+    close: bool,
+    obstacle: list[tuple[float, float]],
+    shape: str,
+    starts: list[tuple[float, float]],
+) -> None:
+    """Whatever the geometry, loading never crashes deep inside: it works or names a problem."""
+    room = square_room(
+        outer_wall=[*outer, outer[0]] if close else outer,
+        obstacles=[{"name": "thing", "shape": shape, "points": obstacle}],
+        start_poses=[
+            {"name": f"p{i}", "x": x, "y": y, "heading_deg": 0} for i, (x, y) in enumerate(starts)
+        ],
+    )
+    path = write(tmp_path_factory.mktemp("fuzz"), room)
+    try:
+        arena = sim.load_arena(path)
+    except sim.ArenaError as err:
+        assert str(path) in str(err)
+    else:
+        assert np.all(arena.contains(arena.start_poses[:, :2]))
+        assert np.all(arena.clearance(arena.start_poses[:, :2]) > BODY_RADIUS_MM)
