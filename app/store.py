@@ -45,6 +45,8 @@ UNITS = {
     "implementation/*/reward_per_step": "reward per step, mean over trials",
 }
 _SUFFIX = ".h5"
+# The HDF5 1.10 file format: the oldest with SWMR, and what h5dump of Debian 12 (1.10.8) reads.
+_LIBVER = ("v110", "v110")
 
 
 class RunFileError(Exception):
@@ -193,7 +195,7 @@ def _open_for_read(path: Path) -> h5py.File:
     # long time, so check the length against the superblock first.
     _check_length(path)
     try:
-        return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
+        return h5py.File(path, "r", libver=_LIBVER, swmr=True, locking=False)
     except OSError as error:
         raise RunFileError(f"cannot open {path}: {error}") from None
 
@@ -554,7 +556,7 @@ class RunWriter:
         tmp = _tmp_path(path)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            handle = h5py.File(tmp, "w", libver="latest", locking=False)
+            handle = h5py.File(tmp, "w", libver=_LIBVER, locking=False)
         except OSError as error:
             raise RunFileError(f"cannot create {path}: {error}") from None
         try:
@@ -602,7 +604,7 @@ class RunWriter:
                 },
             )
             tmp = _tmp_path(path)
-            handle = h5py.File(tmp, "w", libver="latest", locking=False)
+            handle = h5py.File(tmp, "w", libver=_LIBVER, locking=False)
             try:
                 _build_layout(handle, template)
                 _copy_contents(run._file, handle)
@@ -718,7 +720,7 @@ def add_implementation(path: str | Path, result: Implementation) -> None:
         try:
             with (
                 _open_for_read(path) as source,
-                h5py.File(tmp, "w", libver="latest", locking=False) as target,
+                h5py.File(tmp, "w", libver=_LIBVER, locking=False) as target,
             ):
                 for key, value in source.attrs.items():
                     target.attrs[key] = value

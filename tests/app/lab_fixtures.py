@@ -38,7 +38,7 @@ def file_digest(path: Path) -> str:
 def datasets(path: Path) -> dict[str, np.ndarray]:
     """Every dataset of an HDF5 file (read in SWMR mode, so killed runs open too)."""
     out: dict[str, np.ndarray] = {}
-    with h5py.File(path, "r", libver="latest", swmr=True, locking=False) as handle:
+    with h5py.File(path, "r", swmr=True, locking=False) as handle:
         handle.visititems(
             lambda name, obj: (
                 out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None
