@@ -217,7 +217,7 @@ class World:
             raise WorldError(f"arena must be a sim.Arena (see sim.load_arena), got {arena!r}")
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise WorldError(f"n (number of robots) must be a positive int, got {n!r}")
-        if not (np.isfinite(control_period) and control_period > 0):
+        if not (isinstance(control_period, int | float) and 0 < control_period < np.inf):
             raise WorldError(f"control_period must be > 0 seconds, got {control_period!r}")
         if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
             raise WorldError(f"substeps must be a positive int, got {substeps!r}")
@@ -257,9 +257,13 @@ class World:
 
     @noise_sigma.setter
     def noise_sigma(self, value: float) -> None:
-        if not (np.isfinite(value) and value >= 0):
+        try:
+            sigma = float(value)
+        except (TypeError, ValueError):
+            sigma = float("nan")
+        if not (np.isfinite(sigma) and sigma >= 0):
             raise WorldError(f"noise_sigma must be a finite number ≥ 0, got {value!r}")
-        self._noise_sigma = float(value)
+        self._noise_sigma = sigma
 
     @property
     def poses(self) -> np.ndarray:
