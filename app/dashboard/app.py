@@ -7,6 +7,7 @@ settings under a lock, so the page answers at once even while training runs (in 
 
 from __future__ import annotations
 
+import signal
 import threading
 import time
 import traceback
@@ -893,6 +894,10 @@ def show_line(robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> str:
     return "  \n".join(lines)
 
 
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def serve(host: str, port: int, runs_dir: Path, run: str | None) -> None:
     """Serve the dashboard until interrupted (Ctrl-C); blocking.
 
@@ -904,7 +909,12 @@ def serve(host: str, port: int, runs_dir: Path, run: str | None) -> None:
     """
     server = viser.ViserServer(host=host, port=port, verbose=False)
     dashboard = Dashboard(server, Path(runs_dir), run)
-    print(f"GNP Lab dashboard on http://{host}:{port}  (Ctrl-C to stop)", flush=True)
+    # SIGTERM ends the server like Ctrl-C, so a training run it started is stopped, not orphaned.
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    bound = server.get_port()  # viser moves on to the next free port if `port` is taken
+    if bound != port:
+        print(f"port {port} is in use; serving on {bound} instead", flush=True)
+    print(f"GNP Lab dashboard on http://{host}:{bound}  (Ctrl-C to stop)", flush=True)
     try:
         while True:
             time.sleep(3600)

@@ -93,7 +93,7 @@ def test_page_shows_a_run_that_moves(page: Any, screenshots: Path) -> None:
     page.wait_for_timeout(1500)
     assert step_of(page) > first, "the live robot must keep stepping"
     assert re.search(r"fitness plot: 2 generations", page.content())
-    page.screenshot(path=str(screenshots / "1-arena-and-graph.png"))
+    page.screenshot(path=str(screenshots / "arena-graph.png"))
 
 
 def test_break_a_sensor_marks_it_and_the_reward_curve_reacts(page: Any, screenshots: Path) -> None:
@@ -113,7 +113,7 @@ def test_break_a_sensor_marks_it_and_the_reward_curve_reacts(page: Any, screensh
     )
     assert float(reaction.group(1)) != float(reaction.group(2))
     page.wait_for_timeout(1500)
-    page.screenshot(path=str(screenshots / "3-fault-injection.png"))
+    page.screenshot(path=str(screenshots / "faults.png"))
 
     page.get_by_role("button", name="Repair all").click()
     wait_for(page, r"broken: none")
@@ -129,7 +129,7 @@ def test_train_from_the_controls_grows_the_fitness_plot(page: Any, screenshots: 
     started = wait_for(page, r"training: (?:started|running)[^\n]*\n.*fitness plot: (\d+)")
     assert int(started.group(1)) < 3
     wait_for(page, r"on show: .*RL-fuzzy", timeout=120)  # each new best is replayed at once
-    page.screenshot(path=str(screenshots / "2-training.png"))
+    page.screenshot(path=str(screenshots / "training.png"))
     wait_for(page, r"training: finished · generation 3/3 · best [\d.]+", timeout=120)
     wait_for(page, r"fitness plot: 3 generations")
     assert "⚠" not in status(page)
@@ -178,7 +178,7 @@ def test_load_a_saved_run_replay_and_implement(page: Any, screenshots: Path) -> 
         timeout=120,
     )
     assert 0.0 <= float(match.group(1)) <= 1.0
-    page.screenshot(path=str(screenshots / "4-runs-and-implementation.png"))
+    page.screenshot(path=str(screenshots / "runs.png"))
 
 
 def test_compare_two_runs_after_the_same_fault(page: Any, screenshots: Path) -> None:
@@ -190,7 +190,7 @@ def test_compare_two_runs_after_the_same_fault(page: Any, screenshots: Path) -> 
     wait_for(page, r"on show: step \d+ · bs: reward/step [\d.]+ · cs: reward/step")
     wait_for(page, r"broken: s2, s3 \(dead\) since step 40", timeout=30)
     page.wait_for_timeout(2500)
-    page.screenshot(path=str(screenshots / "5-compare.png"))
+    page.screenshot(path=str(screenshots / "compare.png"))
 
 
 def test_tabs_share_state_and_closing_one_leaves_the_server_healthy(
