@@ -18,7 +18,7 @@ import contextlib
 import fcntl
 import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -422,18 +422,32 @@ def _tmp_path(path: Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}.tmp")
 
 
-@contextlib.contextmanager
-def _edit_lock(path: Path) -> Iterator[None]:
-    """Serialise writers that replace `path` (readers never take it)."""
-    lock_path = path.with_name(f".{path.name}.lock")
-    with lock_path.open("w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+class _WriterLock:
+    """An advisory lock (`.NAME.h5.lock` beside the run) held by whoever writes the run.
+
+    Readers never take it. The kernel drops it when its holder dies, even by SIGKILL, so a
+    killed run can be resumed while a live (or paused) one cannot get a second writer.
+    """
+
+    def __init__(self, path: Path) -> None:
+        lock_path = path.with_name(f".{path.name}.lock")
         try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-    with contextlib.suppress(FileNotFoundError):
-        lock_path.unlink()
+            self._handle = lock_path.open("a")
+        except OSError as error:
+            raise RunFileError(f"cannot write beside {path}: {error}") from None
+        try:
+            fcntl.flock(self._handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._handle.close()
+            raise RunFileError(
+                f"{path.name} is being written by another gnp-lab process (training, resume "
+                "or implementation); wait for it to finish or stop it"
+            ) from None
+
+    def release(self) -> None:
+        if not self._handle.closed:
+            fcntl.flock(self._handle, fcntl.LOCK_UN)
+            self._handle.close()
 
 
 def _chunked(
@@ -537,10 +551,11 @@ def _copy_contents(source: h5py.File, target: h5py.File) -> None:
 class RunWriter:
     """The single writer of a run file, in SWMR mode for the whole training."""
 
-    def __init__(self, path: Path, handle: h5py.File, config: RunConfig) -> None:
+    def __init__(self, path: Path, handle: h5py.File, config: RunConfig, lock: _WriterLock) -> None:
         self.path = path
         self.config = config
         self._file = handle
+        self._lock = lock
         self._next_slot = 0
 
     @classmethod
@@ -556,8 +571,13 @@ class RunWriter:
         tmp = _tmp_path(path)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise RunFileError(f"cannot create {path}: {error}") from None
+        lock = _WriterLock(path)
+        try:
             handle = h5py.File(tmp, "w", libver=_LIBVER, locking=False)
         except OSError as error:
+            lock.release()
             raise RunFileError(f"cannot create {path}: {error}") from None
         try:
             _build_layout(handle, template)
@@ -567,16 +587,18 @@ class RunWriter:
             os.link(tmp, path)
         except FileExistsError:
             handle.close()
+            lock.release()
             raise RunFileError(
                 f"{path} already exists; choose another --out or --resume it"
             ) from None
         except BaseException:
             handle.close()
+            lock.release()
             raise
         finally:
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
-        return cls(path, handle, template.config)
+        return cls(path, handle, template.config, lock)
 
     @classmethod
     def resume(cls, path: str | Path) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
@@ -589,6 +611,18 @@ class RunWriter:
             RunFileError: not a resumable run (missing, foreign, finished, no checkpoint).
         """
         path = Path(path)
+        RunReader(path).close()  # a clear error for a missing, foreign or corrupt file
+        lock = _WriterLock(path)
+        try:
+            return cls._rebuild(path, lock)
+        except BaseException:
+            lock.release()
+            raise
+
+    @classmethod
+    def _rebuild(
+        cls, path: Path, lock: _WriterLock
+    ) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
         with RunReader(path) as run:
             if run.finished:
                 raise RunFileError(f"{path} is a finished run; there is nothing to resume")
@@ -618,7 +652,7 @@ class RunWriter:
                 with contextlib.suppress(FileNotFoundError):
                     tmp.unlink()
                 raise
-        writer = cls(path, handle, template.config)
+        writer = cls(path, handle, template.config, lock)
         slot = int(handle["progress/checkpoint"][0])
         writer._next_slot = 1 - slot
         return writer, generation, population
@@ -627,6 +661,7 @@ class RunWriter:
         if self._file.id.valid:
             self._file.flush()
             self._file.close()
+        self._lock.release()
 
     def __enter__(self) -> RunWriter:
         return self
@@ -707,7 +742,8 @@ def add_implementation(path: str | Path, result: Implementation) -> None:
         RunFileError: the run is not finished, or the name is taken.
     """
     path = Path(path)
-    with _edit_lock(path):
+    lock = _WriterLock(path)
+    try:
         with RunReader(path) as run:
             if not run.finished:
                 raise RunFileError(f"{path.name} has not finished training")
@@ -733,6 +769,8 @@ def add_implementation(path: str | Path, result: Implementation) -> None:
         finally:
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
+    finally:
+        lock.release()
 
 
 def _store_implementation(handle: h5py.File, result: Implementation) -> None:

@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from lab_fixtures import assert_same_data, datasets, tiny_config
+from lab_fixtures import assert_same_data, datasets, file_digest, tiny_config
 
 import sim
-from app.config import build_config, to_toml
-from app.store import RunReader
+from app.config import ImplementationSettings, build_config, to_toml
+from app.implementation import implement
+from app.store import RunFileError, RunReader
 from app.training import life_seeds, n_segments, resume, train
 
 
@@ -178,6 +179,13 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
         time.sleep(0.2)
         with RunReader(out) as run:
             assert run.generations_done == paused_at
+        # a second writer is refused while the first lives, even paused, and nothing changes
+        before = file_digest(out)
+        with pytest.raises(RunFileError, match="being written by another gnp-lab process"):
+            resume(out, workers=1)
+        with pytest.raises(RunFileError, match="has not finished training"):
+            implement(out, ImplementationSettings(steps=10, repeats=1))
+        assert file_digest(out) == before
         os.killpg(process.pid, signal.SIGCONT)
         os.killpg(process.pid, signal.SIGTERM)
         _, stderr = process.communicate(timeout=60)
