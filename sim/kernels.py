@@ -30,6 +30,41 @@ _REACH = BODY_RADIUS_MM + IR_RANGE_MM + 1.0
 """No ray reaches a wall farther than this from the robot's centre."""
 
 
+def _constants() -> np.ndarray:
+    """Every robot constant the kernels use, as one array."""
+    scalars = (
+        AXLE_MM,
+        BODY_RADIUS_MM,
+        IR_BACKOFF_MM,
+        IR_MAX,
+        IR_RANGE_MM,
+        MASS,
+        MAX_COMMAND,
+        MOMENT,
+        WHEEL_RADIUS_MM,
+    )
+    out = np.empty(len(scalars) + 4 * N_SENSORS)
+    for k, value in enumerate(scalars):
+        out[k] = value
+    for j in range(N_SENSORS):
+        out[9 + 4 * j] = _SENSOR_X[j]
+        out[10 + 4 * j] = _SENSOR_Y[j]
+        out[11 + 4 * j] = _SENSOR_COS[j]
+        out[12 + 4 * j] = _SENSOR_SIN[j]
+    return out
+
+
+_frozen_constants = nb.njit(cache=True)(_constants)
+
+# numba freezes globals into its cached machine code and only notices changes to this file,
+# not to sim/khepera.py: refuse to run on constants that are no longer the robot's.
+if not np.array_equal(_frozen_constants(), _constants()):
+    raise ImportError(
+        "sim/kernels.py's numba cache holds old sim/khepera.py constants: "
+        "delete sim/__pycache__ (or touch sim/kernels.py) and import again"
+    )
+
+
 def wall_table(walls: np.ndarray) -> np.ndarray:
     """(K, 5) rows of px, py, ex, ey, 1/|e|² for wall segments (K, 2, 2) from p to p + e."""
     p = walls[:, 0]
