@@ -18,6 +18,8 @@ from app.live import RobotSnapshot
 MAX_POINTS = 600
 SMOOTH = 50
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
+WHOLE_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0)
+"""Tick spacings for a generation axis (no 2.5th generation)."""
 FAULT_STYLE: dict[str, Any] = {"stroke": "#e61414", "dash": (6.0, 4.0), "width": 1.5}
 
 
@@ -33,10 +35,9 @@ def _reward_series(labels: Sequence[str]) -> tuple[dict[str, Any], ...]:
     series: list[dict[str, Any]] = [{"label": "step"}]
     for i, label in enumerate(labels):
         color = ROBOT_COLORS[i]
-        series.append({"label": f"{label}", "stroke": _rgb(color, 0.25), "width": 1.0})
-        series.append(
-            {"label": f"{label} ({SMOOTH}-step mean)", "stroke": _rgb(color), "width": 2.5}
-        )
+        short = label if len(label) <= 14 else label[:13] + "…"
+        series.append({"label": short, "stroke": _rgb(color, 0.25), "width": 1.0})
+        series.append({"label": f"{SMOOTH}-step mean", "stroke": _rgb(color), "width": 2.5})
     series.append({"label": "broken sensors", "scale": "n", **FAULT_STYLE})
     return tuple(series)
 
@@ -50,13 +51,15 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         title="Reward per step (robots on show)",
         scales={**X_NOT_TIME, "y": {"range": (0.0, 1.0)}, "n": {"range": (0.0, 8.0)}},
         axes=({}, {"scale": "y"}, {"scale": "n", "side": 1, "grid": {"show": False}}),
-        aspect=1.6,
+        aspect=1.9,
     )
 
 
 def set_reward_series(plot: viser.GuiUplotHandle, labels: Sequence[str]) -> None:
     """Re-label the reward chart for the robots now on show (one or two)."""
     series = _reward_series(labels)
+    if tuple(series) == tuple(plot.series):
+        return  # the same robots (e.g. the next generation's best of one run): keep the chart
     plot.data = _empty(len(series))
     plot.series = series  # type: ignore[assignment]
 
@@ -98,7 +101,8 @@ def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         ),
         title="Fitness per generation",
         scales=X_NOT_TIME,
-        aspect=1.8,
+        axes=({"incrs": WHOLE_STEPS}, {}),
+        aspect=2.3,
     )
 
 
@@ -135,7 +139,7 @@ def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         title="Implementation phase",
         scales={**X_NOT_TIME, "n": {"range": (0.0, 1.0)}},
         axes=({}, {}, {"scale": "n", "show": False}),
-        aspect=1.8,
+        aspect=2.3,
     )
 
 

@@ -148,7 +148,8 @@ class ArenaView:
         handles["rays"].colors = ray_colors
 
         # A broken sensor: a red cross at its origin (degenerate when intact, fixed shape).
-        crosses = geo.cross_segments(origins[0] * geo.MM, 0.009).reshape(8, 2, 2, 3)
+        marks = origins[0] + directions[0] * 12.0  # just outside the body, on the ray
+        crosses = geo.cross_segments(marks * geo.MM, 0.014).reshape(8, 2, 2, 3)
         crosses[~robot.broken] = 0.0
         crosses[~robot.broken] += np.array([x, y, 0.0]) * geo.MM
         faults = crosses.reshape(16, 2, 3)
