@@ -83,7 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
     train.add_argument("--method", choices=("RL", "BS", "CS"), help="learning method")
     fuzzy = train.add_mutually_exclusive_group()
-    fuzzy.add_argument("--fuzzy", dest="fuzzy", action="store_true", default=None)
+    fuzzy.add_argument(
+        "--fuzzy", dest="fuzzy", action="store_true", default=None, help="fuzzy judgment"
+    )
     fuzzy.add_argument("--crisp", dest="fuzzy", action="store_false", help="crisp judgment")
     train.add_argument("--population", type=int, metavar="N", help="individuals")
     train.add_argument("--generations", type=int, metavar="G", help="generations")
