@@ -238,6 +238,7 @@ class _Bar:
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
+            self._bar = None
 
 
 class _GenerationBar(_Bar):
@@ -284,6 +285,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         try:
             training.resume(path, workers=workers, progress=bar)
         except training.Interrupted as stop:
+            bar.close()  # before the message, so the message is the last line
             return _interrupted(stop, path)
         finally:
             bar.close()
@@ -299,6 +301,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         try:
             training.train(config, path, workers=workers, progress=bar)
         except training.Interrupted as stop:
+            bar.close()  # before the message, so the message is the last line
             return _interrupted(stop, path)
         finally:
             bar.close()
