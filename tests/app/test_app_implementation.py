@@ -103,3 +103,16 @@ def test_refuses_unfinished_runs_and_taken_names(tmp_path: Path, finished_run: P
     assert path.read_bytes() == before
     with RunReader(path) as run:
         assert run.implementation("first").trials.poses.shape == (0, 120, 3)
+
+
+def test_an_open_reader_sees_a_new_implementation_after_refresh(
+    tmp_path: Path, finished_run: Path
+) -> None:
+    path = tmp_path / "run.h5"
+    shutil.copy(finished_run, path)
+    with RunReader(path) as run:
+        assert run.implementation_names() == []
+        implement(path, _settings(recorded_trials=1), name="later")
+        run.refresh()  # the file was replaced by a copy holding the result
+        assert run.implementation_names() == ["later"]
+        assert run.implementation("later").trials.poses.shape == (1, 120, 3)
