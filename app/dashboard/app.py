@@ -220,14 +220,30 @@ class Dashboard:
 
     def _build_train_tab(self) -> None:
         gui = self.server.gui
-        self.train_method = gui.add_dropdown("Method", ("RL", "BS", "CS"), initial_value="CS")
-        self.train_judgment = gui.add_dropdown("Judgment", ("fuzzy", "crisp"))
+        quick = load_preset("quick")  # the fields start at the quick preset's values
+        training = quick.training
+        self.train_method = gui.add_dropdown(
+            "Method", ("RL", "BS", "CS"), initial_value=quick.controller.method
+        )
+        self.train_judgment = gui.add_dropdown(
+            "Judgment",
+            ("fuzzy", "crisp"),
+            initial_value="fuzzy" if quick.controller.fuzzy else "crisp",
+        )
         self.train_preset = gui.add_dropdown("Preset", PRESET_NAMES, initial_value="quick")
-        self.train_population = gui.add_number("Population", 60, min=2, max=100_000, step=1)
-        self.train_generations = gui.add_number("Generations", 30, min=1, max=1_000_000, step=1)
-        self.train_steps = gui.add_number("Life T (steps)", 500, min=1, max=1_000_000, step=1)
-        self.train_noise = gui.add_number("Noise σ", 0.0, min=0.0, max=1023.0, step=1.0)
-        self.train_seed = gui.add_number("Seed", 0, min=0, max=2**31 - 1, step=1)
+        self.train_population = gui.add_number(
+            "Population", training.population, min=2, max=100_000, step=1
+        )
+        self.train_generations = gui.add_number(
+            "Generations", training.generations, min=1, max=1_000_000, step=1
+        )
+        self.train_steps = gui.add_number(
+            "Life T (steps)", training.steps, min=1, max=1_000_000, step=1
+        )
+        self.train_noise = gui.add_number(
+            "Noise σ", training.noise_sigma, min=0.0, max=1023.0, step=1.0
+        )
+        self.train_seed = gui.add_number("Seed", quick.seed, min=0, max=2**31 - 1, step=1)
         buttons = gui.add_button_group("Training", ("Start", "Pause", "Resume", "Stop"))
         self.train_progress = gui.add_progress_bar(0.0)
         self.train_md = gui.add_markdown("Not training.")
@@ -583,6 +599,14 @@ class Dashboard:
             f"best fitness {best:.4f}"
             f" · implementations: {', '.join(impls) or 'none'}"
         )
+        implementation = config.implementation  # the run's own fault, as a starting point
+        sensors = implementation.broken_sensors
+        _set(self.impl_sensors, ",".join(map(str, sensors)) if sensors else "2,3")
+        _set(self.impl_mode, implementation.fault_mode)
+        _set(self.impl_fault_step, implementation.fault_step)
+        _set(self.impl_steps, implementation.steps)
+        _set(self.impl_repeats, implementation.repeats)
+        _set(self.impl_schedule, implementation.schedule)
         if impls:
             result = reader.implementation(impls[-1])
             self._show_implementation(f"{name}/{impls[-1]}", result)
