@@ -169,3 +169,24 @@ def test_a_failing_training_reports_the_clis_error(tmp_path: Path) -> None:
     assert "already exists" in job.error()
     assert (tmp_path / "taken.h5").read_bytes() == b"not mine"
     job.close()
+
+
+def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> None:
+    import viser
+
+    from app.dashboard.app import Dashboard
+
+    (tmp_path / "junk.h5").write_bytes(b"not an HDF5 file")
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path)
+    try:
+        assert "no runs in" in dashboard.status_md.content
+        assert "an untrained random CS individual" in dashboard.show_md.content
+        assert "junk | ⚠ unreadable" in dashboard.runs_md.content
+        session = dashboard.session
+        assert session is not None
+        wait_until(lambda: session.robots[0].t > 0, 30)  # the live loop runs
+        assert (tmp_path / "junk.h5").read_bytes() == b"not an HDF5 file"
+    finally:
+        dashboard.stop()
+        server.stop()
