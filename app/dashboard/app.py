@@ -896,8 +896,9 @@ def show_line(robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> str:
     """The readout's lines about the robots on show (also what the browser tests read)."""
     first = robots[0]
     rewards = " · ".join(f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots)
+    sub = f" sub {first.visits[-1, 1]}" if len(first.visits) else ""
     lines = [
-        f"on show: step {first.t} · {rewards} · node {first.current_node} · "
+        f"on show: step {first.t} · {rewards} · node {first.current_node}{sub} · "
         f"ε {first.epsilon:.3f} α {first.alpha:.3f} · noise σ {noise_sigma:g}"
     ]
     broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))

@@ -226,6 +226,14 @@ class GraphView:
         self._current = server.scene.add_line_segments(
             f"{root}/current", blank, (240, 30, 30), thickness=3.5, thickness_units="screen"
         )
+        # What the current node did, in words, at a fixed place above the graph.
+        self._current_label = server.scene.add_label(
+            f"{root}/current_label",
+            "",
+            position=(*(self._origin + np.array([0.45 * width, 1.06 * height])), 0.0),
+            anchor="bottom-left",
+            font_screen_scale=0.85,
+        )
         self._selected = server.scene.add_line_segments(
             f"{root}/selected", blank, (130, 40, 200), thickness=2.5, thickness_units="screen"
         )
@@ -331,8 +339,30 @@ class GraphView:
         )
         self._recent.points = arrows.astype(np.float32)
         self._recent.colors = colors
-        ring = geo.circle_segments(positions[robot.current_node][None], 0.022 * self._size)
+        current = positions[robot.current_node]
+        ring = geo.circle_segments(current[None], 0.022 * self._size)
         self._current.points = ring.astype(np.float32)
+        text = ""
+        if len(robot.visits) and self.genome is not None:
+            last = robot.visits[-1]
+            text = describe_visit(last, int(self.genome.kinds[last[0]]))
+        if text != self._current_label.text:
+            self._current_label.text = text
+
+
+def describe_visit(visit: np.ndarray, kind: int) -> str:
+    """A visit (node, sub, branch, u, skipped) of a node of `kind` in words."""
+    node, sub, branch, u, skipped = (int(v) for v in visit)
+    if kind == START:
+        return "start node"
+    if skipped:
+        return f"node {node}: skipped by its credit branch"
+    text = f"node {node}: sub node {sub}"
+    if kind == JUDGMENT:
+        text += ", branch " + "AB"[branch]
+    if u > 0:
+        text += f", branch connection u = {u}"
+    return text
 
 
 def transition_kinds(source: np.ndarray, target: np.ndarray) -> np.ndarray:

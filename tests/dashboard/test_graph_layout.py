@@ -17,7 +17,13 @@ from app.dashboard.graph_layout import (
     node_kinds,
 )
 from app.dashboard.plots import block_mean, moving_mean
-from app.dashboard.scene import BRANCH_SWITCH, CREDIT_SKIP, NORMAL, transition_kinds
+from app.dashboard.scene import (
+    BRANCH_SWITCH,
+    CREDIT_SKIP,
+    NORMAL,
+    describe_visit,
+    transition_kinds,
+)
 
 
 def test_columns_follow_sensor_and_wheel() -> None:
@@ -140,3 +146,14 @@ def test_transition_kinds() -> None:
     )
     kinds = transition_kinds(visits[:-1], visits[1:])
     np.testing.assert_array_equal(kinds, [NORMAL, NORMAL, BRANCH_SWITCH, CREDIT_SKIP, CREDIT_SKIP])
+
+
+def test_visits_in_words() -> None:
+    assert describe_visit(np.array([0, 0, 0, 0, 0]), START) == "start node"
+    assert describe_visit(np.array([7, 1, 1, 0, 0]), JUDGMENT) == "node 7: sub node 1, branch B"
+    assert (
+        describe_visit(np.array([7, 0, 0, 1, 0]), JUDGMENT)
+        == "node 7: sub node 0, branch A, branch connection u = 1"
+    )
+    assert describe_visit(np.array([50, 1, 0, 0, 0]), PROCESSING) == "node 50: sub node 1"
+    assert describe_visit(np.array([9, 0, -1, -1, 1]), JUDGMENT).endswith("credit branch")
