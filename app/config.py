@@ -103,6 +103,13 @@ class TrainingSettings(_Frozen):
     checkpoint_every: int = Field(
         default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
     )
+    shard_size: int = Field(
+        default=75,
+        ge=1,
+        le=100_000,
+        description="robots per simulated world; results depend on it, never on the number "
+        "of workers (at most one worker per shard is used) [robots]",
+    )
 
     @model_validator(mode="after")
     def _ordered(self) -> TrainingSettings:

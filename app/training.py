@@ -220,71 +220,121 @@ def _make_world(config: RunConfig, n: int) -> sim.World:
     )
 
 
-def _run_job(
-    world: sim.World, cfg: gnp.GnpConfig, training: TrainingSettings, job: _Job
-) -> tuple[Lives, dict[str, np.ndarray]]:
-    pop = gnp.population_from_arrays(cfg, job.arrays)
-    lives, _ = live(
-        world, cfg, pop, job.seeds, training.steps, training.redraw_every, job.epsilon, job.alpha
-    )
-    return lives, gnp.population_to_arrays(pop)
+def shards(training: TrainingSettings) -> list[slice]:
+    """The fixed split of the population into worlds of about `shard_size` robots.
+
+    Individual i always lives at the same index of the same-sized world, whatever the number
+    of workers, so a run does not depend on that number even where the physics would depend
+    on a robot's place in its batch (see docs/decisions/app.md).
+    """
+    count = max(1, math.ceil(training.population / training.shard_size))
+    bounds = np.linspace(0, training.population, count + 1).round().astype(int)
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
 
 
-class LocalEvaluator:
-    """Evaluates in this process, on one world of the whole population."""
+class _ShardWorlds:
+    """Lives of shards, each in its own persistent world (built on first use)."""
 
     def __init__(self, config: RunConfig) -> None:
         self._config = config
         self._cfg = config.controller.gnp_config()
-        self._world = _make_world(config, config.training.population)
+        self._worlds: dict[int, sim.World] = {}
+
+    def run(self, index: int, job: _Job) -> tuple[Lives, dict[str, np.ndarray]]:
+        if index not in self._worlds:
+            self._worlds[index] = _make_world(self._config, len(job.seeds.engine))
+        training = self._config.training
+        pop = gnp.population_from_arrays(self._cfg, job.arrays)
+        lives, _ = live(
+            self._worlds[index],
+            self._cfg,
+            pop,
+            job.seeds,
+            training.steps,
+            training.redraw_every,
+            job.epsilon,
+            job.alpha,
+        )
+        return lives, gnp.population_to_arrays(pop)
+
+
+def _jobs(
+    pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float, parts: list[slice]
+) -> list[_Job]:
+    arrays = gnp.population_to_arrays(pop)
+    return [
+        _Job(
+            {name: values[part].copy() for name, values in arrays.items()},
+            seeds.take(part),
+            epsilon,
+            alpha,
+        )
+        for part in parts
+    ]
+
+
+def _gather(
+    cfg: gnp.GnpConfig, results: list[tuple[Lives, dict[str, np.ndarray]]]
+) -> tuple[Lives, gnp.Population]:
+    lives = Lives(
+        fitness=np.concatenate([r[0].fitness for r in results]),
+        terms=np.concatenate([r[0].terms for r in results]),
+    )
+    names = results[0][1].keys()
+    learned = {name: np.concatenate([r[1][name] for r in results]) for name in names}
+    return lives, gnp.population_from_arrays(cfg, learned)
+
+
+class LocalEvaluator:
+    """Evaluates in this process, shard after shard."""
+
+    def __init__(self, config: RunConfig) -> None:
+        self._cfg = config.controller.gnp_config()
+        self._parts = shards(config.training)
+        self._worlds = _ShardWorlds(config)
 
     def evaluate(
         self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
     ) -> tuple[Lives, gnp.Population]:
-        job = _Job(gnp.population_to_arrays(pop.copy()), seeds, epsilon, alpha)
-        lives, arrays = _run_job(self._world, self._cfg, self._config.training, job)
-        return lives, gnp.population_from_arrays(self._cfg, arrays)
+        jobs = _jobs(pop, seeds, epsilon, alpha, self._parts)
+        return _gather(self._cfg, [self._worlds.run(i, job) for i, job in enumerate(jobs)])
 
     def close(self) -> None:
         pass
 
 
-def _worker_main(conn: Connection, config_json: str, n: int) -> None:
+def _worker_main(conn: Connection, config_json: str) -> None:
     # Ctrl-C and SIGTERM reach the whole process group: the main process decides, and stops
     # workers itself; a worker whose parent died sees its pipe close and exits.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    config = RunConfig.model_validate_json(config_json)
-    cfg = config.controller.gnp_config()
-    world = _make_world(config, n)
+    worlds = _ShardWorlds(RunConfig.model_validate_json(config_json))
     try:
         while True:
-            job = conn.recv()
-            if job is None:
+            jobs = conn.recv()
+            if jobs is None:
                 break
-            conn.send(_run_job(world, cfg, config.training, job))
+            conn.send([worlds.run(index, job) for index, job in jobs])
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
 
 
 class ProcessEvaluator:
-    """Persistent `spawn` worker processes, each owning a world of its contiguous share."""
+    """Persistent `spawn` worker processes, each owning the worlds of a contiguous run of shards."""
 
     def __init__(self, config: RunConfig, workers: int) -> None:
         self._cfg = config.controller.gnp_config()
-        population = config.training.population
-        bounds = np.linspace(0, population, workers + 1).round().astype(int)
-        self._slices = [slice(a, b) for a, b in itertools.pairwise(bounds)]
+        self._parts = shards(config.training)
+        bounds = np.linspace(0, len(self._parts), workers + 1).round().astype(int)
+        self._owned = [list(range(a, b)) for a, b in itertools.pairwise(bounds)]
         context = multiprocessing.get_context("spawn")
         self._busy = False
         self._conns: list[Connection] = []
         self._procs: list[Any] = []
-        for part in self._slices:
+        for _ in self._owned:
             parent, child = context.Pipe()
             proc = context.Process(
-                target=_worker_main,
-                args=(child, config.model_dump_json(), part.stop - part.start),
-                daemon=True,
+                target=_worker_main, args=(child, config.model_dump_json()), daemon=True
             )
             proc.start()
             child.close()
@@ -294,23 +344,17 @@ class ProcessEvaluator:
     def evaluate(
         self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
     ) -> tuple[Lives, gnp.Population]:
-        arrays = gnp.population_to_arrays(pop)
+        jobs = _jobs(pop, seeds, epsilon, alpha, self._parts)
         self._busy = True
         try:
-            for conn, part in zip(self._conns, self._slices, strict=True):
-                share = {name: values[part] for name, values in arrays.items()}
-                conn.send(_Job(share, seeds.take(part), epsilon, alpha))
-            results = [conn.recv() for conn in self._conns]
+            for conn, owned in zip(self._conns, self._owned, strict=True):
+                conn.send([(index, jobs[index]) for index in owned])
+            results = [result for conn in self._conns for result in conn.recv()]
         except (EOFError, OSError):
             codes = [proc.exitcode for proc in self._procs]
             raise TrainingError(f"a worker process died (exit codes {codes})") from None
         self._busy = False
-        lives = Lives(
-            fitness=np.concatenate([r[0].fitness for r in results]),
-            terms=np.concatenate([r[0].terms for r in results]),
-        )
-        learned = {name: np.concatenate([r[1][name] for r in results]) for name in arrays}
-        return lives, gnp.population_from_arrays(self._cfg, learned)
+        return _gather(self._cfg, results)
 
     def close(self) -> None:
         busy = self._busy  # interrupted mid-generation: the workers' results are not wanted
@@ -327,8 +371,8 @@ class ProcessEvaluator:
 
 
 def make_evaluator(config: RunConfig, workers: int) -> Evaluator:
-    """In-process for one worker, else that many persistent worker processes."""
-    workers = max(1, min(workers, config.training.population))
+    """In-process for one worker, else persistent worker processes (at most one per shard)."""
+    workers = max(1, min(workers, len(shards(config.training))))
     return LocalEvaluator(config) if workers == 1 else ProcessEvaluator(config, workers)
 
 
@@ -417,7 +461,7 @@ def _train_from(
                 )
                 last = generation + 1 == training.generations
                 if last:
-                    elite_life = _replay(config, cfg, arena, pop, best, seeds, epsilon, alpha)
+                    elite_life = _replay(config, cfg, pop, best, seeds, epsilon, alpha)
                 else:
                     pop_next = gnp.evolve(
                         cfg,
@@ -456,27 +500,21 @@ def _train_from(
 def _replay(
     config: RunConfig,
     cfg: gnp.GnpConfig,
-    arena: sim.Arena,
     pop: gnp.Population,
     best: int,
     seeds: LifeSeeds,
     epsilon: float,
     alpha: float,
 ) -> Trajectory:
-    """Live the best individual's evaluation again, recording it (it is bit-identical)."""
+    """Live the best individual's evaluation again, recording it: its whole shard is replayed
+    in a world like the one it was evaluated in, so the life is bit-identical."""
     training = config.training
-    world = sim.World(
-        arena,
-        n=1,
-        seed=config.seed,
-        noise_sigma=training.noise_sigma,
-        control_period=training.control_period,
-    )
+    part = next(p for p in shards(training) if p.start <= best < p.stop)
     _, trajectory = live(
-        world,
+        _make_world(config, part.stop - part.start),
         cfg,
-        gnp.take(pop, [best]),
-        seeds.take(slice(best, best + 1)),
+        gnp.take(pop, np.arange(part.start, part.stop)),
+        seeds.take(part),
         training.steps,
         training.redraw_every,
         epsilon,
@@ -484,7 +522,16 @@ def _replay(
         record=True,
     )
     assert trajectory is not None
-    return trajectory
+    row = slice(best - part.start, best - part.start + 1)
+    return Trajectory(
+        poses=trajectory.poses[row],
+        readings=trajectory.readings[row],
+        observations=trajectory.observations[row],
+        commands=trajectory.commands[row],
+        terms={name: values[row] for name, values in trajectory.terms.items()},
+        trace={name: values[row] for name, values in trajectory.trace.items()},
+        start_index=trajectory.start_index[row],
+    )
 
 
 def run_template(config: RunConfig) -> RunTemplate:

@@ -13,8 +13,8 @@ from app.config import RunConfig, build_config
 
 
 def tiny_config(**training: Any) -> RunConfig:
-    """A run small enough for tests: 12 individuals, 60 steps, 3 generations."""
-    settings = {"population": 12, "steps": 60, "generations": 3}
+    """A run small enough for tests: 12 individuals in 3 worlds, 60 steps, 3 generations."""
+    settings = {"population": 12, "steps": 60, "generations": 3, "shard_size": 5}
     settings.update(training)
     return build_config(
         {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -20,7 +21,7 @@ import sim
 from app.config import ImplementationSettings, build_config, to_toml
 from app.implementation import implement
 from app.store import RunFileError, RunReader
-from app.training import life_seeds, n_segments, resume, train
+from app.training import life_seeds, n_segments, resume, shards, train
 
 
 @given(st.sets(st.integers(0, 500), min_size=1, max_size=20), st.integers(0, 3))
@@ -35,6 +36,16 @@ def test_life_seeds_depend_on_the_individual_not_the_batch(indices: set[int], ge
     assert some.starts.min() >= 0 and some.starts.max() < 10
     other_generation = life_seeds(5, gen + 1, ordered, 3, 10)
     assert not np.array_equal(some.world, other_generation.world)
+
+
+@given(st.integers(2, 2000), st.integers(1, 300))
+def test_shards_cover_the_population_in_order(population: int, shard_size: int) -> None:
+    parts = shards(tiny_config(population=population, shard_size=shard_size).training)
+    assert parts[0].start == 0 and parts[-1].stop == population
+    assert all(a.stop == b.start for a, b in itertools.pairwise(parts))
+    sizes = [p.stop - p.start for p in parts]
+    assert max(sizes) <= shard_size and max(sizes) - min(sizes) <= 1
+    assert len(parts) == -(-population // shard_size)
 
 
 def test_segments() -> None:
