@@ -104,7 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--out", metavar="FILE", help="new run file (default: in --runs-dir)")
     train.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     train.add_argument(
-        "--workers", type=int, metavar="W", help="worker processes (default: one per core)"
+        "--workers",
+        type=int,
+        metavar="W",
+        help="worker processes (default: one per core; at most one per training.shard_size robots)",
     )
     train.add_argument(
         "--resume", metavar="FILE", help="continue an interrupted run with its own settings"
