@@ -228,6 +228,8 @@ def step(
             f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
             f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
         )
+    if not all(q.flags.c_contiguous for q in (pop.q_ss, pop.q_bs, pop.q_cs)):
+        raise GnpError("the population's Q tables must be C-contiguous (learning writes them)")
     obs = np.ascontiguousarray(observations, dtype=np.float64)
     if obs.shape != (n, 8):
         raise GnpError(f"observations must have shape ({n}, 8), got {obs.shape}")
@@ -283,31 +285,32 @@ def step(
 
 
 @njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
-    """ε-greedy over the 1-D action values q: (new stream state, chosen index).
+def _egreedy(q: np.ndarray, row: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+    """ε-greedy over the action values q[row, :]: (new stream state, chosen index).
 
     Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima (one
-    more draw only when there is a tie).
+    more draw only when there is a tie). Rows of a 2-D view rather than 1-D slices: a slice
+    costs reference counting in the hot loop (13% more instructions per step, by cachegrind).
     """
-    k = q.shape[0]
+    k = q.shape[1]
     s, u = next_uniform(s)
     if u < eps:
         s, v = next_uniform(s)
         return s, min(int(v * k), k - 1)
-    best = q[0]
+    best = q[row, 0]
     ties = 1
     for a in range(1, k):
-        if q[a] > best:
-            best = q[a]
+        if q[row, a] > best:
+            best = q[row, a]
             ties = 1
-        elif q[a] == best:
+        elif q[row, a] == best:
             ties += 1
     pick = 0
     if ties > 1:
         s, v = next_uniform(s)
         pick = min(int(v * ties), ties - 1)
     for a in range(k):
-        if q[a] == best:
+        if q[row, a] == best:
             if pick == 0:
                 return s, a
             pick -= 1
@@ -349,6 +352,12 @@ def _step_kernel(
     t_count,
 ):  # pragma: no cover - compiled
     n_ctrl = cur_node.shape[0]
+    n_nodes = q_ss.shape[1]
+    n_sub = q_ss.shape[2]
+    # 2-D views whose rows are the action values of one ε-greedy choice.
+    q_ss_rows = q_ss.reshape(n_ctrl * n_nodes, n_sub)
+    q_cs_rows = q_cs.reshape(n_ctrl * n_nodes * n_sub, 2)
+    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, q_bs.shape[4])
     for c in range(n_ctrl):
         s = rng[c]
         node = cur_node[c]
@@ -386,10 +395,10 @@ def _step_kernel(
                 k += 1
                 node = conn[c, node, 0, 0, 0]
                 continue
-            s, p = _egreedy(q_ss[c, node], eps, s)
+            s, p = _egreedy(q_ss_rows, c * n_nodes + node, eps, s)
             cs = 0
             if method == _CS:
-                s, cs = _egreedy(q_cs[c, node, p], eps, s)
+                s, cs = _egreedy(q_cs_rows, (c * n_nodes + node) * n_sub + p, eps, s)
             if learn and pn >= 0:
                 q_ss[c, pn, pp] += lr * (pend_r + gamma * q_ss[c, node, p] - q_ss[c, pn, pp])
                 if method == _CS:
@@ -430,7 +439,8 @@ def _step_kernel(
                     branch = 0
                 u = 0
                 if method == _BS:
-                    s, u = _egreedy(q_bs[c, node, p, branch], eps, s)
+                    row = ((c * n_nodes + node) * n_sub + p) * 2 + branch
+                    s, u = _egreedy(q_bs_rows, row, eps, s)
                 nxt = conn[c, node, p, branch, u]
             if trace:
                 t_node[c, k] = node
