@@ -400,11 +400,17 @@ def _inspect(path: Path) -> int:
                 )
         for name in run.implementation_names():
             result = run.implementation(name)
-            sensors = ",".join(map(str, result.settings.broken_sensors)) or "none"
+            done = result.settings
+            fault = (
+                f"sensors {','.join(map(str, done.broken_sensors))} {done.fault_mode} "
+                f"at step {done.fault_step}"
+                if done.broken_sensors
+                else "no fault"
+            )
             print(
-                f"implementation {name}: broken {sensors} ({result.settings.fault_mode}) at "
-                f"{result.settings.fault_step}, {len(result.trial_mean_reward)} trials: mean "
-                f"{result.mean_reward:.4f}, after the fault {result.mean_after_fault:.4f}"
+                f"implementation {name}: {fault}, {len(result.trial_mean_reward)} trials "
+                f"x {done.steps} steps: mean reward {result.mean_reward:.4f}, "
+                f"from step {done.fault_step} on {result.mean_after_fault:.4f}"
             )
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
