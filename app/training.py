@@ -3,8 +3,9 @@
 Every random draw of an individual's life (its start poses, the world's noise stream, the
 controller's stream) comes from a `numpy.random.SeedSequence` keyed by (run seed, generation,
 individual index), and evolution's Generator from (run seed, generation). No draw depends on
-where an individual sits in a batch, so a run gives bit-identical results on any number of
-worker processes, and a resumed run matches one never interrupted.
+where an individual sits in a batch, and individual i always lives at the same place of the
+same world (a fixed split into shards, see `shards`), so a run gives bit-identical results on
+any number of worker processes, and a resumed run matches one never interrupted.
 """
 
 from __future__ import annotations
