@@ -608,8 +608,11 @@ class Dashboard:
         _set(self.impl_repeats, implementation.repeats)
         _set(self.impl_schedule, implementation.schedule)
         if impls:
-            result = reader.implementation(impls[-1])
-            self._show_implementation(f"{name}/{impls[-1]}", result)
+            results = {impl: reader.implementation(impl) for impl in impls}
+            # Prefer a stored phase with a fault: that is what the plot's marker is for.
+            faulted = [i for i, r in results.items() if r.settings.broken_sensors]
+            shown = (faulted or impls)[-1]
+            self._show_implementation(f"{name}/{shown}", results[shown])
         self._set_status(f"loaded run {name}")
 
     def _replay_loaded(self) -> None:
@@ -794,6 +797,7 @@ class Dashboard:
         job = self.job
         if job is None:
             return
+        active = job.active  # once, up front: the line and the clean-up must agree on it
         state = job.state  # before reading: a finished job's file is complete
         history = self._read_training(job)
         if history is not None:
@@ -818,7 +822,7 @@ class Dashboard:
         _set(self.train_progress, 100.0 * done / total)
         detail = line.removeprefix("training: ")
         self.train_md.content = detail[:1].upper() + detail[1:]
-        if job.active or (history is None and state == "finished" and self._job_retries < 5):
+        if active or (history is None and state == "finished" and self._job_retries < 5):
             self._job_retries += state == "finished"
             return
         self.job = None
