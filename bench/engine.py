@@ -3,8 +3,10 @@
     .venv/bin/python bench/engine.py [--robots 300] [--steps 1000] [--method BS] [--repeats 3]
 
 Both loops observe, step the world and compute the reward; the second also runs `gnp.step`
-(learning on, ε = α = 0.1) between observing and stepping. Each loop runs `--repeats` times,
-alternating, and the best time of each is kept. Also prints the engine alone per method.
+(learning on, ε = α = 0.1) between observing and stepping, and the first replays the commands
+the second produced, so the world does exactly the same work in both. Each loop runs
+`--repeats` times, alternating, and the best CPU time (process time: the machine may be shared)
+of each is kept. Also prints the engine alone per method on random readings.
 """
 
 from __future__ import annotations
@@ -18,31 +20,34 @@ import gnp
 import sim
 
 
-def world_loop(world: sim.World, steps: int, commands: np.ndarray) -> float:
-    """Seconds for `steps` of observe → world.step → reward with fixed commands."""
+def world_loop(world: sim.World, commands: np.ndarray) -> float:
+    """CPU seconds of observe → world.step → reward, replaying commands (steps, N, 2)."""
     start = time.process_time()
-    for _ in range(steps):
+    for step_commands in commands:
         world.observe()
-        world.step(commands)
-        sim.reward_terms(world.sense(), commands)["reward"]
+        world.step(step_commands)
+        sim.reward_terms(world.sense(), step_commands)["reward"]
     return time.process_time() - start
 
 
 def full_loop(
     world: sim.World, cfg: gnp.GnpConfig, pop: gnp.Population, state: gnp.EngineState, steps: int
-) -> tuple[float, float]:
-    """Seconds for `steps` of observe → gnp.step → world.step → reward, and of gnp.step alone."""
+) -> tuple[float, float, np.ndarray]:
+    """CPU seconds of observe → gnp.step → world.step → reward, of gnp.step alone, and the
+    commands (steps, N, 2) it produced."""
     reward = np.zeros(world.n)
+    log = np.zeros((steps, world.n, 2))
     in_engine = 0.0
     start = time.process_time()
-    for _ in range(steps):
+    for t in range(steps):
         obs = world.observe()
         t0 = time.process_time()
         commands = gnp.step(cfg, pop, state, obs, reward, 0.1, 0.1)
         in_engine += time.process_time() - t0
         world.step(commands)
         reward = sim.reward_terms(world.sense(), commands)["reward"]
-    return time.process_time() - start, in_engine
+        log[t] = commands
+    return time.process_time() - start, in_engine, log
 
 
 def engine_alone(method: str, n: int, steps: int) -> float:
@@ -71,24 +76,25 @@ def main() -> None:
 
     arena = sim.load_arena("training")
     cfg = gnp.GnpConfig(method=args.method)
-    pop = gnp.init_population(cfg, n, np.random.default_rng(0))
-    state = gnp.init_state(cfg, n, np.arange(n))
     world = sim.World(arena, n=n, seed=0, noise_sigma=50.0)
-    commands = np.tile([6.0, 5.0], (n, 1))
-    full_loop(world, cfg, pop, state, 5)  # warm up numba caches on both sides
+    pop = gnp.init_population(cfg, n, np.random.default_rng(0))
+    full_loop(world, cfg, pop, gnp.init_state(cfg, n, np.arange(n)), 5)  # warm up numba
 
     world_times, full_times, engine_times = [], [], []
     for _ in range(args.repeats):
-        world.reset(np.resize(arena.start_poses, (n, 3)))
-        world_times.append(world_loop(world, steps, commands))
-        world.reset(np.resize(arena.start_poses, (n, 3)))
-        gnp.reset_episode(state)
-        total, in_engine = full_loop(world, cfg, pop, state, steps)
+        # The same individuals (fresh Q tables), poses and seeds every time: identical lives.
+        pop = gnp.init_population(cfg, n, np.random.default_rng(0))
+        state = gnp.init_state(cfg, n, np.arange(n))
+        world.reset(np.resize(arena.start_poses, (n, 3)), seeds=np.arange(n))
+        total, in_engine, commands = full_loop(world, cfg, pop, state, steps)
         full_times.append(total)
         engine_times.append(in_engine)
+        world.reset(np.resize(arena.start_poses, (n, 3)), seeds=np.arange(n))
+        world_times.append(world_loop(world, commands))
     t_world, t_full, t_engine = min(world_times), min(full_times), min(engine_times)
     rate = n * steps
-    print(f"{n} robots × {steps} steps, method {args.method}, fuzzy, best of {args.repeats}")
+    print(f"{n} robots × {steps} steps, method {args.method}, fuzzy, σ = 50, best CPU time of "
+          f"{args.repeats}")  # fmt: skip
     print(f"  world alone          {rate / t_world:>12,.0f} robot-steps/s  ({t_world:.3f} s)")
     print(f"  world + gnp.step     {rate / t_full:>12,.0f} robot-steps/s  ({t_full:.3f} s)")
     print(f"  gnp.step share       {1e6 * t_engine / steps:>12.1f} µs per step of {n}")
