@@ -93,8 +93,10 @@ def main() -> None:
         world_times.append(world_loop(world, commands))
     t_world, t_full, t_engine = min(world_times), min(full_times), min(engine_times)
     rate = n * steps
-    print(f"{n} robots × {steps} steps, method {args.method}, fuzzy, σ = 50, best CPU time of "
-          f"{args.repeats}")  # fmt: skip
+    print(
+        f"{n} robots × {steps} steps, method {args.method}, fuzzy, σ = 50, best CPU time of "
+        f"{args.repeats}"
+    )
     print(f"  world alone          {rate / t_world:>12,.0f} robot-steps/s  ({t_world:.3f} s)")
     print(f"  world + gnp.step     {rate / t_full:>12,.0f} robot-steps/s  ({t_full:.3f} s)")
     print(f"  gnp.step share       {1e6 * t_engine / steps:>12.1f} µs per step of {n}")

@@ -60,9 +60,16 @@ def evolve(
     if n_mut:
         parents = tournament(fit, n_mut, evo.tournament_size, rng)
         parts.append(
-            mutate(cfg, take(pop, parents), generation, n_generations, rng, evo.p_mutation,
-                   evo.nonuniform_b)
-        )  # fmt: skip
+            mutate(
+                cfg,
+                take(pop, parents),
+                generation,
+                n_generations,
+                rng,
+                evo.p_mutation,
+                evo.nonuniform_b,
+            )
+        )
     return concat(parts)
 
 
@@ -128,29 +135,29 @@ def mutate(
     judg = np.flatnonzero(cfg.node_type == JUDGMENT)
     proc = np.flatnonzero(cfg.node_type == PROCESSING)
     fn = out["function"]
-    hit = np.zeros(fn.shape, dtype=bool)
-    hit[:, judg] = rng.random(fn[:, judg].shape) < p_mutation
+
+    def chosen(nodes: np.ndarray) -> np.ndarray:
+        """(N, V, m) mask picking each sub node of `nodes` with probability P_m."""
+        mask = np.zeros(fn.shape, dtype=bool)
+        mask[:, nodes] = rng.random((fn.shape[0], nodes.size, fn.shape[2])) < p_mutation
+        return mask
+
+    hit = chosen(judg)  # another sensor: uniform over the 7 others
     r = rng.integers(0, N_SENSORS - 1, size=int(hit.sum()))
     fn[hit] = np.where(r >= fn[hit], r + 1, r)
-    hit[:] = False
-    hit[:, proc] = rng.random(fn[:, proc].shape) < p_mutation
+    hit = chosen(proc)  # the other wheel
     fn[hit] = 1 - fn[hit]
-    hit[:] = False
-    hit[:, proc] = rng.random(fn[:, proc].shape) < p_mutation
+    hit = chosen(proc)
     out["speed"][hit] = rng.integers(-SPEED_MAX, SPEED_MAX + 1, size=int(hit.sum()))
     alpha, beta = out["mu_alpha"], out["mu_beta"]
-    hit[:] = False
-    hit[:, judg] = rng.random(fn[:, judg].shape) < p_mutation
+    hit = chosen(judg)  # α within [β, 1023]
+    upper = np.full(int(hit.sum()), SENSOR_MAX)
     alpha[hit] = nonuniform_mutation(
-        alpha[hit], beta[hit], np.full(int(hit.sum()), SENSOR_MAX), generation, n_generations,
-        b, rng,
-    )  # fmt: skip
-    hit[:] = False
-    hit[:, judg] = rng.random(fn[:, judg].shape) < p_mutation
-    beta[hit] = nonuniform_mutation(
-        beta[hit], np.zeros(int(hit.sum()), np.int32), alpha[hit], generation, n_generations,
-        b, rng,
-    )  # fmt: skip
+        alpha[hit], beta[hit], upper, generation, n_generations, b, rng
+    )
+    hit = chosen(judg)  # then β within [0, α]
+    lower = np.zeros(int(hit.sum()))
+    beta[hit] = nonuniform_mutation(beta[hit], lower, alpha[hit], generation, n_generations, b, rng)
     return Population(**out)
 
 

@@ -40,8 +40,8 @@ class ReferenceController:
 
     def __init__(self, cfg: GnpConfig, pop: Population, index: int, seed: int) -> None:
         self.cfg = cfg
-        self.genes = {f: np.array(getattr(pop, f)[index]) for f in ("function", "mu_beta",
-                      "mu_alpha", "speed", "conn", "credit")}  # fmt: skip
+        gene_fields = ("function", "mu_beta", "mu_alpha", "speed", "conn", "credit")
+        self.genes = {f: np.array(getattr(pop, f)[index]) for f in gene_fields}
         self.q_ss = np.array(pop.q_ss[index], dtype=np.float64)
         self.q_bs = np.array(pop.q_bs[index], dtype=np.float64)
         self.q_cs = np.array(pop.q_cs[index], dtype=np.float64)
@@ -103,8 +103,8 @@ class ReferenceController:
                 used += NODE_COST[kind]
                 function = int(g["function"][node, sub])
                 if kind == JUDGMENT:
-                    branch = self.judge(sensors[function], g["mu_beta"][node, sub],
-                                        g["mu_alpha"][node, sub])  # fmt: skip
+                    beta, alpha_mu = g["mu_beta"][node, sub], g["mu_alpha"][node, sub]
+                    branch = self.judge(sensors[function], beta, alpha_mu)
                 else:
                     speed = float(g["speed"][node, sub])
                     if function == 0:

@@ -135,8 +135,9 @@ def test_crossover_swaps_whole_nodes_with_their_q_values() -> None:
         mask = from_father.reshape(from_father.shape + (1,) * (a.ndim - 2))
         np.testing.assert_array_equal(a, np.where(mask, d, m), err_msg=f)
         np.testing.assert_array_equal(getattr(second, f), np.where(mask, m, d), err_msg=f)
-    assert_same(gnp.take(gnp.crossover(mothers, fathers, 0.0, rng), range(0, 12, 2)),
-                arrays_of(mothers))  # fmt: skip
+    assert_same(
+        gnp.take(gnp.crossover(mothers, fathers, 0.0, rng), range(0, 12, 2)), arrays_of(mothers)
+    )
 
 
 def test_full_mutation_changes_every_item_and_keeps_bounds() -> None:
@@ -168,8 +169,15 @@ def test_any_operator_sequence_yields_a_valid_genome(
     pop = gnp.init_population(cfg, n, rng)
     for g, op in enumerate(ops):
         if op == "evolve":
-            pop = gnp.evolve(cfg, pop, rng.normal(size=n), g, len(ops), rng,
-                             gnp.EvolutionConfig(p_mutation=0.3, p_crossover=0.5))  # fmt: skip
+            pop = gnp.evolve(
+                cfg,
+                pop,
+                rng.normal(size=n),
+                g,
+                len(ops),
+                rng,
+                gnp.EvolutionConfig(p_mutation=0.3, p_crossover=0.5),
+            )
         elif op == "mutate":
             pop = gnp.mutate(cfg, pop, g, len(ops), rng, p_mutation=float(rng.uniform()))
         elif op == "crossover":
@@ -178,8 +186,9 @@ def test_any_operator_sequence_yields_a_valid_genome(
         else:
             state = gnp.init_state(cfg, n, range(n))
             for _ in range(5):
-                gnp.step(cfg, pop, state, rng.uniform(0, 1023, (n, 8)), rng.normal(size=n),
-                         0.2, 0.3)  # fmt: skip
+                gnp.step(
+                    cfg, pop, state, rng.uniform(0, 1023, (n, 8)), rng.normal(size=n), 0.2, 0.3
+                )
         gnp.check_population(cfg, pop)
         assert pop.size == n
 
@@ -207,8 +216,10 @@ def test_nonuniform_mutation_step_shrinks_as_g_approaches_G(value, bounds, g, se
 def test_nonuniform_mutation_mean_step_decreases() -> None:
     v = np.full(20000, 500, dtype=np.int16)
     lo, hi = np.zeros(20000), np.full(20000, 1023)
-    steps = [np.abs(gnp.nonuniform_mutation(v, lo, hi, g, 100, 2.0, np.random.default_rng(g))
-                    .astype(int) - 500).mean() for g in (0, 50, 90, 100)]  # fmt: skip
+    steps = []
+    for g in (0, 50, 90, 100):
+        mutated = gnp.nonuniform_mutation(v, lo, hi, g, 100, 2.0, np.random.default_rng(g))
+        steps.append(np.abs(mutated.astype(int) - 500).mean())
     # At g = 0, Δ = y(1 − r): mean jump y/2 ≈ 256 (towards 1023 or 0 equally often).
     assert steps[0] == pytest.approx((523 + 500) / 4, rel=0.05)
     assert steps[0] > steps[1] > steps[2] > steps[3] == 0

@@ -42,8 +42,8 @@ def test_engine_matches_reference(method: str, fuzzy: bool) -> None:
             (left, right), visits = ref.step(list(obs[i]), reward[i], epsilon[i], alpha, learn)
             assert (commands[i, 0], commands[i, 1]) == (left, right)
             k = int(trace.count[i])
-            got = list(zip(trace.node[i, :k], trace.sub[i, :k], trace.branch[i, :k],
-                           trace.u[i, :k], trace.skipped[i, :k], strict=True))  # fmt: skip
+            columns = (trace.node, trace.sub, trace.branch, trace.u, trace.skipped)
+            got = [tuple(int(col[i, j]) for col in columns) for j in range(k)]
             want = [(v.node, v.sub, v.branch, v.u, int(v.credit)) for v in visits]
             assert got == want, f"controller {i} step {t}"
             assert np.all(trace.node[i, k:] == -1)
