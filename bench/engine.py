@@ -100,7 +100,8 @@ def main() -> None:
     print(f"  world alone          {rate / t_world:>12,.0f} robot-steps/s  ({t_world:.3f} s)")
     print(f"  world + gnp.step     {rate / t_full:>12,.0f} robot-steps/s  ({t_full:.3f} s)")
     print(f"  gnp.step share       {1e6 * t_engine / steps:>12.1f} µs per step of {n}")
-    print(f"  overhead             {100 * (t_full - t_world) / t_world:>12.1f} %")
+    print(f"  overhead             {100 * (t_full - t_world) / t_world:>12.1f} %  (full − world)")
+    print(f"  engine ÷ world       {100 * t_engine / t_world:>12.1f} %  (gnp.step share ÷ world)")
     for method in ("RL", "BS", "CS"):
         rate = engine_alone(method, n, steps)
         print(f"  engine alone {method}     {rate:>12,.0f} controller-steps/s")
