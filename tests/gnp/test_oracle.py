@@ -82,3 +82,23 @@ def test_split_batch_is_identical() -> None:
         reward = rng.uniform(0, 1, size=10)
     np.testing.assert_array_equal(pop.q_bs, gnp.concat(halves).q_bs)
     np.testing.assert_array_equal(pop.q_ss, gnp.concat(halves).q_ss)
+
+
+@pytest.mark.parametrize("method", ["RL", "BS", "CS"])
+def test_tracing_changes_nothing(method: str) -> None:
+    """The dashboard's trace is a read-out: with or without it, the same commands and Q."""
+    cfg = gnp.GnpConfig(method=method, n_judgment=8, n_processing=4)
+    rng = np.random.default_rng(5)
+    traced = random_learning_population(cfg, 6, rng)
+    plain = gnp.take(traced, range(6))
+    states = [gnp.init_state(cfg, 6, range(6)), gnp.init_state(cfg, 6, range(6))]
+    reward = np.zeros(6)
+    for _ in range(100):
+        obs = rng.uniform(0, 1023, size=(6, 8))
+        with_trace, trace = gnp.step(cfg, traced, states[0], obs, reward, 0.3, 0.2, trace=True)
+        without = gnp.step(cfg, plain, states[1], obs, reward, 0.3, 0.2)
+        np.testing.assert_array_equal(with_trace, without)
+        assert np.all(trace.count >= 1)
+        reward = rng.uniform(0, 1, size=6)
+    for f in ("q_ss", "q_bs", "q_cs"):
+        np.testing.assert_array_equal(getattr(traced, f), getattr(plain, f))
