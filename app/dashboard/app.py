@@ -7,6 +7,7 @@ settings under a lock, so the page answers at once even while training runs (in 
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import threading
 import time
@@ -61,6 +62,7 @@ class Show:
     arena: str
     start: int
     fault: tuple[int, tuple[int, ...], str] | None = None  # scheduled (step, sensors, mode)
+    life: int = 0  # steps per life, as in training (then the next start pose); 0: endless
 
 
 def _set(handle: Any, value: object) -> None:
@@ -178,6 +180,11 @@ class Dashboard:
             "Steps per second", min=1, max=200, step=1, initial_value=int(self.speed)
         )
         self.play_checkbox = gui.add_checkbox("Playing", initial_value=True)
+        self.lives_checkbox = gui.add_checkbox(
+            "New life every T steps",
+            initial_value=True,
+            hint="As in training: after the run's life time T, start again from the next pose",
+        )
         restart = gui.add_button("Restart from the start pose", icon=viser.Icon.REFRESH)
         self.node_dropdown = gui.add_dropdown("Inspect node", ("0 · start",))
         self.inspector_md = gui.add_markdown("Click a node of the graph, or pick one above.")
@@ -419,6 +426,7 @@ class Dashboard:
                 (RobotSpec("random", cfg, population),),
                 "training",
                 0,
+                life=1000,
             )
         )
         self._set_status(
@@ -473,12 +481,10 @@ class Dashboard:
         if self.show is None:
             return
         show = self.show
-        new = Show(
-            show.title,
-            show.robots,
-            arena if arena is not None else show.arena,
-            start if start is not None else show.start,
-            show.fault,
+        new = dataclasses.replace(
+            show,
+            arena=arena if arena is not None else show.arena,
+            start=start if start is not None else show.start,
         )
         if arena is not None and arena not in self._arenas:
             raise DashboardInputError(f"unknown arena {arena!r}")
@@ -514,6 +520,7 @@ class Dashboard:
         if self.session is None:
             raise DashboardInputError("nothing on show to break")
         self.session.break_sensors(sensors, mode)
+        _set(self.lives_checkbox, False)  # watch the recovery: no new life wipes the fault
         self._set_status(f"broke s{', s'.join(map(str, sensors))} ({mode})")
 
     def _repair(self) -> None:
@@ -629,6 +636,7 @@ class Dashboard:
                 (RobotSpec(name, cfg, population),),
                 self.replay_arena.value,
                 int(self.start_dropdown.value),
+                life=self.loaded.config.training.steps,
             )
         )
         self._set_status(f"replaying the best of generation {shown} of {name}")
@@ -783,6 +791,7 @@ class Dashboard:
                         (RobotSpec(job.out.stem, cfg, population),),
                         current.arena if current else "training",
                         current.start if current else 0,
+                        life=job.config.training.steps,
                     )
                 )
             return history
@@ -854,6 +863,7 @@ class Dashboard:
                         owed = min(owed, 1.0)
                         if steps:
                             session.step(steps)
+                            self._maybe_new_life(session)
                     last = frame_start
                     if session is not None:
                         self._draw(session, frame_start >= next_plot)
@@ -871,6 +881,14 @@ class Dashboard:
                 traceback.print_exc()
                 time.sleep(0.5)
             self._stop.wait(max(0.0, FRAME_SECONDS - (time.monotonic() - frame_start)))
+
+    def _maybe_new_life(self, session: LiveSession) -> None:
+        """After a life of T steps, start the same individual again from the next start pose."""
+        show = self.show
+        if show is None or not show.life or not self.lives_checkbox.value:
+            return
+        if session.robots[0].t >= show.life:
+            self._stage(dataclasses.replace(show, start=(show.start + 1) % 10))
 
     def _draw(self, session: LiveSession, with_plots: bool) -> None:
         robots = session.snapshot()

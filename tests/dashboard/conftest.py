@@ -32,12 +32,12 @@ CHROMIUM_ARGS = [
 
 
 def tiny_run_config(method: str, seed: int = 3) -> RunConfig:
-    """A run that trains in a second or two: 8 individuals, 80 steps, 2 generations."""
+    """A run that trains in a few seconds: 8 individuals, 600 steps, 2 generations."""
     return build_config(
         {
             "seed": seed,
             "controller": {"method": method},
-            "training": {"population": 8, "steps": 80, "generations": 2},
+            "training": {"population": 8, "steps": 600, "generations": 2},
             "implementation": {"steps": 200, "repeats": 1, "fault_step": 100},
         }
     )

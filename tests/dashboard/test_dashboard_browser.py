@@ -91,7 +91,8 @@ def test_page_shows_a_run_that_moves(page: Any, screenshots: Path) -> None:
     assert "cs (CS, fuzzy)" in on_show(page)
     first = step_of(page)
     page.wait_for_timeout(1500)
-    assert step_of(page) > first, "the live robot must keep stepping"
+    # Moving on (a new life from the next start pose after T steps also counts).
+    assert step_of(page) != first, "the live robot must keep stepping"
     assert re.search(r"fitness plot: 2 generations", page.content())
     page.screenshot(path=str(screenshots / "arena-graph.png"))
 
@@ -149,7 +150,7 @@ def test_pause_and_stop_training(page: Any) -> None:
     assert int(wait_for(page, r"training: paused · generation (\d+)").group(1)) <= paused + 1
     before = step_of(page)
     page.wait_for_timeout(600)
-    assert step_of(page) > before, "the page stays live while training is paused"
+    assert step_of(page) != before, "the page stays live while training is paused"
     page.get_by_role("button", name="Resume").click()
     wait_for(page, r"training: running", timeout=10)
     page.get_by_role("button", name="Stop").click()
@@ -206,6 +207,6 @@ def test_tabs_share_state_and_closing_one_leaves_the_server_healthy(
     other.close()
     before = step_of(page)
     page.wait_for_timeout(1000)
-    assert step_of(page) > before, "the server carries on after a tab closed"
+    assert step_of(page) != before, "the server carries on after a tab closed"
     page.get_by_role("button", name="Repair all").click()
     wait_for(page, r"broken: none")

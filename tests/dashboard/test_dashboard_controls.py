@@ -190,3 +190,25 @@ def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> N
     finally:
         dashboard.stop()
         server.stop()
+
+
+def test_replays_live_t_steps_then_start_again_from_the_next_pose(runs_dir: Path) -> None:
+    import viser
+
+    from app.dashboard.app import Dashboard
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, runs_dir, "cs")
+    try:
+        show = dashboard.show
+        assert show is not None and show.life == 600 and show.start == 0  # the run's T
+        dashboard.speed = 200.0
+        wait_until(lambda: dashboard.show is not None and dashboard.show.start == 1, 30)
+        session = dashboard.session
+        assert session is not None and session.robots[0].t < 600
+        dashboard._guarded(None, dashboard._break_now)  # sensors 2,3 by default
+        assert dashboard.lives_checkbox.value is False  # a fault is watched, not wiped
+        assert session.snapshot()[0].broken[[2, 3]].all()
+    finally:
+        dashboard.stop()
+        server.stop()
