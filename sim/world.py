@@ -38,6 +38,9 @@ COPY_REGION_MM = (32768.0, 65536.0)
 spacing (2⁻³⁷ mm), so moving a copy by a whole number of millimetres changes no rounding, and a
 robot's trajectory is bit-identical whichever copy it is in."""
 COPY_MARGIN_MM = 64
+"""Least gap between an arena's bounds and the edge of its copy's hash cell."""
+HASH_CELLS_PER_COPY = 4
+"""Bins per copy in a space's spatial hash: few copies share a bin (sharing costs time only)."""
 DEFAULT_SUBSTEPS = 3
 """Physics steps per control period. A robot at full speed moves 75 mm/s · 64 ms / 3 = 1.6 mm
 per substep, which bounds how far it can enter a wall before chipmunk sees the contact."""
@@ -101,12 +104,18 @@ def _mode_code(mode: str) -> int:
 class _Chunk:
     """One pymunk space holding a run of robots, each with its own copy of the arena."""
 
-    def __init__(self, arena: Arena, offsets: np.ndarray) -> None:
+    def __init__(self, arena: Arena, offsets: np.ndarray, cell: int) -> None:
         self.offsets = offsets
         self.space = pymunk.Space()
         self.space.damping = 0.0  # velocity = force·dt/m each substep: the force drive
         self.space.gravity = (0.0, 0.0)
         self.space.iterations = SOLVER_ITERATIONS
+        # Chipmunk solves a body's contacts in the order the broadphase found them, and that
+        # order decides the last bits of a robot pressed into a corner. The default BB tree's
+        # order depends on every copy in the space; in a spatial hash whose cells are the copies,
+        # a robot's query visits its own copy's bin only, which lists that copy's walls in the
+        # reverse of the order they were added, the same in every copy.
+        self.space.use_spatial_hash(cell, HASH_CELLS_PER_COPY * len(offsets))
         # pymunk's defaults are what the walls need: no friction, no bounce, WALL_FILTER.
         static = self.space.static_body
         self.space.add(
@@ -173,17 +182,25 @@ class _Chunk:
             self.space.step(dt)
 
 
-def _copy_offsets(arena: Arena, count: int) -> tuple[np.ndarray, int]:
-    """Whole-millimetre offsets of ``count`` arena copies inside ``COPY_REGION_MM``."""
+def _copy_cell(arena: Arena) -> int:
+    """Side (mm) of the square cell each copy of the arena gets: the least power of two that
+    holds the arena with ``COPY_MARGIN_MM`` on every side."""
     xmin, ymin, xmax, ymax = arena.bounds
-    cell = int(np.ceil(max(xmax - xmin, ymax - ymin))) + 2 * COPY_MARGIN_MM
+    span = max(np.ceil(xmax) - np.floor(xmin), np.ceil(ymax) - np.floor(ymin))
+    return 1 << int(np.ceil(np.log2(span + 2 * COPY_MARGIN_MM)))
+
+
+def _copy_offsets(arena: Arena, count: int, cell: int) -> tuple[np.ndarray, int]:
+    """Whole-millimetre offsets of ``count`` arena copies, one per ``cell``-sized square of a
+    grid aligned on multiples of ``cell`` inside ``COPY_REGION_MM``, and the number of squares."""
+    xmin, ymin, _, _ = arena.bounds
     lo, hi = COPY_REGION_MM
-    per_axis = int((hi - lo - 2 * COPY_MARGIN_MM) // cell)
+    per_axis = int((hi - lo) // cell)
     capacity = per_axis * per_axis
     slots = np.arange(count) % capacity
     col, row = slots % per_axis, slots // per_axis
-    origin_x = lo + 2 * COPY_MARGIN_MM - np.floor(xmin)
-    origin_y = lo + 2 * COPY_MARGIN_MM - np.floor(ymin)
+    origin_x = lo + COPY_MARGIN_MM - np.floor(xmin)
+    origin_y = lo + COPY_MARGIN_MM - np.floor(ymin)
     offsets = np.stack([origin_x + col * cell, origin_y + row * cell], axis=1)
     return offsets.astype(np.float64), capacity
 
@@ -227,10 +244,12 @@ class World:
         self.control_period = float(control_period)
         self.substeps = substeps
         self.noise_sigma = noise_sigma
-        offsets, capacity = _copy_offsets(arena, self.n)
+        cell = _copy_cell(arena)
+        offsets, capacity = _copy_offsets(arena, self.n, cell)
         self._wall_table = kernels.wall_table(arena.walls)
         self._chunks = [
-            _Chunk(arena, offsets[start : start + capacity]) for start in range(0, self.n, capacity)
+            _Chunk(arena, offsets[start : start + capacity], cell)
+            for start in range(0, self.n, capacity)
         ]
         self._capacity = capacity
         self._poses = np.zeros((self.n, 3))

@@ -180,8 +180,47 @@ def test_a_robot_is_bit_identical_alone_in_a_batch_and_in_a_split_batch() -> Non
             np.testing.assert_array_equal(a, b[:, part])
 
 
+def corner_commands(rng: np.random.Generator, steps: int, hold: int = 40) -> np.ndarray:
+    """(steps, 2) forward commands with a held random turn: a robot ends up pressed into walls
+    and slides along them into concave corners, where it stays pressed on two walls."""
+    forward = rng.uniform(6, 10, (steps // hold + 1, 1))
+    turn = rng.uniform(-4, 4, (steps // hold + 1, 1))
+    blocks = np.concatenate([forward + turn, forward - turn], axis=1)
+    return np.repeat(blocks, hold, axis=0)[:steps]
+
+
+def walls_touched(arena: sim.Arena, points: np.ndarray) -> np.ndarray:
+    """(...,) how many walls lie within a body radius of each point (..., 2)."""
+    a, b = arena.walls[:, 0], arena.walls[:, 1]
+    p = points[..., None, :]
+    along = np.clip(np.sum((p - a) * (b - a), axis=-1) / np.sum((b - a) ** 2, axis=-1), 0, 1)
+    gap = np.linalg.norm(p - (a + along[..., None] * (b - a)), axis=-1)
+    return np.count_nonzero(gap < BODY_RADIUS_MM, axis=-1)
+
+
+def test_a_robot_pressed_into_corners_is_bit_identical_in_any_batch() -> None:
+    """A robot on two walls at once gets two contacts, which chipmunk solves in the order its
+    broadphase found them: that order must not depend on the other copies in the space."""
+    n, steps = 300, 1500
+    rng = np.random.default_rng(3)
+    poses = TRAINING.start_poses[rng.integers(0, 10, n)]
+    seeds = rng.integers(0, 2**62, n)
+    commands = np.stack(
+        [corner_commands(np.random.default_rng([5, i]), steps) for i in range(n)], axis=1
+    )
+    batch = run(poses, seeds, commands, sigma=0.0)[0]
+    assert np.count_nonzero(walls_touched(TRAINING, batch[..., :2]) >= 2) > 10_000
+    # The second half again, reversed: other indices, other neighbours, half the copies.
+    back = slice(n - 1, n // 2 - 1, -1)
+    half = run(poses[back], seeds[back], commands[:, back], sigma=0.0)[0]
+    np.testing.assert_array_equal(half, batch[:, back])
+    for i in (7, 131, 281):
+        alone = run(poses[i : i + 1], seeds[i : i + 1], commands[:, i : i + 1], sigma=0.0)[0]
+        np.testing.assert_array_equal(alone[:, 0], batch[:, i])
+
+
 def test_robots_spill_into_more_spaces_without_changing_a_bit() -> None:
-    """Past one space's capacity (784 copies of a 1 m arena) robots go to a second space."""
+    """Past one space's capacity (256 copies of a 1 m arena) robots go to further spaces."""
     n, steps, robot = 800, 150, 790
     rng = np.random.default_rng(13)
     poses = TRAINING.start_poses[rng.integers(0, 10, n)]
