@@ -38,9 +38,14 @@ COPY_REGION_MM = (32768.0, 65536.0)
 spacing (2⁻³⁷ mm), so moving a copy by a whole number of millimetres changes no rounding, and a
 robot's trajectory is bit-identical whichever copy it is in."""
 COPY_MARGIN_MM = 64
-"""Least gap between an arena's bounds and the edge of its copy's hash cell."""
-HASH_CELLS_PER_COPY = 4
-"""Bins per copy in a space's spatial hash: few copies share a bin (sharing costs time only)."""
+"""Least gap between an arena's bounds and the edge of its copy's square."""
+HASH_CELLS_PER_SIDE = 5
+"""A copy's square is at most this many spatial hash cells on a side: a robot's query then
+visits one to four small cells, and few cells per copy are easy to keep apart (see _Layout)."""
+HASH_BINS = 6151
+"""Bins of a space's spatial hash. A prime from chipmunk's table of hash sizes, so the hash
+has exactly this many bins (chipmunk rounds a requested size up to its table); clearing the
+robots' hash every substep costs time in proportion to it."""
 DEFAULT_SUBSTEPS = 3
 """Physics steps per control period. A robot at full speed moves 75 mm/s · 64 ms / 3 = 1.6 mm
 per substep, which bounds how far it can enter a wall before chipmunk sees the contact."""
@@ -112,10 +117,10 @@ class _Chunk:
         self.space.iterations = SOLVER_ITERATIONS
         # Chipmunk solves a body's contacts in the order the broadphase found them, and that
         # order decides the last bits of a robot pressed into a corner. The default BB tree's
-        # order depends on every copy in the space; in a spatial hash whose cells are the copies,
-        # a robot's query visits its own copy's bin only, which lists that copy's walls in the
-        # reverse of the order they were added, the same in every copy.
-        self.space.use_spatial_hash(cell, HASH_CELLS_PER_COPY * len(offsets))
+        # order depends on every copy in the space. In this spatial hash every copy has the same
+        # pattern of cells, and no two cells of one copy share a bin (see _layout), so a robot
+        # meets its own copy's walls in the same order in every copy.
+        self.space.use_spatial_hash(cell, HASH_BINS)
         # pymunk's defaults are what the walls need: no friction, no bounce, WALL_FILTER.
         static = self.space.static_body
         self.space.add(
@@ -182,27 +187,41 @@ class _Chunk:
             self.space.step(dt)
 
 
-def _copy_cell(arena: Arena) -> int:
-    """Side (mm) of the square cell each copy of the arena gets: the least power of two that
-    holds the arena with ``COPY_MARGIN_MM`` on every side."""
+def _hash_bin(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """The bin of cell (i, j) in chipmunk's spatial hash (cpSpaceHash.c's hash_func)."""
+    i, j = i.astype(np.uint64), j.astype(np.uint64)
+    return ((i * np.uint64(1640531513)) ^ (j * np.uint64(2654435789))) % np.uint64(HASH_BINS)
+
+
+def _layout(arena: Arena, count: int) -> tuple[np.ndarray, int, int]:
+    """Where the copies of the arena go.
+
+    The region ``COPY_REGION_MM`` is tiled with squares of whole hash cells (a power of two in
+    mm, so chipmunk's cell of a point, floor(x / cell), shifts by whole cells with the copy).
+    A square is kept for a copy only if no two of its cells fall in the same hash bin: then a
+    bin holds, of that copy's walls, only those of one cell, in the order they were added.
+
+    Returns:
+        Whole-millimetre offsets of ``count`` copies (filling the squares in order, and again
+        in the next space), how many copies a space holds, and the hash cell side in mm.
+    """
     xmin, ymin, xmax, ymax = arena.bounds
-    span = max(np.ceil(xmax) - np.floor(xmin), np.ceil(ymax) - np.floor(ymin))
-    return 1 << int(np.ceil(np.log2(span + 2 * COPY_MARGIN_MM)))
-
-
-def _copy_offsets(arena: Arena, count: int, cell: int) -> tuple[np.ndarray, int]:
-    """Whole-millimetre offsets of ``count`` arena copies, one per ``cell``-sized square of a
-    grid aligned on multiples of ``cell`` inside ``COPY_REGION_MM``, and the number of squares."""
-    xmin, ymin, _, _ = arena.bounds
+    span = max(np.ceil(xmax) - np.floor(xmin), np.ceil(ymax) - np.floor(ymin)) + 2 * COPY_MARGIN_MM
+    cell = 1 << int(np.ceil(np.log2(span / HASH_CELLS_PER_SIDE)))
+    side = int(np.ceil(span / cell))  # cells per square side
     lo, hi = COPY_REGION_MM
-    per_axis = int((hi - lo) // cell)
-    capacity = per_axis * per_axis
-    slots = np.arange(count) % capacity
-    col, row = slots % per_axis, slots // per_axis
-    origin_x = lo + COPY_MARGIN_MM - np.floor(xmin)
-    origin_y = lo + COPY_MARGIN_MM - np.floor(ymin)
-    offsets = np.stack([origin_x + col * cell, origin_y + row * cell], axis=1)
-    return offsets.astype(np.float64), capacity
+    first, per_axis = int(lo) // cell, int(hi - lo) // (side * cell)
+    col, row = np.divmod(np.arange(per_axis * per_axis), per_axis)
+    di, dj = np.divmod(np.arange(side * side), side)
+    bins = _hash_bin(
+        first + col[:, None] * side + di[None, :], first + row[:, None] * side + dj[None, :]
+    )
+    bins.sort(axis=1)
+    kept = np.flatnonzero(np.all(bins[:, 1:] != bins[:, :-1], axis=1))
+    slots = kept[np.arange(count) % len(kept)]
+    origin = np.array([lo + COPY_MARGIN_MM - np.floor(xmin), lo + COPY_MARGIN_MM - np.floor(ymin)])
+    offsets = origin + np.stack([col[slots], row[slots]], axis=1) * (side * cell)
+    return offsets.astype(np.float64), len(kept), cell
 
 
 class World:
@@ -244,8 +263,7 @@ class World:
         self.control_period = float(control_period)
         self.substeps = substeps
         self.noise_sigma = noise_sigma
-        cell = _copy_cell(arena)
-        offsets, capacity = _copy_offsets(arena, self.n, cell)
+        offsets, capacity, cell = _layout(arena, self.n)
         self._wall_table = kernels.wall_table(arena.walls)
         self._chunks = [
             _Chunk(arena, offsets[start : start + capacity], cell)
