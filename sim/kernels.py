@@ -6,6 +6,7 @@ a robot's draws depend on nothing but its own key and clock (see docs/decisions/
 
 import numba as nb
 import numpy as np
+from numba.core.dispatcher import Dispatcher
 
 from sim.khepera import (
     AXLE_MM,
@@ -55,14 +56,7 @@ def _constants() -> np.ndarray:
 
 
 _frozen_constants = nb.njit(cache=True)(_constants)
-
-# numba freezes globals into its cached machine code and only notices changes to this file,
-# not to sim/khepera.py: refuse to run on constants that are no longer the robot's.
-if not np.array_equal(_frozen_constants(), _constants()):
-    raise ImportError(
-        "sim/kernels.py's numba cache holds old sim/khepera.py constants: "
-        "delete sim/__pycache__ (or touch sim/kernels.py) and import again"
-    )
+"""The constants as numba froze them into its cache (see ``_drop_stale_cache``)."""
 
 
 def wall_table(walls: np.ndarray) -> np.ndarray:
@@ -345,3 +339,22 @@ def observe(
             elif f == 4:  # random
                 x = IR_MAX * uniform[j]
             out[i, j] = x
+
+
+def _drop_stale_cache() -> None:
+    """Recompile every kernel if numba's cache holds old ``sim/khepera.py`` constants.
+
+    numba freezes globals into its cached machine code and only notices changes to this file,
+    not to sim/khepera.py. Recompiling a dispatcher flushes its cache, so every kernel compiles
+    afresh, with today's constants, on its first call (and caches that).
+    """
+    if np.array_equal(_frozen_constants(), _constants()):
+        return
+    for kernel in list(globals().values()):
+        if isinstance(kernel, Dispatcher):
+            kernel.recompile()
+    if not np.array_equal(_frozen_constants(), _constants()):
+        raise RuntimeError("numba still runs old sim/khepera.py constants after recompiling")
+
+
+_drop_stale_cache()
