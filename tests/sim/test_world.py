@@ -17,6 +17,13 @@ from sim.khepera import (
     MAX_WHEEL_SPEED_MM_S,
     WHEEL_RADIUS_MM,
 )
+from sim.world import (
+    COPY_MARGIN_MM,
+    COPY_REGION_MM,
+    HASH_CELLS_PER_SIDE,
+    _hash_bin,
+    _layout,
+)
 
 TRAINING = sim.load_arena("training")
 
@@ -425,3 +432,35 @@ def test_bad_input_raises_world_errors_naming_the_problem() -> None:
     for call, message in cases:
         with pytest.raises(sim.WorldError, match=message):
             call()
+
+
+@settings(max_examples=20, deadline=None)
+@given(width=st.integers(100, 3000), height=st.integers(100, 3000))
+def test_copies_sit_on_hash_cells_that_keep_each_copy_apart(width: int, height: int) -> None:
+    """Every copy lies inside the copy region on its own square of whole hash cells, none of
+    which shares a hash bin with another cell of the same square."""
+    spec = ArenaSpec(
+        name="room",
+        outer_wall=[(0, 0), (width, 0), (width, height), (0, height), (0, 0)],
+        start_poses=[
+            StartPoseSpec(name=f"p{i}", x=width / 2, y=height / 2, heading_deg=0) for i in range(10)
+        ],
+    )
+    arena = arena_from_spec(spec)
+    n = 700
+    offsets, capacity, cell = _layout(arena, n)
+    assert cell & (cell - 1) == 0 and cell >= 1
+    assert capacity >= 30 and np.array_equal(offsets, np.round(offsets))
+    lo, hi = (arena.walls.min(axis=(0, 1)), arena.walls.max(axis=(0, 1)))
+    first = np.floor((offsets + lo - COPY_MARGIN_MM) / cell).astype(np.int64)  # cell indices
+    last = np.floor((offsets + hi + COPY_MARGIN_MM) / cell).astype(np.int64)
+    assert np.all(offsets + lo - COPY_MARGIN_MM >= COPY_REGION_MM[0])
+    assert np.all(offsets + hi + COPY_MARGIN_MM < COPY_REGION_MM[1])
+    assert np.all(last - first < HASH_CELLS_PER_SIDE)
+    one_space = slice(0, min(n, capacity))
+    squares = {tuple(f) for f in first[one_space]}
+    assert len(squares) == len(first[one_space])  # one copy per square within a space
+    for (i0, j0), (i1, j1) in zip(first[one_space], last[one_space], strict=True):
+        i, j = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1))
+        bins = _hash_bin(i.ravel(), j.ravel())
+        assert len(np.unique(bins)) == bins.size
