@@ -251,6 +251,7 @@ class LiveSession:
         seed: seeds each robot's world and controller streams (the same for every robot).
         noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see.
         learning: online learning settings.
+        control_period: simulated seconds per control step (the run's setting).
     """
 
     def __init__(
@@ -261,6 +262,7 @@ class LiveSession:
         seed: int = 0,
         noise_sigma: float = 0.0,
         learning: LearningSettings | None = None,
+        control_period: float = 0.064,
     ) -> None:
         if not 1 <= len(robots) <= 2:
             raise LiveError(f"a live session shows one or two robots, got {len(robots)}")
@@ -276,7 +278,9 @@ class LiveSession:
         self._pending_fault: tuple[int, tuple[int, ...], FaultMode] | None = None
         for spec in robots:
             # Same seed for every robot: compared robots meet the same noise and random faults.
-            world = sim.World(arena, n=1, seed=seed, noise_sigma=noise_sigma)
+            world = sim.World(
+                arena, n=1, seed=seed, noise_sigma=noise_sigma, control_period=control_period
+            )
             world.reset(arena.start_poses[start : start + 1])
             # Copy: online learning mutates Q tables, the caller's individual stays as loaded.
             population = gnp.take(spec.population, np.array([0]))

@@ -63,6 +63,7 @@ class Show:
     start: int
     fault: tuple[int, tuple[int, ...], str] | None = None  # scheduled (step, sensors, mode)
     life: int = 0  # steps per life, as in training (then the next start pose); 0: endless
+    control_period: float = 0.064  # simulated seconds per step, the run's setting
 
 
 def _set(handle: Any, value: object) -> None:
@@ -444,6 +445,7 @@ class Dashboard:
             seed=0,
             noise_sigma=self.noise_sigma,
             learning=self.learning,
+            control_period=show.control_period,
         )
         if show.fault is not None:
             session.schedule_fault(*show.fault)
@@ -637,6 +639,7 @@ class Dashboard:
                 self.replay_arena.value,
                 int(self.start_dropdown.value),
                 life=self.loaded.config.training.steps,
+                control_period=self.loaded.config.training.control_period,
             )
         )
         self._set_status(f"replaying the best of generation {shown} of {name}")
@@ -792,6 +795,7 @@ class Dashboard:
                         current.arena if current else "training",
                         current.start if current else 0,
                         life=job.config.training.steps,
+                        control_period=job.config.training.control_period,
                     )
                 )
             return history
