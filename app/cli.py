@@ -400,17 +400,17 @@ def _inspect(path: Path) -> int:
                 )
         for name in run.implementation_names():
             result = run.implementation(name)
-            done = result.settings
+            settings = result.settings
             fault = (
-                f"sensors {','.join(map(str, done.broken_sensors))} {done.fault_mode} "
-                f"at step {done.fault_step}"
-                if done.broken_sensors
+                f"sensors {','.join(map(str, settings.broken_sensors))} {settings.fault_mode} "
+                f"at step {settings.fault_step}"
+                if settings.broken_sensors
                 else "no fault"
             )
             print(
                 f"implementation {name}: {fault}, {len(result.trial_mean_reward)} trials "
-                f"x {done.steps} steps: mean reward {result.mean_reward:.4f}, "
-                f"from step {done.fault_step} on {result.mean_after_fault:.4f}"
+                f"x {settings.steps} steps: mean reward {result.mean_reward:.4f}, "
+                f"from step {settings.fault_step} on {result.mean_after_fault:.4f}"
             )
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
