@@ -225,8 +225,7 @@ def shards(training: TrainingSettings) -> list[slice]:
     """The fixed split of the population into worlds of about `shard_size` robots.
 
     Individual i always lives at the same index of the same-sized world, whatever the number
-    of workers, so a run does not depend on that number even where the physics would depend
-    on a robot's place in its batch (see docs/decisions/app.md).
+    of workers; workers own whole shards (see docs/decisions.md).
     """
     count = max(1, math.ceil(training.population / training.shard_size))
     bounds = np.linspace(0, training.population, count + 1).round().astype(int)
