@@ -20,16 +20,14 @@ import gnp
 import sim
 from app.config import ImplementationSettings
 from app.store import (
-    TERM_NAMES,
     Implementation,
     RunFileError,
     RunReader,
-    Trajectory,
+    TrajectoryRecorder,
     add_implementation,
 )
 
 _TAG_TRIAL = 4
-_VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
 
 StepProgress = Callable[[int, int], None]  # (steps done, total steps)
@@ -122,16 +120,7 @@ def run_implementation(
     k = min(settings.recorded_trials, trials)
     steps = settings.steps
     rewards = np.zeros((trials, steps))
-    log: dict[str, np.ndarray] = {
-        "poses": np.zeros((k, steps, 3)),
-        "readings": np.zeros((k, steps, 8)),
-        "observations": np.zeros((k, steps, 8)),
-        "commands": np.zeros((k, steps, 2)),
-        "terms": np.zeros((k, steps, len(TERM_NAMES))),
-    }
-    visits = cfg.max_visits_per_step
-    traces = {field: np.zeros((k, steps, visits), np.int32) for field in _VISIT_FIELDS}
-    traces["count"] = np.zeros((k, steps), np.int32)
+    recorder = TrajectoryRecorder(k, steps, cfg.max_visits_per_step)
     reward = np.zeros(trials)
     for t in range(steps):
         epsilon, alpha = epsilon_alpha_at(settings, t)
@@ -143,26 +132,12 @@ def run_implementation(
         reward = terms["reward"]
         rewards[:, t] = reward
         if k:
-            log["poses"][:, t] = world.poses[:k]
-            log["readings"][:, t] = true_readings[:k]
-            log["observations"][:, t] = seen[:k]
-            log["commands"][:, t] = commands[:k]
-            log["terms"][:, t] = np.stack([terms[n][:k] for n in TERM_NAMES], axis=1)
-            for field, values in traces.items():
-                values[:, t] = getattr(trace, field)[:k]
+            recorder.record(t, world.poses, true_readings, seen, commands, terms, trace)
         if progress is not None:
             progress(t + 1, steps)
     after = rewards[:, settings.fault_step :] if settings.fault_step < steps else rewards[:, :0]
     after_mean = after.mean(axis=1) if after.shape[1] else np.full(trials, np.nan)
-    recorded = Trajectory(
-        poses=log["poses"],
-        readings=log["readings"],
-        observations=log["observations"],
-        commands=log["commands"],
-        terms={n: log["terms"][..., i] for i, n in enumerate(TERM_NAMES)},
-        trace=traces,
-        start_index=start_index[:k],
-    )
+    recorded = recorder.trajectory(start_index)
     return Implementation(
         name=name,
         settings=settings,

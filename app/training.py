@@ -29,7 +29,14 @@ import numpy as np
 import gnp
 import sim
 from app.config import RunConfig, TrainingSettings
-from app.store import TERM_NAMES, RunTemplate, RunWriter, Trajectory
+from app.store import (
+    TERM_NAMES,
+    TRACE_FIELDS,
+    RunTemplate,
+    RunWriter,
+    Trajectory,
+    TrajectoryRecorder,
+)
 
 # Purpose tags mixed into every SeedSequence so different uses never share a stream.
 _TAG_INIT, _TAG_LIFE, _TAG_EVOLVE = 1, 2, 3
@@ -132,14 +139,14 @@ def live(
     world.reset(start_poses[seeds.starts[:, 0]], seeds=seeds.world)
     reward = np.zeros(n)
     sums = np.zeros((n, len(TERM_NAMES)))
-    log: dict[str, list[np.ndarray]] = {}
+    recorder = TrajectoryRecorder(n, steps, cfg.max_visits_per_step) if record else None
     for t in range(steps):
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
             world.place(start_poses[seeds.starts[:, t // redraw_every]])
             gnp.reset_episode(state)
             reward = np.zeros(n)
         seen = world.observe()
-        if record:
+        if recorder is not None:
             commands, trace = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha, trace=True)
         else:
             commands = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha)
@@ -147,37 +154,14 @@ def live(
         true_readings = world.sense()
         terms = sim.reward_terms(true_readings, commands)
         reward = terms["reward"]
-        step_terms = np.stack([terms[name] for name in TERM_NAMES], axis=1)
-        sums += step_terms
-        if record:
-            for key, value in (
-                ("poses", world.poses),
-                ("readings", true_readings),
-                ("observations", seen),
-                ("commands", commands),
-                ("terms", step_terms),
-            ):
-                log.setdefault(key, []).append(np.array(value, dtype=np.float64))
-            for field in _TRACE_FIELDS:
-                log.setdefault("trace/" + field, []).append(np.array(getattr(trace, field)))
+        sums += np.stack([terms[name] for name in TERM_NAMES], axis=1)
+        if recorder is not None:
+            recorder.record(t, world.poses, true_readings, seen, commands, terms, trace)
     means = sums / steps
     lives = Lives(fitness=means[:, 0].copy(), terms=means)
-    if not record:
+    if recorder is None:
         return lives, None
-    stacked = {key: np.stack(values, axis=1) for key, values in log.items()}
-    trajectory = Trajectory(
-        poses=stacked["poses"],
-        readings=stacked["readings"],
-        observations=stacked["observations"],
-        commands=stacked["commands"],
-        terms={name: stacked["terms"][..., i] for i, name in enumerate(TERM_NAMES)},
-        trace={field: stacked["trace/" + field] for field in _TRACE_FIELDS},
-        start_index=seeds.starts[:, 0].copy(),
-    )
-    return lives, trajectory
-
-
-_TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
+    return lives, recorder.trajectory(seeds.starts[:, 0])
 
 
 def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
@@ -188,7 +172,7 @@ def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
     _, trace = gnp.step(
         cfg, pop, state, np.zeros((1, 8)), np.zeros(1), 0.0, 0.0, learn=False, trace=True
     )
-    return {field: np.asarray(getattr(trace, field)) for field in _TRACE_FIELDS}
+    return {field: np.asarray(getattr(trace, field)) for field in TRACE_FIELDS}
 
 
 # --- evaluators: in-process or persistent worker processes ------------------------------------
