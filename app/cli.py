@@ -7,6 +7,7 @@ no command overwrites or damages an existing run file.
 from __future__ import annotations
 
 import argparse
+import socket
 import sys
 import time
 import tomllib
@@ -52,6 +53,16 @@ def _int_list(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(
             f"expected sensor numbers separated by commas, like 2,3 (got {text!r})"
         ) from None
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a TCP port in 1..65535, got {text!r}")
+    return port
 
 
 def _assignment(text: str) -> tuple[list[str], Any]:
@@ -153,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve = commands.add_parser("serve", help="open the dashboard (viser)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind")
-    serve.add_argument("--port", type=int, default=8080, help="port to bind")
+    serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
     return parser
@@ -420,9 +431,24 @@ def _inspect(path: Path) -> int:
 # --- serve ----------------------------------------------------------------------------------
 
 
+def _check_host(host: str) -> None:
+    """Refuse an address this machine cannot listen on, before viser's server thread tries."""
+    try:
+        infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError) as error:
+        raise UsageError(f"--host {host!r} is not an address of this machine ({error})") from None
+    family, kind, _, _, address = infos[0]
+    try:
+        with socket.socket(family, kind) as probe:
+            probe.bind(address)
+    except OSError as error:
+        raise UsageError(f"cannot listen on --host {host!r}: {error.strerror}") from None
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     if args.run is not None:
         resolve_run(args.runs_dir, args.run)
+    _check_host(args.host)
     from app.dashboard import serve
 
     serve(host=args.host, port=args.port, runs_dir=args.runs_dir, run=args.run)

@@ -96,6 +96,11 @@ def test_train_implement_and_inspect(
         (["runs", "../etc"], ["plain file name"]),
         (["serve", "--run", "../tiny"], ["plain file name"]),
         (["serve", "--run", "missing"], ["no run named"]),
+        (["serve", "--port", "99999"], ["TCP port in 1..65535", "'99999'"]),
+        (["serve", "--port", "web"], ["TCP port in 1..65535", "'web'"]),
+        (["serve", "--host", "no-such-host.invalid"], ["not an address of this machine"]),
+        # TEST-NET-1 (RFC 5737): no address of this machine (a bind attempt only, no traffic).
+        (["serve", "--host", "192.0.2.1"], ["cannot listen on --host '192.0.2.1'"]),
     ],
 )
 def test_user_mistakes(
