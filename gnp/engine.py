@@ -17,14 +17,20 @@ node it leads to (Eq. 3.2's r_{t+1}).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, overload
+from typing import Literal, cast, overload
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from gnp.config import (
     JUDGMENT,
+    NODE_COST,
+    PROCESSING,
     SKIP_COST,
     START,
     STEP_BUDGET,
@@ -36,6 +42,7 @@ from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
 _BS, _CS = 1, 2
+_JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
 
 @dataclass(frozen=True)
@@ -130,8 +137,31 @@ def _per_controller(value: float | np.ndarray, n: int, name: str) -> np.ndarray:
     return arr
 
 
+# (ε, α) pairs already validated, as the (1, 2) arrays the kernel reads for every controller:
+# building and checking them costs more than the whole kernel call for small batches.
+_SHARED_RATES: dict[tuple[object, object], np.ndarray] = {}
+
+
+def _rates(epsilon: float | np.ndarray, alpha: float | np.ndarray, n: int) -> np.ndarray:
+    """(ε, α) per controller as an (n, 2) array, or (1, 2) when both are scalars."""
+    try:
+        return _SHARED_RATES[epsilon, alpha]
+    except (KeyError, TypeError):  # TypeError: an array is no dictionary key
+        pass
+    if np.ndim(epsilon) == 0 and np.ndim(alpha) == 0:
+        eps = _per_controller(epsilon, 1, "epsilon")
+        alp = _per_controller(alpha, 1, "alpha")
+        shared = np.stack([eps, alp], axis=1)
+        if len(_SHARED_RATES) < 1024:
+            _SHARED_RATES[epsilon, alpha] = shared
+        return shared
+    return np.stack(
+        [_per_controller(epsilon, n, "epsilon"), _per_controller(alpha, n, "alpha")], axis=1
+    )
+
+
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
-_NO_TRACE = np.empty((0, 0), np.int32)
+_NO_TRACE = np.empty((5, 0, 0), np.int32)
 _NO_COUNT = np.empty(0, np.int32)
 
 
@@ -228,7 +258,9 @@ def step(
             f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
             f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
         )
-    if not all(q.flags.c_contiguous for q in (pop.q_ss, pop.q_bs, pop.q_cs)):
+    if not (
+        pop.q_ss.flags.c_contiguous and pop.q_bs.flags.c_contiguous and pop.q_cs.flags.c_contiguous
+    ):
         raise GnpError("the population's Q tables must be C-contiguous (learning writes them)")
     obs = np.ascontiguousarray(observations, dtype=np.float64)
     if obs.shape != (n, 8):
@@ -236,21 +268,17 @@ def step(
     rew = np.ascontiguousarray(reward, dtype=np.float64)
     if rew.shape != (n,):
         raise GnpError(f"reward must have shape ({n},), got {rew.shape}")
-    eps = _per_controller(epsilon, n, "epsilon")
-    alp = _per_controller(alpha, n, "alpha")
+    rates = _rates(epsilon, alpha, n)
     if trace:
-        k = cfg.max_visits_per_step
-        t_node, t_sub, t_branch, t_u, t_skip = (np.full((n, k), -1, np.int32) for _ in range(5))
-        t_count = np.zeros(n, np.int32)
+        visits = np.full((5, n, cfg.max_visits_per_step), -1, np.int32)
+        count = np.zeros(n, np.int32)
     else:
-        t_node = t_sub = t_branch = t_u = t_skip = _NO_TRACE
-        t_count = _NO_COUNT
+        visits, count = _NO_TRACE, _NO_COUNT
     _step_kernel(
         METHOD_CODE[cfg.method],
         cfg.fuzzy,
         cfg.gamma,
         cfg.node_type,
-        cfg.node_cost,
         pop.function,
         pop.mu_beta,
         pop.mu_alpha,
@@ -267,21 +295,50 @@ def step(
         state.pending_bs,
         obs,
         rew,
-        eps,
-        alp,
+        rates,
         learn,
-        trace,
-        t_node,
-        t_sub,
-        t_branch,
-        t_u,
-        t_skip,
-        t_count,
+        visits,
+        count,
     )
     commands = state.wheels.copy()
     if trace:
-        return commands, StepTrace(t_node, t_sub, t_branch, t_u, t_skip, t_count)
+        node, sub, branch, u, skipped = visits
+        return commands, StepTrace(node, sub, branch, u, skipped, count)
     return commands
+
+
+def _prefetch_typer(typingctx, array, index):
+    """Hint the CPU to load array[index] (a tuple of ndim indices) into cache; no effect else.
+
+    The engine is bound by memory latency: after a world step its genes and Q tables sit in
+    the last-level cache, and each visit's loads wait on the Q_SS row that picks the sub node.
+    Prefetching every sub node's genes as soon as the node is known overlaps those waits.
+    """
+    if not (isinstance(array, types.Array) and isinstance(index, types.BaseTuple)):
+        return None
+    if len(index) != array.ndim:
+        return None
+
+    def codegen(context, builder, signature, args):
+        array_type, index_type = signature.args
+        arr = context.make_array(array_type)(context, builder, args[0])
+        indices = [
+            context.cast(builder, i, t, types.intp)
+            for i, t in zip(cgutils.unpack_tuple(builder, args[1]), index_type, strict=True)
+        ]
+        ptr = cgutils.get_item_pointer(context, builder, array_type, arr, indices, False)
+        byte_ptr = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn_type = ir.FunctionType(ir.VoidType(), [byte_ptr, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fn_type, "llvm.prefetch.p0i8")
+        # read, highest temporal locality, data cache
+        builder.call(fn, [builder.bitcast(ptr, byte_ptr), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return types.void(array, index), codegen
+
+
+_prefetch = cast(Callable[[np.ndarray, tuple[int, ...]], None], intrinsic(_prefetch_typer))
 
 
 @njit(cache=True, inline="always")
@@ -323,7 +380,6 @@ def _step_kernel(
     fuzzy,
     gamma,
     node_type,
-    node_cost,
     function,
     mu_beta,
     mu_alpha,
@@ -340,29 +396,32 @@ def _step_kernel(
     pending_bs,
     obs,
     reward,
-    eps_arr,
-    alpha_arr,
+    rates,
     learn,
-    trace,
-    t_node,
-    t_sub,
-    t_branch,
-    t_u,
-    t_skip,
-    t_count,
+    visits,
+    count,
 ):  # pragma: no cover - compiled
     n_ctrl = cur_node.shape[0]
     n_nodes = q_ss.shape[1]
     n_sub = q_ss.shape[2]
+    last = n_sub - 1
+    n_conn = q_bs.shape[4]
+    trace = count.shape[0] > 0
+    shared_rates = rates.shape[0] == 1
     # 2-D views whose rows are the action values of one ε-greedy choice.
     q_ss_rows = q_ss.reshape(n_ctrl * n_nodes, n_sub)
     q_cs_rows = q_cs.reshape(n_ctrl * n_nodes * n_sub, 2)
-    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, q_bs.shape[4])
+    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, n_conn)
+    if n_ctrl > 0:
+        _prefetch(q_ss_rows, (cur_node[0], 0))
     for c in range(n_ctrl):
+        if c + 1 < n_ctrl:  # the next controller's first node, while this one runs
+            _prefetch(q_ss_rows, ((c + 1) * n_nodes + cur_node[c + 1], 0))
         s = rng[c]
         node = cur_node[c]
-        eps = eps_arr[c]
-        lr = alpha_arr[c]
+        rate_row = 0 if shared_rates else c
+        eps = rates[rate_row, 0]
+        lr = rates[rate_row, 1]
         # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
         # Q_BS update), kept in locals while the controller runs: (node, sub, branch, u, credit).
         pn, pp, pb, pu, pc = (
@@ -387,14 +446,29 @@ def _step_kernel(
         while used < STEP_BUDGET:
             if node_type[node] == START:
                 if trace:
-                    t_node[c, k] = node
-                    t_sub[c, k] = 0
-                    t_branch[c, k] = 0
-                    t_u[c, k] = 0
-                    t_skip[c, k] = 0
+                    visits[0, c, k] = node
+                    visits[1:, c, k] = 0
                 k += 1
                 node = conn[c, node, 0, 0, 0]
                 continue
+            # Every sub node's genes and Q values (first and last entries: the lines they span),
+            # fetched while Q_SS picks the sub node.
+            is_judgment = node_type[node] == JUDGMENT
+            _prefetch(function, (c, node, 0))
+            _prefetch(conn, (c, node, 0, 0, 0))
+            _prefetch(conn, (c, node, last, 1, n_conn - 1))
+            if is_judgment:
+                _prefetch(mu_beta, (c, node, 0))
+                _prefetch(mu_alpha, (c, node, 0))
+            else:
+                _prefetch(speed, (c, node, 0))
+            if method == _BS:
+                _prefetch(q_bs, (c, node, 0, 0, 0))
+                _prefetch(q_bs, (c, node, last, 1, n_conn - 1))
+            elif method == _CS:
+                _prefetch(q_cs, (c, node, 0, 0))
+                _prefetch(q_cs, (c, node, last, 1))
+                _prefetch(credit, (c, node, 0))
             s, p = _egreedy(q_ss_rows, c * n_nodes + node, eps, s)
             cs = 0
             if method == _CS:
@@ -415,9 +489,9 @@ def _step_kernel(
                 u = -1
                 nxt = credit[c, node, p]
             else:
-                used += node_cost[node]
                 fn = function[c, node, p]
-                if node_type[node] == JUDGMENT:
+                if is_judgment:
+                    used += _JUDGMENT_COST
                     x = obs[c, fn]
                     lo = mu_beta[c, node, p]
                     hi = mu_alpha[c, node, p]
@@ -433,6 +507,7 @@ def _step_kernel(
                     else:
                         branch = 0 if x >= (lo + hi) / 2.0 else 1
                 else:
+                    used += _PROCESSING_COST
                     # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are
                     # stored as (left, right).
                     wheels[c, 1 - fn] = float(speed[c, node, p])
@@ -443,11 +518,11 @@ def _step_kernel(
                     s, u = _egreedy(q_bs_rows, row, eps, s)
                 nxt = conn[c, node, p, branch, u]
             if trace:
-                t_node[c, k] = node
-                t_sub[c, k] = p
-                t_branch[c, k] = branch
-                t_u[c, k] = u
-                t_skip[c, k] = cs
+                visits[0, c, k] = node
+                visits[1, c, k] = p
+                visits[2, c, k] = branch
+                visits[3, c, k] = u
+                visits[4, c, k] = cs
             k += 1
             bn, bp, bb, bu, bc = pn, pp, pb, pu, pc
             pn, pp, pb, pu, pc = node, p, branch, u, cs
@@ -465,4 +540,4 @@ def _step_kernel(
         pending_bs[c, 0], pending_bs[c, 1], pending_bs[c, 2] = bn, bp, bb
         pending_bs[c, 3], pending_bs[c, 4] = bu, bc
         if trace:
-            t_count[c] = k
+            count[c] = k
