@@ -1,6 +1,6 @@
 """GNP Lab's brain: GNP-RL, Fuzzy GNP-RL and Fuzzy GNP-TSRL (BS, CS) controllers, batched.
 
-See docs/architecture.md (the gnp section) for the contract and docs/decisions/gnp.md for the
+See docs/architecture.md (the gnp section) for the contract and docs/decisions.md for the
 choices the thesis leaves open.
 """
 

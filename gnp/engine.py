@@ -6,7 +6,7 @@ processing node 5, a credit skip 1, the start node 0 (it runs once per episode).
 charged before the node runs and the node that overshoots still runs, so a step ends right
 after a processing node or after five unit-cost nodes in a row. The current node carries over.
 
-Learning (docs/decisions/gnp.md has the equations). Every visit k chooses a sub node p_k by
+Learning (docs/decisions.md has the equations). Every visit k chooses a sub node p_k by
 ε-greedy on Q_SS, for CS also c_k ∈ {normal, credit} on Q_CS, runs, and for BS then chooses the
 branch connection u_k on Q_BS of the branch it took. A visit's reward r_k is the world step's
 reward if it was the step's last visit (and not a credit skip), else 0. When visit k+1 has

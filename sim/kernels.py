@@ -1,7 +1,7 @@
 """numba kernels of the hot loop: IR ray casting, the force drive and per-robot random streams.
 
 The random streams are counter-based: 64 random bits are a hash of (robot key, step, block), so
-a robot's draws depend on nothing but its own key and clock (see docs/decisions/sim.md).
+a robot's draws depend on nothing but its own key and clock (see docs/decisions.md).
 """
 
 import numba as nb
