@@ -107,8 +107,8 @@ class TrainingSettings(_Frozen):
         default=75,
         ge=1,
         le=100_000,
-        description="robots per simulated world; results depend on it, never on the number "
-        "of workers (at most one worker per shard is used) [robots]",
+        description="robots per simulated world, the unit of work a worker owns "
+        "(at most one worker per shard is used) [robots]",
     )
 
     @model_validator(mode="after")
