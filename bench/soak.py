@@ -11,26 +11,14 @@ from __future__ import annotations
 
 import argparse
 import re
-import socket
-import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
 from pathlib import Path
-from typing import IO
+
+from app.dashboard.headless import CHROMIUM_ARGS, start_dashboard, stop_dashboard
 
 REPO = Path(__file__).resolve().parents[1]
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 
 
 def rss_mib(pid: int) -> float:
@@ -39,12 +27,6 @@ def rss_mib(pid: int) -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
     raise RuntimeError(f"no VmRSS for pid {pid}")
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,43 +38,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chromium", default="/usr/bin/chromium", help="browser executable")
     args = parser.parse_args(argv)
 
-    with tempfile.TemporaryFile() as log:
-        return soak(args, log)
+    with tempfile.TemporaryDirectory() as folder:
+        return soak(args, Path(folder) / "server.log")
 
 
-def soak(args: argparse.Namespace, log: IO[bytes]) -> int:
+def soak(args: argparse.Namespace, log_path: Path) -> int:
     """Serve, open the tabs, sample RSS until the time is up; 0 when the server survived."""
     from playwright.sync_api import sync_playwright
 
-    port = free_port()
-    url = f"http://127.0.0.1:{port}"
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            "import sys; from app.cli import main; sys.exit(main())",
-            "serve",
-            "--port",
-            str(port),
-            "--runs-dir",
-            args.runs_dir,
-        ],
-        stdout=log,
-        stderr=subprocess.STDOUT,
-        cwd=REPO,
-    )
     try:
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                urllib.request.urlopen(url, timeout=2).close()
-                break
-            except OSError:
-                if server.poll() is not None or time.monotonic() > deadline:
-                    log.seek(0)
-                    print(log.read().decode(errors="replace"), file=sys.stderr)
-                    return 1
-                time.sleep(0.5)
+        server, url = start_dashboard(Path(args.runs_dir), log_path, timeout=120)
+    except RuntimeError as error:
+        print(error, file=sys.stderr)
+        return 1
+    try:
         with sync_playwright() as playwright:
             browser = playwright.chromium.launch(executable_path=args.chromium, args=CHROMIUM_ARGS)
             pages = []
@@ -129,11 +88,7 @@ def soak(args: argparse.Namespace, log: IO[bytes]) -> int:
         )
         return 0
     finally:
-        server.terminate()
-        try:
-            server.wait(20)
-        except subprocess.TimeoutExpired:
-            server.kill()
+        stop_dashboard(server)
 
 
 if __name__ == "__main__":

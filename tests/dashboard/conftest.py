@@ -3,11 +3,6 @@
 from __future__ import annotations
 
 import os
-import socket
-import subprocess
-import sys
-import time
-import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -15,20 +10,11 @@ from typing import Any
 import pytest
 
 from app.config import RunConfig, build_config
+from app.dashboard.headless import CHROMIUM_ARGS, start_dashboard, stop_dashboard
 from app.training import train
 
 REPO = Path(__file__).resolve().parents[2]
 SCREENSHOTS = REPO / "test-output" / "dashboard"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 
 
 def tiny_run_config(method: str, seed: int = 3) -> RunConfig:
@@ -52,50 +38,12 @@ def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
 @pytest.fixture(scope="session")
 def dashboard_url(runs_dir: Path) -> Iterator[str]:
     """`gnp-lab serve` on a free local port, in its own process, showing `cs` first."""
-    port = free_port()
-    command = [
-        sys.executable,
-        "-c",
-        "import sys; from app.cli import main; sys.exit(main())",
-        "serve",
-        "--port",
-        str(port),
-        "--runs-dir",
-        str(runs_dir),
-        "--run",
-        "cs",
-    ]
-    log = (runs_dir.parent / "server.log").open("wb")
-    process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, cwd=REPO)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 90
-    while True:
-        try:
-            urllib.request.urlopen(url, timeout=2).close()
-            break
-        except OSError:
-            if process.poll() is not None or time.monotonic() > deadline:
-                process.kill()
-                raise RuntimeError(
-                    "dashboard did not start: " + (runs_dir.parent / "server.log").read_text()
-                ) from None
-            time.sleep(0.3)
+    process, url = start_dashboard(runs_dir, runs_dir.parent / "server.log", ("--run", "cs"))
     yield url
-    process.terminate()
-    try:
-        process.wait(20)
-    except subprocess.TimeoutExpired:
-        process.kill()
-    log.close()
+    stop_dashboard(process)
 
 
 @pytest.fixture(scope="session")
