@@ -5,10 +5,10 @@ import pymunk
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from rooms import box
 
 import sim
 from sim import kernels
-from sim.arena import ArenaSpec, StartPoseSpec, arena_from_spec
 from sim.khepera import (
     BODY_RADIUS_MM,
     IR_BACKOFF_MM,
@@ -20,25 +20,13 @@ from sim.khepera import (
 from sim.world import RAY_FILTER
 
 
-def box(width: float = 1000.0, height: float = 1000.0) -> sim.Arena:
-    """An empty rectangular room."""
-    spec = ArenaSpec(
-        name="box",
-        outer_wall=[(0, 0), (width, 0), (width, height), (0, height), (0, 0)],
-        start_poses=[
-            StartPoseSpec(name=f"p{i}", x=width / 2, y=height / 2, heading_deg=0) for i in range(10)
-        ],
-    )
-    return arena_from_spec(spec)
-
-
 def expected(d: float) -> float:
     return IR_MAX * max(0.0, 1.0 - d / IR_RANGE_MM)
 
 
 @pytest.mark.parametrize("d", [1.5, 2.0, 5.0, 12.5, 25.0, 37.0, 49.0, 49.9, 50.0, 50.1, 60.0])
 def test_front_sensors_read_the_distance_to_a_straight_wall(d: float) -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(1000.0), n=1)
     front_x = SENSOR_ORIGINS_MM[2, 0]  # s2 and s3 sit 27.5 mm ahead of the centre, facing 0°
     world.reset(np.array([[1000.0 - front_x - d, 500.0, 0.0]]))
     readings = world.sense()[0]
@@ -49,7 +37,7 @@ def test_front_sensors_read_the_distance_to_a_straight_wall(d: float) -> None:
 
 
 def test_sensors_pointing_away_from_every_wall_read_zero() -> None:
-    world = sim.World(box(), n=2)
+    world = sim.World(box(1000.0), n=2)
     world.reset(np.array([[500.0, 500.0, 0.3], [1000.0 - 27.5 - 10.0, 500.0, 0.0]]))
     readings = world.sense()
     assert np.all(readings[0] == 0.0)  # in the middle of the room: nothing in reach
@@ -57,7 +45,7 @@ def test_sensors_pointing_away_from_every_wall_read_zero() -> None:
 
 
 def test_side_sensor_reads_a_wall_along_its_slanted_ray() -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(1000.0), n=1)
     world.reset(np.array([[500.0, 50.0, 0.0]]))  # 50 mm above the floor wall, facing +x
     readings = world.sense()[0]
     # s5 at (12.1, -25.8) looks at -85°: it meets y = 0 after (50 - 25.8) / sin 85°.
@@ -69,7 +57,7 @@ def test_side_sensor_reads_a_wall_along_its_slanted_ray() -> None:
 
 @pytest.mark.parametrize("approach_deg", [0.0, 20.0, 40.0, 60.0])
 def test_a_robot_pressing_on_a_wall_reads_at_least_1000(approach_deg: float) -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(1000.0), n=1)
     # Face the east wall at an angle, then drive straight into it for 3 s.
     world.reset(np.array([[900.0, 500.0, np.deg2rad(approach_deg)]]))
     for _ in range(50):

@@ -5,9 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from rooms import box
 
 import sim
-from sim.arena import ArenaSpec, StartPoseSpec, arena_from_spec
 from sim.check import MAX_PENETRATION_MM
 from sim.khepera import (
     AXLE_MM,
@@ -28,17 +28,6 @@ from sim.world import (
 TRAINING = sim.load_arena("training")
 
 
-def box(size: float = 2000.0) -> sim.Arena:
-    spec = ArenaSpec(
-        name="box",
-        outer_wall=[(0, 0), (size, 0), (size, size), (0, size), (0, 0)],
-        start_poses=[
-            StartPoseSpec(name=f"p{i}", x=size / 2, y=size / 2, heading_deg=0) for i in range(10)
-        ],
-    )
-    return arena_from_spec(spec)
-
-
 def held_commands(rng: np.random.Generator, steps: int, n: int, hold: int = 8) -> np.ndarray:
     """Random commands held for a few steps and mostly forward, so robots reach the walls."""
     blocks = rng.uniform(-10, 10, (steps // hold + 1, n, 2))
@@ -51,7 +40,7 @@ def held_commands(rng: np.random.Generator, steps: int, n: int, hold: int = 8) -
 
 
 def test_driving_straight_covers_75_mm_per_second() -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(2000.0), n=1)
     world.reset(np.array([[1000.0, 1000.0, 0.0]]))
     steps = 100
     for _ in range(steps):
@@ -64,7 +53,7 @@ def test_driving_straight_covers_75_mm_per_second() -> None:
 
 
 def test_opposite_wheels_turn_in_place_at_the_axle_rate() -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(2000.0), n=1)
     world.reset(np.array([[1000.0, 1000.0, 0.0]]))
     for _ in range(10):
         world.step(np.array([[-5.0, 5.0]]))
@@ -74,7 +63,7 @@ def test_opposite_wheels_turn_in_place_at_the_axle_rate() -> None:
 
 
 def test_an_arc_follows_differential_drive_kinematics() -> None:
-    world = sim.World(box(), n=1)
+    world = sim.World(box(2000.0), n=1)
     start = np.array([1000.0, 1000.0, 0.3])
     world.reset(start[None])
     left, right = 4.0, 9.0
@@ -90,7 +79,7 @@ def test_an_arc_follows_differential_drive_kinematics() -> None:
 
 
 def test_commands_are_clipped_to_the_wheel_range() -> None:
-    a, b = sim.World(box(), n=1), sim.World(box(), n=1)
+    a, b = sim.World(box(2000.0), n=1), sim.World(box(2000.0), n=1)
     for w in (a, b):
         w.reset(np.array([[1000.0, 1000.0, 0.0]]))
     for _ in range(5):
@@ -140,7 +129,7 @@ def test_any_commands_keep_a_robot_in_its_arena(
 
 def test_robots_do_not_collide_with_each_other() -> None:
     """Two robots placed on the same spot pass through each other (each is alone)."""
-    world = sim.World(box(), n=2)
+    world = sim.World(box(2000.0), n=2)
     world.reset(np.array([[1000.0, 1000.0, 0.0], [1000.0, 1000.0, np.pi]]))
     for _ in range(20):
         world.step(np.array([[10.0, 10.0], [10.0, 10.0]]))
@@ -439,14 +428,7 @@ def test_bad_input_raises_world_errors_naming_the_problem() -> None:
 def test_copies_sit_on_hash_cells_that_keep_each_copy_apart(width: int, height: int) -> None:
     """Every copy lies inside the copy region on its own square of whole hash cells, none of
     which shares a hash bin with another cell of the same square."""
-    spec = ArenaSpec(
-        name="room",
-        outer_wall=[(0, 0), (width, 0), (width, height), (0, height), (0, 0)],
-        start_poses=[
-            StartPoseSpec(name=f"p{i}", x=width / 2, y=height / 2, heading_deg=0) for i in range(10)
-        ],
-    )
-    arena = arena_from_spec(spec)
+    arena = box(width, height)
     n = 700
     offsets, capacity, cell = _layout(arena, n)
     assert cell & (cell - 1) == 0 and cell >= 1
