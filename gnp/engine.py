@@ -342,32 +342,32 @@ _prefetch = cast(Callable[[np.ndarray, tuple[int, ...]], None], intrinsic(_prefe
 
 
 @njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, row: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
-    """ε-greedy over the action values q[row, :]: (new stream state, chosen index).
+def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+    """ε-greedy over the k action values q[start : start + k]: (new stream state, chosen index).
 
     Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima (one
-    more draw only when there is a tie). Rows of a 2-D view rather than 1-D slices: a slice
-    costs reference counting in the hot loop (13% more instructions per step, by cachegrind).
+    more draw only when there is a tie). Reads by flat index rather than through a slice: a
+    slice costs reference counting in the hot loop.
     """
-    k = q.shape[1]
     s, u = next_uniform(s)
     if u < eps:
         s, v = next_uniform(s)
         return s, min(int(v * k), k - 1)
-    best = q[row, 0]
+    best = q[start]
     ties = 1
     for a in range(1, k):
-        if q[row, a] > best:
-            best = q[row, a]
+        value = q[start + a]
+        if value > best:
+            best = value
             ties = 1
-        elif q[row, a] == best:
+        elif value == best:
             ties += 1
     pick = 0
     if ties > 1:
         s, v = next_uniform(s)
         pick = min(int(v * ties), ties - 1)
     for a in range(k):
-        if q[row, a] == best:
+        if q[start + a] == best:
             if pick == 0:
                 return s, a
             pick -= 1
@@ -404,26 +404,33 @@ def _step_kernel(
     n_ctrl = cur_node.shape[0]
     n_nodes = q_ss.shape[1]
     n_sub = q_ss.shape[2]
-    last = n_sub - 1
     n_conn = q_bs.shape[4]
     trace = count.shape[0] > 0
     shared_rates = rates.shape[0] == 1
-    # 2-D views whose rows are the action values of one ε-greedy choice.
-    q_ss_rows = q_ss.reshape(n_ctrl * n_nodes, n_sub)
-    q_cs_rows = q_cs.reshape(n_ctrl * n_nodes * n_sub, 2)
-    q_bs_rows = q_bs.reshape(n_ctrl * n_nodes * n_sub * 2, n_conn)
+    # Flat views: an array's metadata (shape, strides) is one length, which keeps the loop's
+    # state in registers. A sub node's genes sit at g = (c·V + node)·m + p in every (N, V, m)
+    # array, its Q_CS pair at 2g, its branch connections and Q_BS row at (2g + branch)·U.
+    function = function.reshape(function.size)
+    mu_beta = mu_beta.reshape(mu_beta.size)
+    mu_alpha = mu_alpha.reshape(mu_alpha.size)
+    speed = speed.reshape(speed.size)
+    conn = conn.reshape(conn.size)
+    credit = credit.reshape(credit.size)
+    q_ss = q_ss.reshape(q_ss.size)
+    q_bs = q_bs.reshape(q_bs.size)
+    q_cs = q_cs.reshape(q_cs.size)
     if n_ctrl > 0:
-        _prefetch(q_ss_rows, (cur_node[0], 0))
+        _prefetch(q_ss, (cur_node[0] * n_sub,))
     for c in range(n_ctrl):
         if c + 1 < n_ctrl:  # the next controller's first node, while this one runs
-            _prefetch(q_ss_rows, ((c + 1) * n_nodes + cur_node[c + 1], 0))
+            _prefetch(q_ss, (((c + 1) * n_nodes + cur_node[c + 1]) * n_sub,))
         s = rng[c]
         node = cur_node[c]
         rate_row = 0 if shared_rates else c
         eps = rates[rate_row, 0]
         lr = rates[rate_row, 1]
         # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
-        # Q_BS update), kept in locals while the controller runs: (node, sub, branch, u, credit).
+        # Q_BS update): (node, sub, branch, u, credit), and the flat indices of their entries.
         pn, pp, pb, pu, pc = (
             pending[c, 0],
             pending[c, 1],
@@ -438,6 +445,9 @@ def _step_kernel(
             pending_bs[c, 3],
             pending_bs[c, 4],
         )
+        last_g = (c * n_nodes + pn) * n_sub + pp
+        last_bs = (2 * last_g + pb) * n_conn + pu
+        before_bs = (2 * ((c * n_nodes + bn) * n_sub + bp) + bb) * n_conn + bu
         # The last visit was the last of the previous world step: it earns that step's reward,
         # unless it was a credit skip (reward 0, Eq. 5.3).
         pend_r = reward[c] if pn >= 0 and pc != 1 else 0.0
@@ -449,52 +459,51 @@ def _step_kernel(
                     visits[0, c, k] = node
                     visits[1:, c, k] = 0
                 k += 1
-                node = conn[c, node, 0, 0, 0]
+                node = conn[(c * n_nodes + node) * n_sub * 2 * n_conn]
                 continue
-            # Every sub node's genes and Q values (first and last entries: the lines they span),
-            # fetched while Q_SS picks the sub node.
+            first = (c * n_nodes + node) * n_sub  # the node's first sub node
+            # Every sub node's genes and Q values (the lines they span), fetched while Q_SS
+            # picks the sub node.
             is_judgment = node_type[node] == JUDGMENT
-            _prefetch(function, (c, node, 0))
-            _prefetch(conn, (c, node, 0, 0, 0))
-            _prefetch(conn, (c, node, last, 1, n_conn - 1))
+            _prefetch(function, (first,))
+            _prefetch(conn, (2 * first * n_conn,))
+            _prefetch(conn, (2 * (first + n_sub) * n_conn - 1,))
             if is_judgment:
-                _prefetch(mu_beta, (c, node, 0))
-                _prefetch(mu_alpha, (c, node, 0))
+                _prefetch(mu_beta, (first,))
+                _prefetch(mu_alpha, (first,))
             else:
-                _prefetch(speed, (c, node, 0))
+                _prefetch(speed, (first,))
             if method == _BS:
-                _prefetch(q_bs, (c, node, 0, 0, 0))
-                _prefetch(q_bs, (c, node, last, 1, n_conn - 1))
+                _prefetch(q_bs, (2 * first * n_conn,))
+                _prefetch(q_bs, (2 * (first + n_sub) * n_conn - 1,))
             elif method == _CS:
-                _prefetch(q_cs, (c, node, 0, 0))
-                _prefetch(q_cs, (c, node, last, 1))
-                _prefetch(credit, (c, node, 0))
-            s, p = _egreedy(q_ss_rows, c * n_nodes + node, eps, s)
+                _prefetch(q_cs, (2 * first,))
+                _prefetch(q_cs, (2 * (first + n_sub) - 1,))
+                _prefetch(credit, (first,))
+            s, p = _egreedy(q_ss, first, n_sub, eps, s)
+            g = first + p
             cs = 0
             if method == _CS:
-                s, cs = _egreedy(q_cs_rows, (c * n_nodes + node) * n_sub + p, eps, s)
+                s, cs = _egreedy(q_cs, 2 * g, 2, eps, s)
             if learn and pn >= 0:
-                q_ss[c, pn, pp] += lr * (pend_r + gamma * q_ss[c, node, p] - q_ss[c, pn, pp])
+                q_ss[last_g] += lr * (pend_r + gamma * q_ss[g] - q_ss[last_g])
                 if method == _CS:
-                    q_cs[c, pn, pp, pc] += lr * (
-                        pend_r + gamma * q_cs[c, node, p, cs] - q_cs[c, pn, pp, pc]
-                    )
+                    last_cs = 2 * last_g + pc
+                    q_cs[last_cs] += lr * (pend_r + gamma * q_cs[2 * g + cs] - q_cs[last_cs])
                 if method == _BS and bn >= 0:
-                    q_bs[c, bn, bp, bb, bu] += lr * (
-                        pend_r + gamma * q_bs[c, pn, pp, pb, pu] - q_bs[c, bn, bp, bb, bu]
-                    )
+                    q_bs[before_bs] += lr * (pend_r + gamma * q_bs[last_bs] - q_bs[before_bs])
             if cs == 1:
                 used += SKIP_COST
                 branch = -1
                 u = -1
-                nxt = credit[c, node, p]
+                nxt = credit[g]
             else:
-                fn = function[c, node, p]
+                fn = function[g]
                 if is_judgment:
                     used += _JUDGMENT_COST
                     x = obs[c, fn]
-                    lo = mu_beta[c, node, p]
-                    hi = mu_alpha[c, node, p]
+                    lo = mu_beta[g]
+                    hi = mu_alpha[g]
                     if fuzzy:
                         if x >= hi:
                             mu = 1.0
@@ -510,13 +519,15 @@ def _step_kernel(
                     used += _PROCESSING_COST
                     # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are
                     # stored as (left, right).
-                    wheels[c, 1 - fn] = float(speed[c, node, p])
+                    wheels[c, 1 - fn] = float(speed[g])
                     branch = 0
+                row = (2 * g + branch) * n_conn
                 u = 0
                 if method == _BS:
-                    row = ((c * n_nodes + node) * n_sub + p) * 2 + branch
-                    s, u = _egreedy(q_bs_rows, row, eps, s)
-                nxt = conn[c, node, p, branch, u]
+                    s, u = _egreedy(q_bs, row, n_conn, eps, s)
+                nxt = conn[row + u]
+                before_bs = last_bs
+                last_bs = row + u
             if trace:
                 visits[0, c, k] = node
                 visits[1, c, k] = p
@@ -526,6 +537,7 @@ def _step_kernel(
             k += 1
             bn, bp, bb, bu, bc = pn, pp, pb, pu, pc
             pn, pp, pb, pu, pc = node, p, branch, u, cs
+            last_g = g
             pend_r = 0.0
             node = nxt
         cur_node[c] = node
