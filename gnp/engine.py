@@ -32,12 +32,11 @@ from gnp.config import (
     NODE_COST,
     PROCESSING,
     SKIP_COST,
-    START,
     STEP_BUDGET,
     GnpConfig,
     GnpError,
 )
-from gnp.population import Population
+from gnp.population import CACHE_LINE, Population
 from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
@@ -50,24 +49,36 @@ class EngineState:
     """Mutable per-controller engine state, arrays with leading axis N.
 
     Attributes:
-        node: (N,) current node (0 = start node: a new episode).
+        walk: (N, 11) int32, where each controller's walk through its graph stands: the
+            current node (`node`), the last visit (`pending`) and the one before (`pending_bs`).
         wheels: (N, 2) wheel speeds as (left, right); each keeps its value until a processing
             node sets it.
         rng: (N,) uint64 splitmix64 state of each controller's own random stream.
-        pending: (N, 5) the last visit (node, sub, branch, u, credit), awaiting its Q_SS/Q_CS
-            update; node −1 when there is none.
-        pending_bs: (N, 5) the visit before it, awaiting its Q_BS update (BS only).
     """
 
-    node: np.ndarray
+    walk: np.ndarray
     wheels: np.ndarray
     rng: np.ndarray
-    pending: np.ndarray
-    pending_bs: np.ndarray
+
+    @property
+    def node(self) -> np.ndarray:
+        """(N,) current node (0 = start node: a new episode)."""
+        return self.walk[:, 0]
+
+    @property
+    def pending(self) -> np.ndarray:
+        """(N, 5) the last visit (node, sub, branch, u, credit), awaiting its Q_SS/Q_CS
+        update; node −1 when there is none."""
+        return self.walk[:, 1:6]
+
+    @property
+    def pending_bs(self) -> np.ndarray:
+        """(N, 5) the visit before it, awaiting its Q_BS update (BS only)."""
+        return self.walk[:, 6:11]
 
     @property
     def size(self) -> int:
-        return int(self.node.shape[0])
+        return int(self.walk.shape[0])
 
 
 @dataclass(frozen=True)
@@ -97,13 +108,9 @@ def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineS
     states = seed_states(seeds)
     if states.shape != (n,):
         raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
-    return EngineState(
-        node=np.zeros(n, np.int32),
-        wheels=np.zeros((n, 2), np.float64),
-        rng=states,
-        pending=np.full((n, 5), -1, np.int32),
-        pending_bs=np.full((n, 5), -1, np.int32),
-    )
+    walk = np.full((n, 11), -1, np.int32)
+    walk[:, 0] = 0
+    return EngineState(walk=walk, wheels=np.zeros((n, 2), np.float64), rng=states)
 
 
 def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = None) -> None:
@@ -117,10 +124,9 @@ def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = Non
         if states.shape != state.rng.shape:
             raise GnpError(f"reset_episode: need {state.size} seeds, got {states.shape[0]}")
         state.rng[:] = states
-    state.node[:] = 0
+    state.walk[:] = -1
+    state.walk[:, 0] = 0
     state.wheels[:] = 0.0
-    state.pending[:] = -1
-    state.pending_bs[:] = -1
 
 
 def _per_controller(value: float | np.ndarray, n: int, name: str) -> np.ndarray:
@@ -158,6 +164,25 @@ def _rates(epsilon: float | np.ndarray, alpha: float | np.ndarray, n: int) -> np
     return np.stack(
         [_per_controller(epsilon, n, "epsilon"), _per_controller(alpha, n, "alpha")], axis=1
     )
+
+
+# Record layouts as the kernel reads them, by record dtype: the record's size in bytes, then
+# where each field of `_LAYOUT_FIELDS` starts, in words of the field's own size.
+_LAYOUTS: dict[np.dtype, tuple[int, ...]] = {}
+_LAYOUT_FIELDS = (
+    "q_ss", "q_bs", "q_cs", "mu_beta", "mu_alpha", "conn", "credit", "function", "speed"
+)  # fmt: skip
+
+
+def _layout(records: np.ndarray) -> tuple[int, ...]:
+    layout = _LAYOUTS.get(records.dtype)
+    if layout is None:
+        fields = records.dtype.fields
+        assert fields is not None
+        offsets = [fields[f][1] // fields[f][0].base.itemsize for f in _LAYOUT_FIELDS]
+        layout = (records.dtype.itemsize, *offsets)
+        _LAYOUTS[records.dtype] = layout
+    return layout
 
 
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
@@ -258,10 +283,6 @@ def step(
             f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
             f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
         )
-    if not (
-        pop.q_ss.flags.c_contiguous and pop.q_bs.flags.c_contiguous and pop.q_cs.flags.c_contiguous
-    ):
-        raise GnpError("the population's Q tables must be C-contiguous (learning writes them)")
     obs = np.ascontiguousarray(observations, dtype=np.float64)
     if obs.shape != (n, 8):
         raise GnpError(f"observations must have shape ({n}, 8), got {obs.shape}")
@@ -278,21 +299,16 @@ def step(
         METHOD_CODE[cfg.method],
         cfg.fuzzy,
         cfg.gamma,
-        cfg.node_type,
-        pop.function,
-        pop.mu_beta,
-        pop.mu_alpha,
-        pop.speed,
-        pop.conn,
-        pop.credit,
-        pop.q_ss,
-        pop.q_bs,
-        pop.q_cs,
-        state.node,
+        cfg.n_nodes,
+        cfg.n_judgment,
+        cfg.n_sub,
+        cfg.n_conn_branches,
+        # One array for the whole population: every array argument costs the call time.
+        pop.records.reshape(-1).view(np.uint8),
+        _layout(pop.records),
+        state.walk,
         state.wheels,
         state.rng,
-        state.pending,
-        state.pending_bs,
         obs,
         rew,
         rates,
@@ -342,6 +358,13 @@ _prefetch = cast(Callable[[np.ndarray, tuple[int, ...]], None], intrinsic(_prefe
 
 
 @njit(cache=True, inline="always")
+def _prefetch_record(words: np.ndarray, start: int, lines: int) -> None:
+    """Prefetch the `lines` cache lines of a record that begins at float32 word `start`."""
+    for i in range(lines):
+        _prefetch(words, (start + i * (CACHE_LINE // 4),))
+
+
+@njit(cache=True, inline="always")
 def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
     """ε-greedy over the k action values q[start : start + k]: (new stream state, chosen index).
 
@@ -374,182 +397,149 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
     return s, k - 1  # unreachable
 
 
-@njit(cache=True)
-def _step_kernel(
-    method,
-    fuzzy,
-    gamma,
-    node_type,
-    function,
-    mu_beta,
-    mu_alpha,
-    speed,
-    conn,
-    credit,
-    q_ss,
-    q_bs,
-    q_cs,
-    cur_node,
-    wheels,
-    rng,
-    pending,
-    pending_bs,
-    obs,
-    reward,
-    rates,
-    learn,
-    visits,
-    count,
-):  # pragma: no cover - compiled
-    n_ctrl = cur_node.shape[0]
-    n_nodes = q_ss.shape[1]
-    n_sub = q_ss.shape[2]
-    n_conn = q_bs.shape[4]
-    trace = count.shape[0] > 0
-    shared_rates = rates.shape[0] == 1
-    # Flat views: an array's metadata (shape, strides) is one length, which keeps the loop's
-    # state in registers. A sub node's genes sit at g = (c·V + node)·m + p in every (N, V, m)
-    # array, its Q_CS pair at 2g, its branch connections and Q_BS row at (2g + branch)·U.
-    function = function.reshape(function.size)
-    mu_beta = mu_beta.reshape(mu_beta.size)
-    mu_alpha = mu_alpha.reshape(mu_alpha.size)
-    speed = speed.reshape(speed.size)
-    conn = conn.reshape(conn.size)
-    credit = credit.reshape(credit.size)
-    q_ss = q_ss.reshape(q_ss.size)
-    q_bs = q_bs.reshape(q_bs.size)
-    q_cs = q_cs.reshape(q_cs.size)
-    if n_ctrl > 0:
-        _prefetch(q_ss, (cur_node[0] * n_sub,))
-    for c in range(n_ctrl):
-        if c + 1 < n_ctrl:  # the next controller's first node, while this one runs
-            _prefetch(q_ss, (((c + 1) * n_nodes + cur_node[c + 1]) * n_sub,))
-        s = rng[c]
-        node = cur_node[c]
-        rate_row = 0 if shared_rates else c
-        eps = rates[rate_row, 0]
-        lr = rates[rate_row, 1]
-        # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
-        # Q_BS update): (node, sub, branch, u, credit), and the flat indices of their entries.
-        pn, pp, pb, pu, pc = (
-            pending[c, 0],
-            pending[c, 1],
-            pending[c, 2],
-            pending[c, 3],
-            pending[c, 4],
-        )
-        bn, bp, bb, bu, bc = (
-            pending_bs[c, 0],
-            pending_bs[c, 1],
-            pending_bs[c, 2],
-            pending_bs[c, 3],
-            pending_bs[c, 4],
-        )
-        last_g = (c * n_nodes + pn) * n_sub + pp
-        last_bs = (2 * last_g + pb) * n_conn + pu
-        before_bs = (2 * ((c * n_nodes + bn) * n_sub + bp) + bb) * n_conn + bu
-        # The last visit was the last of the previous world step: it earns that step's reward,
-        # unless it was a credit skip (reward 0, Eq. 5.3).
-        pend_r = reward[c] if pn >= 0 and pc != 1 else 0.0
-        used = 0
-        k = 0
-        while used < STEP_BUDGET:
-            if node_type[node] == START:
-                if trace:
-                    visits[0, c, k] = node
-                    visits[1:, c, k] = 0
-                k += 1
-                node = conn[(c * n_nodes + node) * n_sub * 2 * n_conn]
-                continue
-            first = (c * n_nodes + node) * n_sub  # the node's first sub node
-            # Every sub node's genes and Q values (the lines they span), fetched while Q_SS
-            # picks the sub node.
-            is_judgment = node_type[node] == JUDGMENT
-            _prefetch(function, (first,))
-            _prefetch(conn, (2 * first * n_conn,))
-            _prefetch(conn, (2 * (first + n_sub) * n_conn - 1,))
-            if is_judgment:
-                _prefetch(mu_beta, (first,))
-                _prefetch(mu_alpha, (first,))
-            else:
-                _prefetch(speed, (first,))
-            if method == _BS:
-                _prefetch(q_bs, (2 * first * n_conn,))
-                _prefetch(q_bs, (2 * (first + n_sub) * n_conn - 1,))
-            elif method == _CS:
-                _prefetch(q_cs, (2 * first,))
-                _prefetch(q_cs, (2 * (first + n_sub) - 1,))
-                _prefetch(credit, (first,))
-            s, p = _egreedy(q_ss, first, n_sub, eps, s)
-            g = first + p
-            cs = 0
-            if method == _CS:
-                s, cs = _egreedy(q_cs, 2 * g, 2, eps, s)
-            if learn and pn >= 0:
-                q_ss[last_g] += lr * (pend_r + gamma * q_ss[g] - q_ss[last_g])
-                if method == _CS:
-                    last_cs = 2 * last_g + pc
-                    q_cs[last_cs] += lr * (pend_r + gamma * q_cs[2 * g + cs] - q_cs[last_cs])
-                if method == _BS and bn >= 0:
-                    q_bs[before_bs] += lr * (pend_r + gamma * q_bs[last_bs] - q_bs[before_bs])
-            if cs == 1:
-                used += SKIP_COST
-                branch = -1
-                u = -1
-                nxt = credit[g]
-            else:
-                fn = function[g]
-                if is_judgment:
-                    used += _JUDGMENT_COST
-                    x = obs[c, fn]
-                    lo = mu_beta[g]
-                    hi = mu_alpha[g]
-                    if fuzzy:
-                        if x >= hi:
-                            mu = 1.0
-                        elif x <= lo:
-                            mu = 0.0
-                        else:
-                            mu = (x - lo) / (hi - lo)
-                        s, v = next_uniform(s)
-                        branch = 0 if v < mu else 1
-                    else:
-                        branch = 0 if x >= (lo + hi) / 2.0 else 1
-                else:
-                    used += _PROCESSING_COST
-                    # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are
-                    # stored as (left, right).
-                    wheels[c, 1 - fn] = float(speed[g])
-                    branch = 0
-                row = (2 * g + branch) * n_conn
-                u = 0
-                if method == _BS:
-                    s, u = _egreedy(q_bs, row, n_conn, eps, s)
-                nxt = conn[row + u]
-                before_bs = last_bs
-                last_bs = row + u
-            if trace:
-                visits[0, c, k] = node
-                visits[1, c, k] = p
-                visits[2, c, k] = branch
-                visits[3, c, k] = u
-                visits[4, c, k] = cs
-            k += 1
-            bn, bp, bb, bu, bc = pn, pp, pb, pu, pc
-            pn, pp, pb, pu, pc = node, p, branch, u, cs
-            last_g = g
-            pend_r = 0.0
-            node = nxt
-        cur_node[c] = node
-        rng[c] = s
-        pending[c, 0], pending[c, 1], pending[c, 2], pending[c, 3], pending[c, 4] = (
-            pn,
-            pp,
-            pb,
-            pu,
-            pc,
-        )
-        pending_bs[c, 0], pending_bs[c, 1], pending_bs[c, 2] = bn, bp, bb
-        pending_bs[c, 3], pending_bs[c, 4] = bu, bc
+@njit(cache=True, inline="always", _nrt=False)
+def _visit(
+    c, used, k, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16,
+    words8, layout, walk, wheels, rng, obs, reward, rates, learn, visits,
+):  # fmt: skip
+    """Controller c's next visit (after the start node, if it stands there): choose, learn,
+    run, and move on. Its walk (`walk[c]`, `rng[c]`) is read from and written back to memory,
+    so that two controllers can take turns (see `_step_kernel`). Returns (used, k): the step's
+    time units spent and visits made so far, the start node included."""
+    record_bytes = layout[0]
+    r32, r16 = record_bytes // 4, record_bytes // 2
+    ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:]
+    trace = visits.shape[1] > 0
+    rate_row = 0 if rates.shape[0] == 1 else c
+    eps, lr = rates[rate_row, 0], rates[rate_row, 1]
+    s = rng[c]
+    node = walk[c, 0]
+    while node == 0:  # the start node: costs nothing, runs once per episode
         if trace:
-            count[c] = k
+            visits[0, c, k] = node
+            visits[1:, c, k] = 0
+        k += 1
+        node = words16[c * n_nodes * r16 + cn]
+    # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
+    # Q_BS update): (node, sub, branch, u, credit), and where their Q values are.
+    pn, pp, pb, pu, pc = walk[c, 1], walk[c, 2], walk[c, 3], walk[c, 4], walk[c, 5]
+    bn, bp, bb, bu = walk[c, 6], walk[c, 7], walk[c, 8], walk[c, 9]
+    # A step's first visit credits the previous step's reward to the visit before it, unless
+    # that was a credit skip (reward 0, Eq. 5.3).
+    pend_r = reward[c] if used == 0 and pn >= 0 and pc != 1 else 0.0
+    record = c * n_nodes + node
+    q, h, b = record * r32, record * r16, record * record_bytes
+    s, p = _egreedy(words32, q + ss, n_sub, eps, s)
+    cs = 0
+    if method == _CS:
+        s, cs = _egreedy(words32, q + cs_ + 2 * p, 2, eps, s)
+    if learn and pn >= 0:
+        last_q = (c * n_nodes + pn) * r32
+        last_ss = last_q + ss + pp
+        words32[last_ss] += lr * (pend_r + gamma * words32[q + ss + p] - words32[last_ss])
+        if method == _CS:
+            last_cs = last_q + cs_ + 2 * pp + pc
+            target = pend_r + gamma * words32[q + cs_ + 2 * p + cs]
+            words32[last_cs] += lr * (target - words32[last_cs])
+        if method == _BS and bn >= 0:
+            last_bs = last_q + bs + (2 * pp + pb) * n_conn + pu
+            before_bs = (c * n_nodes + bn) * r32 + bs + (2 * bp + bb) * n_conn + bu
+            words32[before_bs] += lr * (pend_r + gamma * words32[last_bs] - words32[before_bs])
+    if cs == 1:
+        used += SKIP_COST
+        branch = -1
+        u = -1
+        nxt = words16[h + cr + p]
+    else:
+        fn = words8[b + fn_ + p]
+        if node <= n_judgment:  # nodes 1..n_judgment judge
+            used += _JUDGMENT_COST
+            x = obs[c, fn]
+            lo = words16[h + beta + p]
+            hi = words16[h + alpha + p]
+            if fuzzy:
+                if x >= hi:
+                    mu = 1.0
+                elif x <= lo:
+                    mu = 0.0
+                else:
+                    mu = (x - lo) / (hi - lo)
+                s, v = next_uniform(s)
+                branch = 0 if v < mu else 1
+            else:
+                branch = 0 if x >= (lo + hi) / 2.0 else 1
+        else:
+            used += _PROCESSING_COST
+            # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
+            # (left, right).
+            wheels[c, 1 - fn] = float(words8[b + sp + p])
+            branch = 0
+        u = 0
+        if method == _BS:
+            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
+        nxt = words16[h + cn + (2 * p + branch) * n_conn + u]
+    # The next record, loading while the other controller takes its turn.
+    _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
+    if trace:
+        visits[0, c, k] = node
+        visits[1, c, k] = p
+        visits[2, c, k] = branch
+        visits[3, c, k] = u
+        visits[4, c, k] = cs
+    walk[c, 6], walk[c, 7], walk[c, 8], walk[c, 9], walk[c, 10] = pn, pp, pb, pu, pc
+    walk[c, 1], walk[c, 2], walk[c, 3], walk[c, 4], walk[c, 5] = node, p, branch, u, cs
+    walk[c, 0] = nxt
+    rng[c] = s
+    return used, k + 1
+
+
+@njit(cache=True, _nrt=False)
+def _step_kernel(
+    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
+    obs, reward, rates, learn, visits, count,
+):  # fmt: skip  # pragma: no cover - compiled
+    """Run every controller's visits until its step's time units are spent.
+
+    Two controllers take turns, a visit each: the record of a controller's next node is then
+    fetched while the other one runs, instead of stalling the walk (the engine is bound by
+    the latency of these loads, not by arithmetic). Controllers never share data, so the
+    turns change nothing in what each one does.
+    """
+    n_ctrl = walk.shape[0]
+    words32, words16, words8 = (
+        records.view(np.float32),
+        records.view(np.int16),
+        records.view(np.int8),
+    )
+    trace = count.shape[0] > 0
+    r32, lines = layout[0] // 4, layout[0] // CACHE_LINE
+    for c in range(min(n_ctrl, 2)):
+        _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, lines)
+    # Controllers a and b take turns; a lane is idle once its controller number reaches n_ctrl.
+    a, b, waiting = 0, 1, 2
+    used_a = used_b = k_a = k_b = 0
+    while a < n_ctrl or b < n_ctrl:
+        if a < n_ctrl:
+            used_a, k_a = _visit(
+                a, used_a, k_a, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn,
+                words32, words16, words8, layout, walk, wheels, rng, obs, reward, rates, learn,
+                visits,
+            )  # fmt: skip
+            if used_a >= STEP_BUDGET:
+                if trace:
+                    count[a] = k_a
+                a, used_a, k_a, waiting = waiting, 0, 0, waiting + 1
+                if a < n_ctrl:
+                    _prefetch_record(words32, (a * n_nodes + walk[a, 0]) * r32, lines)
+        if b < n_ctrl:
+            used_b, k_b = _visit(
+                b, used_b, k_b, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn,
+                words32, words16, words8, layout, walk, wheels, rng, obs, reward, rates, learn,
+                visits,
+            )  # fmt: skip
+            if used_b >= STEP_BUDGET:
+                if trace:
+                    count[b] = k_b
+                b, used_b, k_b, waiting = waiting, 0, 0, waiting + 1
+                if b < n_ctrl:
+                    _prefetch_record(words32, (b * n_nodes + walk[b, 0]) * r32, lines)

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +20,9 @@ from gnp.config import (
     GnpError,
 )
 
-Q_DTYPE = np.float64
+#: Q values are stored in single precision (computed in double, rounded on store): half the
+#: memory the engine reads per visit; Q values of a few units keep 7 significant digits.
+Q_DTYPE = np.float32
 #: Narrow integer genes: the engine is memory-latency bound, and int32 genes made it ~1.6x
 #: slower for 300 individuals (bench/engine.py).
 GENE_DTYPES: dict[str, type[np.signedinteger]] = {
@@ -53,6 +56,11 @@ class Population:
         q_ss: (N, V, m) Q_SS(i, ip), sub node selection.
         q_bs: (N, V, m, 2, U) Q_BS(C_ip^A|B, b^(u)), branch connection selection (BS).
         q_cs: (N, V, m, 2) Q_CS(ip, b_N) at [..., 0] and Q_CS(ip, b_C) at [..., 1] (CS).
+        records: (N, V) the memory behind every field above, one record a node (see
+            `record_dtype`): the fields are views into it, so writing a field writes here.
+
+    The constructor copies the arrays it is given into fresh records, so a Population never
+    shares memory with its inputs.
     """
 
     function: np.ndarray
@@ -64,6 +72,13 @@ class Population:
     q_ss: np.ndarray
     q_bs: np.ndarray
     q_cs: np.ndarray
+    records: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        records = _pack({f: getattr(self, f) for f in FIELDS})
+        object.__setattr__(self, "records", records)
+        for f in FIELDS:
+            object.__setattr__(self, f, records[f])
 
     @property
     def size(self) -> int:
@@ -75,27 +90,94 @@ class Population:
 
     def copy(self) -> Population:
         """A deep copy (every array copied)."""
-        return Population(**{f: a.copy() for f, a in population_to_arrays(self).items()})
+        return Population(**population_to_arrays(self))
 
 
-FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Population))
+FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Population) if f.init)
 Q_FIELDS = ("q_ss", "q_bs", "q_cs")
+#: Bytes of a cache line: records are aligned to it and padded to whole lines.
+CACHE_LINE = 64
+
+
+def field_shapes_per_node(n_sub: int, n_conn_branches: int) -> dict[str, tuple[int, ...]]:
+    """Shape of every Population field within one node (without the leading N, V)."""
+    m, u = n_sub, n_conn_branches
+    return {
+        "function": (m,),
+        "mu_beta": (m,),
+        "mu_alpha": (m,),
+        "speed": (m,),
+        "conn": (m, 2, u),
+        "credit": (m,),
+        "q_ss": (m,),
+        "q_bs": (m, 2, u),
+        "q_cs": (m, 2),
+    }
+
+
+def record_dtype(n_sub: int, n_conn_branches: int) -> np.dtype:
+    """One node's genes and Q values side by side: the engine's unit of memory traffic.
+
+    A visit reads the node's Q_SS values, then the chosen sub node's genes and its Q_BS or
+    Q_CS values. Kept in nine separate arrays these are six or seven cache lines apart; in one
+    record they are one line (RL, CS) or two neighbouring lines (BS, U = 2) with the default
+    shape. Widest fields first keep every field aligned, and the record is padded to whole
+    cache lines so that no node straddles more lines than it must.
+    """
+    shapes = field_shapes_per_node(n_sub, n_conn_branches)
+    names = sorted(FIELDS, key=lambda f: -np.dtype(field_dtype(f)).itemsize)  # stable sort
+    offsets, offset = [], 0
+    for name in names:
+        offsets.append(offset)
+        offset += np.dtype(field_dtype(name)).itemsize * math.prod(shapes[name])
+    return np.dtype(
+        {
+            "names": names,
+            "formats": [(field_dtype(f), shapes[f]) for f in names],
+            "offsets": offsets,
+            "itemsize": -(-offset // CACHE_LINE) * CACHE_LINE,
+        }
+    )
+
+
+def _pack(arrays: dict[str, np.ndarray]) -> np.ndarray:
+    """Fresh, cache-line aligned (N, V) records holding copies of the field arrays."""
+    for f in FIELDS:
+        if not isinstance(arrays[f], np.ndarray):
+            raise GnpError(f"population field {f!r} is not a numpy array")
+    function, conn = arrays["function"], arrays["conn"]
+    if function.ndim != 3 or conn.ndim != 5:
+        raise GnpError(
+            "population fields 'function' and 'conn' need shapes (N, V, m) and (N, V, m, 2, U), "
+            f"got {function.shape} and {conn.shape}"
+        )
+    n, v, m = function.shape
+    u = conn.shape[4]
+    for f, shape in field_shapes_per_node(m, u).items():
+        if arrays[f].shape != (n, v, *shape):
+            raise GnpError(
+                f"population field {f!r} has shape {arrays[f].shape}, expected {(n, v, *shape)}"
+            )
+    dtype = record_dtype(m, u)
+    size = n * v * dtype.itemsize
+    raw = np.zeros(size + CACHE_LINE, np.uint8)
+    start = -raw.ctypes.data % CACHE_LINE
+    records = raw[start : start + size].view(dtype).reshape(n, v)
+    for f in FIELDS:
+        try:
+            np.copyto(records[f], arrays[f], casting="same_kind")
+        except TypeError as err:
+            raise GnpError(
+                f"population field {f!r} must hold {np.dtype(field_dtype(f))} values, "
+                f"got {arrays[f].dtype}"
+            ) from err
+    return records
 
 
 def field_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
     """Per-individual shape (without the leading N) of every Population array."""
-    v, m, u = cfg.n_nodes, cfg.n_sub, cfg.n_conn_branches
-    return {
-        "function": (v, m),
-        "mu_beta": (v, m),
-        "mu_alpha": (v, m),
-        "speed": (v, m),
-        "conn": (v, m, 2, u),
-        "credit": (v, m),
-        "q_ss": (v, m),
-        "q_bs": (v, m, 2, u),
-        "q_cs": (v, m, 2),
-    }
+    per_node = field_shapes_per_node(cfg.n_sub, cfg.n_conn_branches)
+    return {f: (cfg.n_nodes, *shape) for f, shape in per_node.items()}
 
 
 def field_dtype(name: str) -> type[np.generic]:
@@ -196,7 +278,7 @@ def population_from_arrays(cfg: GnpConfig, arrays: dict[str, np.ndarray]) -> Pop
                 raise GnpError(f"population field {f!r} holds values outside {np.dtype(dtype)}")
         elif not np.issubdtype(a.dtype, np.number):
             raise GnpError(f"population field {f!r} must be numeric, got {a.dtype}")
-        out[f] = np.array(a, dtype=dtype, copy=True)
+        out[f] = a.astype(dtype, copy=False)  # the constructor copies
     pop = Population(**out)
     check_population(cfg, pop)
     return pop

@@ -42,9 +42,11 @@ class ReferenceController:
         self.cfg = cfg
         gene_fields = ("function", "mu_beta", "mu_alpha", "speed", "conn", "credit")
         self.genes = {f: np.array(getattr(pop, f)[index]) for f in gene_fields}
-        self.q_ss = np.array(pop.q_ss[index], dtype=np.float64)
-        self.q_bs = np.array(pop.q_bs[index], dtype=np.float64)
-        self.q_cs = np.array(pop.q_cs[index], dtype=np.float64)
+        # Q values are stored as the population stores them (float32); updates compute in
+        # float64 and round on store, as the engine does.
+        self.q_ss = np.array(pop.q_ss[index])
+        self.q_bs = np.array(pop.q_bs[index])
+        self.q_cs = np.array(pop.q_cs[index])
         self.stream = py_mix64(seed)
         self.node = 0
         self.left = 0.0
@@ -140,20 +142,21 @@ class ReferenceController:
         gamma = self.cfg.gamma
         last = self.visits[-1]
         r = last.reward
+
+        def update(table: np.ndarray, key: tuple[int, ...], target: float) -> None:
+            old = float(table[key])
+            table[key] = old + alpha * (target - old)
+
         # Eq. 2.3 / 3.1 / 5.1: Q_SS(i, ip) += α(r_t + γ Q_SS(j, jp') − Q_SS(i, ip)).
-        target = r + gamma * self.q_ss[node, sub]
-        self.q_ss[last.node, last.sub] += alpha * (target - self.q_ss[last.node, last.sub])
+        update(self.q_ss, (last.node, last.sub), r + gamma * float(self.q_ss[node, sub]))
         if self.cfg.method == "CS":
             # Eq. 5.2 / 5.3 (a credit skip earned r = 0): bootstrap on the chosen CS action.
-            c = int(last.credit)
-            target = r + gamma * self.q_cs[node, sub, int(credit)]
-            self.q_cs[last.node, last.sub, c] += alpha * (
-                target - self.q_cs[last.node, last.sub, c]
-            )
+            target = r + gamma * float(self.q_cs[node, sub, int(credit)])
+            update(self.q_cs, (last.node, last.sub, int(last.credit)), target)
         if self.cfg.method == "BS" and len(self.visits) >= 2:
             # Eq. 3.2: the branch connection chosen at t led to the last visit, whose reward
             # is r_{t+1}; bootstrap on the branch connection the last visit chose.
             before = self.visits[-2]
             key = (before.node, before.sub, before.branch, before.u)
-            target = r + gamma * self.q_bs[last.node, last.sub, last.branch, last.u]
-            self.q_bs[key] += alpha * (target - self.q_bs[key])
+            target = r + gamma * float(self.q_bs[last.node, last.sub, last.branch, last.u])
+            update(self.q_bs, key, target)

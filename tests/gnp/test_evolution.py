@@ -74,6 +74,30 @@ def test_arrays_round_trip_and_bad_arrays_are_named() -> None:
         gnp.population_from_arrays(cfg, dict(good, speed=good["speed"] + 0.5))
 
 
+@pytest.mark.parametrize(("method", "lines"), [("RL", 1), ("CS", 1), ("BS", 2)])
+def test_a_node_is_one_record_of_whole_cache_lines(method: str, lines: int) -> None:
+    # m = 2, U = 2 (BS): Q values 2 + 8 + 4 float32 = 56 B, β, α, credit 2 + 2 + 2 and
+    # connections 8 int16 = 28 B, functions and speeds 2 + 2 int8 = 4 B: 88 B, two lines.
+    # RL, CS (U = 1): 40 + 20 + 4 = 64 B, one line.
+    cfg = gnp.GnpConfig(method=method)
+    pop = gnp.init_population(cfg, 3, np.random.default_rng(0))
+    assert pop.records.shape == (3, cfg.n_nodes)
+    assert pop.records.dtype.itemsize == 64 * lines
+    assert pop.records.ctypes.data % 64 == 0
+    for name in gnp.population_to_arrays(pop):
+        assert np.shares_memory(getattr(pop, name), pop.records)
+    pop.q_ss[1, 7, 1] = 2.5  # writing a field writes the node's record
+    assert pop.records["q_ss"][1, 7, 1] == np.float32(2.5)
+    source = gnp.population_to_arrays(pop)
+    copied = gnp.Population(**source)  # the constructor copies
+    copied.conn[0, 1, 0, 0, 0] = 5 if pop.conn[0, 1, 0, 0, 0] != 5 else 6
+    assert copied.conn[0, 1, 0, 0, 0] != pop.conn[0, 1, 0, 0, 0]
+    with pytest.raises(gnp.GnpError, match="q_bs.*shape"):
+        gnp.Population(**dict(source, q_bs=source["q_bs"][:, :, :1]))
+    with pytest.raises(gnp.GnpError, match="conn.*int16"):
+        gnp.Population(**dict(source, conn=source["conn"] + 0.5))
+
+
 def test_take_and_concat() -> None:
     cfg = gnp.GnpConfig(method="BS")
     pop = gnp.init_population(cfg, 5, np.random.default_rng(0))
