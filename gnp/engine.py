@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, cast, overload
+from typing import Literal, NoReturn, cast, overload
 
 import numpy as np
 from llvmlite import ir
@@ -36,7 +36,7 @@ from gnp.config import (
     GnpConfig,
     GnpError,
 )
-from gnp.population import CACHE_LINE, Population
+from gnp.population import CACHE_LINE, Population, record_dtype
 from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
@@ -166,6 +166,33 @@ def _rates(epsilon: float | np.ndarray, alpha: float | np.ndarray, n: int) -> np
     )
 
 
+def _raise_mismatch(cfg: GnpConfig, pop: Population, n: int) -> NoReturn:
+    if pop.size != n:
+        raise GnpError(f"population has {pop.size} individuals, state {n} controllers")
+    expected = (cfg.n_nodes, cfg.n_sub, 2, cfg.n_conn_branches)
+    raise GnpError(
+        f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
+        f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
+    )
+
+
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _floats(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
+    """`value` as a C-contiguous float64 array of `shape` (itself when it already is one)."""
+    if not (
+        type(value) is np.ndarray
+        and value.dtype is _FLOAT64
+        and value.shape == shape
+        and value.flags.c_contiguous
+    ):
+        value = np.ascontiguousarray(value, dtype=np.float64)
+        if value.shape != shape:
+            raise GnpError(f"{name} must have shape {shape}, got {value.shape}")
+    return value
+
+
 # Record layouts as the kernel reads them, by record dtype: the record's size in bytes, then
 # where each field of `_LAYOUT_FIELDS` starts, in words of the field's own size.
 _LAYOUTS: dict[np.dtype, tuple[int, ...]] = {}
@@ -184,6 +211,11 @@ def _layout(records: np.ndarray) -> tuple[int, ...]:
         _LAYOUTS[records.dtype] = layout
     return layout
 
+
+# numba's option to compile without its reference-counting runtime (absent from its type
+# stubs): the kernel allocates nothing, and the runtime's atomic reference counts on every
+# array argument cost more than a third of a call for small batches.
+_WITHOUT_NRT = {"_nrt": False}
 
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
 _NO_TRACE = np.empty((5, 0, 0), np.int32)
@@ -274,21 +306,13 @@ def step(
     Returns:
         Wheel commands (N, 2) as (left, right) in −10..10, and the StepTrace if `trace`.
     """
-    n = state.size
-    if pop.size != n:
-        raise GnpError(f"population has {pop.size} individuals, state {n} controllers")
-    expected = (cfg.n_nodes, cfg.n_sub, 2, cfg.n_conn_branches)
-    if pop.q_bs.shape[1:] != expected:
-        raise GnpError(
-            f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
-            f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
-        )
-    obs = np.ascontiguousarray(observations, dtype=np.float64)
-    if obs.shape != (n, 8):
-        raise GnpError(f"observations must have shape ({n}, 8), got {obs.shape}")
-    rew = np.ascontiguousarray(reward, dtype=np.float64)
-    if rew.shape != (n,):
-        raise GnpError(f"reward must have shape ({n},), got {rew.shape}")
+    n = state.walk.shape[0]
+    records = pop.records
+    dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches)
+    if records.shape != (n, cfg.n_nodes) or (records.dtype is not dtype and records.dtype != dtype):
+        _raise_mismatch(cfg, pop, n)
+    obs = _floats(observations, (n, 8), "observations")
+    rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
     if trace:
         visits = np.full((5, n, cfg.max_visits_per_step), -1, np.int32)
@@ -304,8 +328,8 @@ def step(
         cfg.n_sub,
         cfg.n_conn_branches,
         # One array for the whole population: every array argument costs the call time.
-        pop.records.reshape(-1).view(np.uint8),
-        _layout(pop.records),
+        pop.record_bytes,
+        _layout(records),
         state.walk,
         state.wheels,
         state.rng,
@@ -397,15 +421,16 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
     return s, k - 1  # unreachable
 
 
-@njit(cache=True, inline="always", _nrt=False)
-def _visit(
-    c, used, k, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16,
-    words8, layout, walk, wheels, rng, obs, reward, rates, learn, visits,
-):  # fmt: skip
+@njit(cache=True, inline="always")
+def _visit(c, used, k, run):  # pragma: no cover - compiled
     """Controller c's next visit (after the start node, if it stands there): choose, learn,
     run, and move on. Its walk (`walk[c]`, `rng[c]`) is read from and written back to memory,
-    so that two controllers can take turns (see `_step_kernel`). Returns (used, k): the step's
+    so that controllers can take turns (see `_step_kernel`). Returns (used, k): the step's
     time units spent and visits made so far, the start node included."""
+    (
+        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
+        layout, walk, wheels, rng, obs, reward, rates, learn, visits, _,
+    ) = run  # fmt: skip
     record_bytes = layout[0]
     r32, r16 = record_bytes // 4, record_bytes // 2
     ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:]
@@ -493,53 +518,66 @@ def _visit(
     return used, k + 1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
+def _turn(c, used, k, waiting, run):  # pragma: no cover - compiled
+    """Lane of controller c: one visit; once c's step is done the lane takes the next waiting
+    controller. A lane whose controller number reaches N is idle. Returns (c, used, k,
+    waiting) for the lane's next turn."""
+    walk, count = run[11], run[19]
+    n_ctrl = walk.shape[0]
+    if c >= n_ctrl:
+        return c, used, k, waiting
+    used, k = _visit(c, used, k, run)
+    if used >= STEP_BUDGET:
+        if count.shape[0] > 0:
+            count[c] = k
+        c, used, k, waiting = waiting, 0, 0, waiting + 1
+        if c < n_ctrl:
+            _prefetch_walk(c, run)
+    return c, used, k, waiting
+
+
+@njit(cache=True, inline="always")
+def _prefetch_walk(c, run):  # pragma: no cover - compiled
+    """Prefetch what controller c's step starts with: its current node's record, and the Q
+    values of its last two visits, which its first visit updates (the world step in between
+    has evicted them). Q values lead a record, so their first line is prefetched, no more:
+    every line the engine loads evicts one of the world's."""
+    n_nodes, words32, layout, walk = run[3], run[7], run[10], run[11]
+    r32 = layout[0] // 4
+    _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, layout[0] // CACHE_LINE)
+    if walk[c, 1] >= 0:
+        _prefetch_record(words32, (c * n_nodes + walk[c, 1]) * r32, 1)
+    if walk[c, 6] >= 0 and run[0] == _BS:
+        _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
+
+
+@njit(cache=True, **_WITHOUT_NRT)  # type: ignore[call-overload]
 def _step_kernel(
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
     obs, reward, rates, learn, visits, count,
 ):  # fmt: skip  # pragma: no cover - compiled
     """Run every controller's visits until its step's time units are spent.
 
-    Two controllers take turns, a visit each: the record of a controller's next node is then
-    fetched while the other one runs, instead of stalling the walk (the engine is bound by
+    Two controllers take turns, a visit each: the record of a controller's next node is
+    then fetched while the other one runs, instead of stalling the walk (the engine is bound by
     the latency of these loads, not by arithmetic). Controllers never share data, so the
     turns change nothing in what each one does.
     """
-    n_ctrl = walk.shape[0]
     words32, words16, words8 = (
         records.view(np.float32),
         records.view(np.int16),
         records.view(np.int8),
     )
-    trace = count.shape[0] > 0
-    r32, lines = layout[0] // 4, layout[0] // CACHE_LINE
+    run = (
+        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
+        layout, walk, wheels, rng, obs, reward, rates, learn, visits, count,
+    )  # fmt: skip
+    n_ctrl = walk.shape[0]
     for c in range(min(n_ctrl, 2)):
-        _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, lines)
-    # Controllers a and b take turns; a lane is idle once its controller number reaches n_ctrl.
+        _prefetch_walk(c, run)
     a, b, waiting = 0, 1, 2
     used_a = used_b = k_a = k_b = 0
     while a < n_ctrl or b < n_ctrl:
-        if a < n_ctrl:
-            used_a, k_a = _visit(
-                a, used_a, k_a, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn,
-                words32, words16, words8, layout, walk, wheels, rng, obs, reward, rates, learn,
-                visits,
-            )  # fmt: skip
-            if used_a >= STEP_BUDGET:
-                if trace:
-                    count[a] = k_a
-                a, used_a, k_a, waiting = waiting, 0, 0, waiting + 1
-                if a < n_ctrl:
-                    _prefetch_record(words32, (a * n_nodes + walk[a, 0]) * r32, lines)
-        if b < n_ctrl:
-            used_b, k_b = _visit(
-                b, used_b, k_b, method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn,
-                words32, words16, words8, layout, walk, wheels, rng, obs, reward, rates, learn,
-                visits,
-            )  # fmt: skip
-            if used_b >= STEP_BUDGET:
-                if trace:
-                    count[b] = k_b
-                b, used_b, k_b, waiting = waiting, 0, 0, waiting + 1
-                if b < n_ctrl:
-                    _prefetch_record(words32, (b * n_nodes + walk[b, 0]) * r32, lines)
+        a, used_a, k_a, waiting = _turn(a, used_a, k_a, waiting, run)
+        b, used_b, k_b, waiting = _turn(b, used_b, k_b, waiting, run)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -58,6 +59,7 @@ class Population:
         q_cs: (N, V, m, 2) Q_CS(ip, b_N) at [..., 0] and Q_CS(ip, b_C) at [..., 1] (CS).
         records: (N, V) the memory behind every field above, one record a node (see
             `record_dtype`): the fields are views into it, so writing a field writes here.
+        record_bytes: the same memory as one flat uint8 array, as compiled code reads it.
 
     The constructor copies the arrays it is given into fresh records, so a Population never
     shares memory with its inputs.
@@ -73,10 +75,12 @@ class Population:
     q_bs: np.ndarray
     q_cs: np.ndarray
     records: np.ndarray = field(init=False, repr=False, compare=False)
+    record_bytes: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         records = _pack({f: getattr(self, f) for f in FIELDS})
         object.__setattr__(self, "records", records)
+        object.__setattr__(self, "record_bytes", records.reshape(-1).view(np.uint8))
         for f in FIELDS:
             object.__setattr__(self, f, records[f])
 
@@ -115,6 +119,7 @@ def field_shapes_per_node(n_sub: int, n_conn_branches: int) -> dict[str, tuple[i
     }
 
 
+@functools.cache  # one dtype object per shape: the engine checks it by identity first
 def record_dtype(n_sub: int, n_conn_branches: int) -> np.dtype:
     """One node's genes and Q values side by side: the engine's unit of memory traffic.
 
