@@ -438,14 +438,15 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
         layout, walk, wheels, rng, obs, reward, rates, learn, visits, _,
     ) = run  # fmt: skip
+    i = _ix(c)  # controller c's rows, indexed without numba's negative-index check
     record_bytes = layout[0]
     r32, r16 = record_bytes // 4, record_bytes // 2
     ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:]
     trace = visits.shape[1] > 0
     rate_row = 0 if rates.shape[0] == 1 else c
     eps, lr = rates[rate_row, 0], rates[rate_row, 1]
-    s = rng[c]
-    node = walk[c, 0]
+    s = rng[i]
+    node = walk[i, 0]
     while node == 0:  # the start node: costs nothing, runs once per episode
         if trace:
             visits[0, c, k] = node
@@ -454,11 +455,11 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         node = words16[_ix(c * n_nodes * r16 + cn)]
     # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
     # Q_BS update): (node, sub, branch, u, credit), and where their Q values are.
-    pn, pp, pb, pu, pc = walk[c, 1], walk[c, 2], walk[c, 3], walk[c, 4], walk[c, 5]
-    bn, bp, bb, bu = walk[c, 6], walk[c, 7], walk[c, 8], walk[c, 9]
+    pn, pp, pb, pu, pc = walk[i, 1], walk[i, 2], walk[i, 3], walk[i, 4], walk[i, 5]
+    bn, bp, bb, bu = walk[i, 6], walk[i, 7], walk[i, 8], walk[i, 9]
     # A step's first visit credits the previous step's reward to the visit before it, unless
     # that was a credit skip (reward 0, Eq. 5.3).
-    pend_r = reward[c] if used == 0 and pn >= 0 and pc != 1 else 0.0
+    pend_r = reward[i] if used == 0 and pn >= 0 and pc != 1 else 0.0
     record = c * n_nodes + node
     q, h, b = record * r32, record * r16, record * record_bytes
     s, p = _egreedy(words32, q + ss, n_sub, eps, s)
@@ -490,7 +491,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         fn = words8[_ix(b + fn_ + p)]
         if node <= n_judgment:  # nodes 1..n_judgment judge
             used += _JUDGMENT_COST
-            x = obs[c, fn]
+            x = obs[i, _ix(fn)]
             lo = words16[_ix(h + beta + p)]
             hi = words16[_ix(h + alpha + p)]
             if fuzzy:
@@ -508,7 +509,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
             used += _PROCESSING_COST
             # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
             # (left, right).
-            wheels[c, 1 - fn] = float(words8[_ix(b + sp + p)])
+            wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
         if method == _BS:
@@ -522,10 +523,10 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         visits[2, c, k] = branch
         visits[3, c, k] = u
         visits[4, c, k] = cs
-    walk[c, 6], walk[c, 7], walk[c, 8], walk[c, 9], walk[c, 10] = pn, pp, pb, pu, pc
-    walk[c, 1], walk[c, 2], walk[c, 3], walk[c, 4], walk[c, 5] = node, p, branch, u, cs
-    walk[c, 0] = nxt
-    rng[c] = s
+    walk[i, 6], walk[i, 7], walk[i, 8], walk[i, 9], walk[i, 10] = pn, pp, pb, pu, pc
+    walk[i, 1], walk[i, 2], walk[i, 3], walk[i, 4], walk[i, 5] = node, p, branch, u, cs
+    walk[i, 0] = nxt
+    rng[i] = s
     return used, k + 1
 
 
