@@ -350,9 +350,9 @@ def step(
 def _prefetch_typer(typingctx, array, index):
     """Hint the CPU to load array[index] (a tuple of ndim indices) into cache; no effect else.
 
-    The engine is bound by memory latency: after a world step its genes and Q tables sit in
-    the last-level cache, and each visit's loads wait on the Q_SS row that picks the sub node.
-    Prefetching every sub node's genes as soon as the node is known overlaps those waits.
+    The engine is bound by memory latency: a world step evicts the population's records, and
+    a visit's next node is known only at its end. Prefetching the next record while another
+    controller runs overlaps those waits (see `_step_kernel`).
     """
     if not (isinstance(array, types.Array) and isinstance(index, types.BaseTuple)):
         return None
@@ -426,6 +426,10 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
                 return s, a
             pick -= 1
     return s, k - 1  # unreachable
+
+
+# Positions in the `run` tuple the kernel hands its helpers.
+_METHOD, _N_NODES, _WORDS32, _LAYOUT, _WALK, _COUNT = 0, 3, 7, 10, 11, 19
 
 
 @njit(cache=True, inline="always")
@@ -535,7 +539,7 @@ def _turn(c, used, k, waiting, run):  # pragma: no cover - compiled
     """Lane of controller c: one visit; once c's step is done the lane takes the next waiting
     controller. A lane whose controller number reaches N is idle. Returns (c, used, k,
     waiting) for the lane's next turn."""
-    walk, count = run[11], run[19]
+    walk, count = run[_WALK], run[_COUNT]
     n_ctrl = walk.shape[0]
     if c >= n_ctrl:
         return c, used, k, waiting
@@ -555,12 +559,12 @@ def _prefetch_walk(c, run):  # pragma: no cover - compiled
     values of its last two visits, which its first visit updates (the world step in between
     has evicted them). Q values lead a record, so their first line is prefetched, no more:
     every line the engine loads evicts one of the world's."""
-    n_nodes, words32, layout, walk = run[3], run[7], run[10], run[11]
+    n_nodes, words32, layout, walk = run[_N_NODES], run[_WORDS32], run[_LAYOUT], run[_WALK]
     r32 = layout[0] // 4
     _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, layout[0] // CACHE_LINE)
     if walk[c, 1] >= 0:
         _prefetch_record(words32, (c * n_nodes + walk[c, 1]) * r32, 1)
-    if walk[c, 6] >= 0 and run[0] == _BS:
+    if walk[c, 6] >= 0 and run[_METHOD] == _BS:
         _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
 
 
@@ -581,6 +585,7 @@ def _step_kernel(
         records.view(np.int16),
         records.view(np.int8),
     )
+    # Everything a visit reads, in one tuple (`_visit` unpacks it; `_METHOD` … name positions).
     run = (
         method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
         layout, walk, wheels, rng, obs, reward, rates, learn, visits, count,
