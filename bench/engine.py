@@ -31,9 +31,7 @@ def make_world(arena: sim.Arena, n: int) -> sim.World:
     return world
 
 
-def paired_blocks(
-    method: str, n: int, steps: int, block: int
-) -> tuple[float, float, np.ndarray]:
+def paired_blocks(method: str, n: int, steps: int, block: int) -> tuple[float, float, np.ndarray]:
     """(overhead, engine share, per-block overheads): fractions of the world loop's CPU time."""
     arena = sim.load_arena("training")
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]

@@ -92,9 +92,9 @@ def test_a_node_is_one_record_of_whole_cache_lines(method: str, lines: int) -> N
     copied = gnp.Population(**source)  # the constructor copies
     copied.conn[0, 1, 0, 0, 0] = 5 if pop.conn[0, 1, 0, 0, 0] != 5 else 6
     assert copied.conn[0, 1, 0, 0, 0] != pop.conn[0, 1, 0, 0, 0]
-    with pytest.raises(gnp.GnpError, match="q_bs.*shape"):
+    with pytest.raises(gnp.GnpError, match=r"q_bs.*shape"):
         gnp.Population(**dict(source, q_bs=source["q_bs"][:, :, :1]))
-    with pytest.raises(gnp.GnpError, match="conn.*int16"):
+    with pytest.raises(gnp.GnpError, match=r"conn.*int16"):
         gnp.Population(**dict(source, conn=source["conn"] + 0.5))
 
 
