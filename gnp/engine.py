@@ -17,6 +17,7 @@ node it leads to (Eq. 3.2's r_{t+1}).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, NoReturn, cast, overload
@@ -193,23 +194,19 @@ def _floats(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
     return value
 
 
-# Record layouts as the kernel reads them, by record dtype: the record's size in bytes, then
-# where each field of `_LAYOUT_FIELDS` starts, in words of the field's own size.
-_LAYOUTS: dict[np.dtype, tuple[int, ...]] = {}
 _LAYOUT_FIELDS = (
     "q_ss", "q_bs", "q_cs", "mu_beta", "mu_alpha", "conn", "credit", "function", "speed"
 )  # fmt: skip
 
 
-def _layout(records: np.ndarray) -> tuple[int, ...]:
-    layout = _LAYOUTS.get(records.dtype)
-    if layout is None:
-        fields = records.dtype.fields
-        assert fields is not None
-        offsets = [fields[f][1] // fields[f][0].base.itemsize for f in _LAYOUT_FIELDS]
-        layout = (records.dtype.itemsize, *offsets)
-        _LAYOUTS[records.dtype] = layout
-    return layout
+@functools.cache
+def _layout(n_sub: int, n_conn_branches: int) -> tuple[int, ...]:
+    """The record layout as the kernel reads it: the record's size in bytes, then where each
+    field of `_LAYOUT_FIELDS` starts, in words of the field's own size."""
+    fields = record_dtype(n_sub, n_conn_branches).fields
+    assert fields is not None
+    offsets = [fields[f][1] // fields[f][0].base.itemsize for f in _LAYOUT_FIELDS]
+    return (record_dtype(n_sub, n_conn_branches).itemsize, *offsets)
 
 
 # numba's option to compile without its reference-counting runtime (absent from its type
@@ -329,7 +326,7 @@ def step(
         cfg.n_conn_branches,
         # One array for the whole population: every array argument costs the call time.
         pop.record_bytes,
-        _layout(records),
+        _layout(cfg.n_sub, cfg.n_conn_branches),
         state.walk,
         state.wheels,
         state.rng,
