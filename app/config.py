@@ -14,11 +14,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from gnp.config import EvolutionConfig, GnpConfig, Schedule
+from gnp import EvolutionConfig, GnpConfig, Method, Schedule
+from sim import IR_MAX, N_SENSORS, FaultMode
 
-Method = Literal["RL", "BS", "CS"]
 ScheduleKind = Literal["fixed", "changing"]
-FaultMode = Literal["dead", "saturated", "stuck", "random"]
 
 PRESET_NAMES = ("quick", "thesis-ch2", "thesis-ch3", "thesis-ch4", "thesis-ch5")
 
@@ -85,7 +84,7 @@ class TrainingSettings(_Frozen):
         default=0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
     )
     noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]"
+        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
     )
     control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
     schedule: ScheduleKind = Field(
@@ -130,10 +129,10 @@ class ImplementationSettings(_Frozen):
     steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
     repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
     noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=1023.0, description="sensor noise σ [reading]"
+        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
     )
     broken_sensors: tuple[int, ...] = Field(
-        default=(), max_length=8, description="sensors that break at the fault step, 0..7"
+        default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
     )
     fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
     fault_step: int = Field(
@@ -178,7 +177,7 @@ class ImplementationSettings(_Frozen):
     @field_validator("broken_sensors")
     @classmethod
     def _sensors_in_range(cls, sensors: tuple[int, ...]) -> tuple[int, ...]:
-        if any(not 0 <= s <= 7 for s in sensors):
+        if any(not 0 <= s < N_SENSORS for s in sensors):
             raise ValueError(f"sensors are numbered 0..7, got {list(sensors)}")
         if len(set(sensors)) != len(sensors):
             raise ValueError(f"a sensor is listed twice in {list(sensors)}")

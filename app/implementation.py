@@ -19,11 +19,11 @@ import numpy as np
 import gnp
 import sim
 from app.config import ImplementationSettings
+from app.recording import TrajectoryRecorder
 from app.store import (
     Implementation,
     RunFileError,
     RunReader,
-    TrajectoryRecorder,
     add_implementation,
 )
 

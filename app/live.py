@@ -12,15 +12,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
 import gnp
 import sim
-
-FaultMode = Literal["dead", "saturated", "stuck", "random"]
-FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
+from sim import FAULT_MODES, IR_MAX, N_SENSORS, FaultMode
 
 
 class LiveError(ValueError):
@@ -346,9 +343,9 @@ class LiveSession:
 
 
 def check_noise(sigma: float) -> float:
-    """Noise σ must be a finite number in 0..1023."""
-    if not np.isfinite(sigma) or not 0.0 <= sigma <= 1023.0:
-        raise LiveError(f"noise σ must be in 0..1023, got {sigma}")
+    """Noise σ must be a finite number in 0..IR_MAX."""
+    if not np.isfinite(sigma) or not 0.0 <= sigma <= IR_MAX:
+        raise LiveError(f"noise σ must be in 0..{IR_MAX:g}, got {sigma}")
     return float(sigma)
 
 
@@ -361,10 +358,10 @@ def check_mode(mode: str) -> FaultMode:
 
 
 def check_sensors(sensors: Sequence[int]) -> tuple[int, ...]:
-    """A non-empty set of distinct sensor indices in 0..7."""
+    """A non-empty set of distinct sensor indices in 0..N_SENSORS-1."""
     if len(sensors) == 0:
         raise LiveError("choose at least one sensor to break")
-    bad = [s for s in sensors if isinstance(s, bool) or not 0 <= int(s) <= 7]
+    bad = [s for s in sensors if isinstance(s, bool) or not 0 <= int(s) < N_SENSORS]
     if bad:
-        raise LiveError(f"sensors are numbered 0..7, got {bad}")
+        raise LiveError(f"sensors are numbered 0..{N_SENSORS - 1}, got {bad}")
     return tuple(sorted({int(s) for s in sensors}))

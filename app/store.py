@@ -28,12 +28,13 @@ import h5py
 import numpy as np
 
 from app.config import ImplementationSettings, RunConfig
+from app.recording import Trajectory
 from gnp.config import GnpConfig
+from sim import TERM_NAMES
 
 FORMAT = "gnp-lab-run"
 SCHEMA_VERSION = 1
 #: Reward terms logged per generation and per step, in column order (sim.reward_terms keys).
-TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall")
 UNITS = {
     "generations/*_fitness": "mean reward per step (Eq. 2.8), 0..1",
     "generations/*_terms": "mean per step of each reward term, 0..1",
@@ -141,86 +142,6 @@ class History:
     fitness: np.ndarray  # (g, population)
     best_terms: dict[str, np.ndarray]  # term name -> (g,), mean per step of the best
     mean_terms: dict[str, np.ndarray]  # term name -> (g,), population mean
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """Recorded lives, leading axis = trials (1 for the training elite), then steps."""
-
-    poses: np.ndarray  # (k, T, 3)
-    readings: np.ndarray  # (k, T, 8) true readings after each step
-    observations: np.ndarray  # (k, T, 8) what the controller saw before each step
-    commands: np.ndarray  # (k, T, 2) left, right
-    terms: dict[str, np.ndarray]  # term name -> (k, T)
-    trace: dict[str, np.ndarray]  # gnp.StepTrace field -> (k, T, ...)
-    start_index: np.ndarray  # (k,) start pose of each trial (first segment in training)
-
-    @property
-    def reward(self) -> np.ndarray:
-        """(k, T) reward per step."""
-        return self.terms["reward"]
-
-
-TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
-"""The fields of a `gnp.StepTrace`, as a Trajectory's `trace` holds them."""
-
-
-class TrajectoryRecorder:
-    """Fills a `Trajectory` of the first k robots of a batch, one step at a time.
-
-    Both phases record lives this way, so a stored elite and stored implementation trials have
-    the same arrays, dtypes and shapes.
-    """
-
-    def __init__(self, k: int, steps: int, visits: int) -> None:
-        self.k = k
-        self._arrays = {
-            "poses": np.zeros((k, steps, 3)),
-            "readings": np.zeros((k, steps, 8)),
-            "observations": np.zeros((k, steps, 8)),
-            "commands": np.zeros((k, steps, 2)),
-            "terms": np.zeros((k, steps, len(TERM_NAMES))),
-        }
-        self._trace = {
-            field: np.zeros((k, steps, visits), np.int32)
-            for field in TRACE_FIELDS
-            if field != "count"
-        }
-        self._trace["count"] = np.zeros((k, steps), np.int32)
-
-    def record(
-        self,
-        t: int,
-        poses: np.ndarray,
-        readings: np.ndarray,
-        observations: np.ndarray,
-        commands: np.ndarray,
-        terms: dict[str, np.ndarray],
-        trace: object,
-    ) -> None:
-        """Step t of the batch: arrays with a leading batch axis, `trace` a gnp.StepTrace."""
-        k = self.k
-        a = self._arrays
-        a["poses"][:, t] = poses[:k]
-        a["readings"][:, t] = readings[:k]
-        a["observations"][:, t] = observations[:k]
-        a["commands"][:, t] = commands[:k]
-        a["terms"][:, t] = np.stack([terms[name][:k] for name in TERM_NAMES], axis=1)
-        for field, values in self._trace.items():
-            values[:, t] = getattr(trace, field)[:k]
-
-    def trajectory(self, start_index: np.ndarray) -> Trajectory:
-        """The recorded lives; `start_index` (k,) is each life's (first) start pose."""
-        a = self._arrays
-        return Trajectory(
-            poses=a["poses"],
-            readings=a["readings"],
-            observations=a["observations"],
-            commands=a["commands"],
-            terms={name: a["terms"][..., i] for i, name in enumerate(TERM_NAMES)},
-            trace=dict(self._trace),
-            start_index=np.asarray(start_index[: self.k]).copy(),
-        )
 
 
 @dataclass(frozen=True)

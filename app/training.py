@@ -29,13 +29,10 @@ import numpy as np
 import gnp
 import sim
 from app.config import RunConfig, TrainingSettings
+from app.recording import Trajectory, TrajectoryRecorder
 from app.store import (
-    TERM_NAMES,
-    TRACE_FIELDS,
     RunTemplate,
     RunWriter,
-    Trajectory,
-    TrajectoryRecorder,
 )
 
 # Purpose tags mixed into every SeedSequence so different uses never share a stream.
@@ -113,7 +110,7 @@ class Lives:
     """Outcome of N lives: fitness (Eq. 2.8) and the mean per step of every reward term."""
 
     fitness: np.ndarray  # (N,)
-    terms: np.ndarray  # (N, len(TERM_NAMES))
+    terms: np.ndarray  # (N, len(sim.TERM_NAMES))
 
 
 def live(
@@ -138,7 +135,7 @@ def live(
     state = gnp.init_state(cfg, n, seeds.engine)
     world.reset(start_poses[seeds.starts[:, 0]], seeds=seeds.world)
     reward = np.zeros(n)
-    sums = np.zeros((n, len(TERM_NAMES)))
+    sums = np.zeros((n, len(sim.TERM_NAMES)))
     recorder = TrajectoryRecorder(n, steps, cfg.max_visits_per_step) if record else None
     for t in range(steps):
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
@@ -154,7 +151,7 @@ def live(
         true_readings = world.sense()
         terms = sim.reward_terms(true_readings, commands)
         reward = terms["reward"]
-        sums += np.stack([terms[name] for name in TERM_NAMES], axis=1)
+        sums += np.stack([terms[name] for name in sim.TERM_NAMES], axis=1)
         if recorder is not None:
             recorder.record(t, world.poses, true_readings, seen, commands, terms, trace)
     means = sums / steps
@@ -172,7 +169,7 @@ def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
     _, trace = gnp.step(
         cfg, pop, state, np.zeros((1, 8)), np.zeros(1), 0.0, 0.0, learn=False, trace=True
     )
-    return {field: np.asarray(getattr(trace, field)) for field in TRACE_FIELDS}
+    return {field: np.asarray(getattr(trace, field)) for field in gnp.TRACE_FIELDS}
 
 
 # --- evaluators: in-process or persistent worker processes ------------------------------------
@@ -437,8 +434,8 @@ def _train_from(
                 writer.write_generation(
                     generation,
                     fitness=lives.fitness,
-                    best_terms=dict(zip(TERM_NAMES, lives.terms[best], strict=True)),
-                    mean_terms=dict(zip(TERM_NAMES, lives.terms.mean(axis=0), strict=True)),
+                    best_terms=dict(zip(sim.TERM_NAMES, lives.terms[best], strict=True)),
+                    mean_terms=dict(zip(sim.TERM_NAMES, lives.terms.mean(axis=0), strict=True)),
                     epsilon=epsilon,
                     alpha=alpha,
                     best_genome=gnp.population_to_arrays(gnp.take(learned, [best])),

@@ -5,12 +5,14 @@ choices the thesis leaves open.
 """
 
 from gnp.config import (
+    METHODS,
     EvolutionConfig,
     GnpConfig,
     GnpError,
+    Method,
     Schedule,
 )
-from gnp.engine import EngineState, StepTrace, init_state, reset_episode, step
+from gnp.engine import TRACE_FIELDS, EngineState, StepTrace, init_state, reset_episode, step
 from gnp.evolution import crossover, evolve, mutate, nonuniform_mutation, tournament
 from gnp.population import (
     Population,
@@ -30,10 +32,13 @@ from gnp.schedules import (
 )
 
 __all__ = [
+    "METHODS",
+    "TRACE_FIELDS",
     "EngineState",
     "EvolutionConfig",
     "GnpConfig",
     "GnpError",
+    "Method",
     "Population",
     "Schedule",
     "StepTrace",

@@ -8,6 +8,9 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+#: The learning methods: GNP-RL (sub node selection), GNP-TSRL with branch selection or credit.
+Method = Literal["RL", "BS", "CS"]
+METHODS: tuple[Method, ...] = ("RL", "BS", "CS")
 #: Node types (Table 2.1 of the thesis): NT_i.
 START, JUDGMENT, PROCESSING = 0, 1, 2
 #: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (DESIGN.md §3).
@@ -36,7 +39,7 @@ class GnpConfig(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    method: Literal["RL", "BS", "CS"] = Field(
+    method: Method = Field(
         default="RL",
         description="RL: sub node selection only; BS: + branch connections; CS: + credit",
     )

@@ -30,6 +30,7 @@ from numba.extending import intrinsic
 
 from gnp.config import (
     JUDGMENT,
+    METHODS,
     NODE_COST,
     PROCESSING,
     SKIP_COST,
@@ -40,7 +41,7 @@ from gnp.config import (
 from gnp.population import CACHE_LINE, Population, record_dtype
 from gnp.rng import next_uniform, seed_states
 
-METHOD_CODE = {"RL": 0, "BS": 1, "CS": 2}
+METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
 _BS, _CS = 1, 2
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
@@ -102,6 +103,10 @@ class StepTrace:
     u: np.ndarray
     skipped: np.ndarray
     count: np.ndarray
+
+
+TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
+"""The fields of a `StepTrace`, in the store's order."""
 
 
 def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineState:

@@ -1,19 +1,29 @@
-"""The world: arenas, the Khepera I model, pymunk physics, IR sensors, noise, faults, reward."""
+"""The world: arenas, the Khepera I model, pymunk physics, IR sensors, noise, faults, reward.
 
-from sim.arena import ARENA_NAMES, Arena, ArenaError, load_arena
+The constants below are the world's facts; `app` imports them rather than re-typing them.
+"""
+
+from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
-from sim.khepera import IR_RANGE_MM
-from sim.reward import reward_terms
+from sim.khepera import BODY_RADIUS_MM, IR_MAX, IR_RANGE_MM, MAX_COMMAND, N_SENSORS
+from sim.reward import TERM_NAMES, reward_terms
 from sim.sensors import sensor_rays
-from sim.world import FAULT_MODES, Fault, World, WorldError
+from sim.world import FAULT_MODES, Fault, FaultMode, World, WorldError
 
 __all__ = [
     "ARENA_NAMES",
+    "BODY_RADIUS_MM",
     "FAULT_MODES",
+    "IR_MAX",
     "IR_RANGE_MM",
+    "MAX_COMMAND",
+    "N_SENSORS",
+    "N_START_POSES",
+    "TERM_NAMES",
     "Arena",
     "ArenaError",
     "Fault",
+    "FaultMode",
     "World",
     "WorldError",
     "check_world",

@@ -9,6 +9,9 @@ NEAR_WALL_MAX = 1000.0
 NEAR_WALL_MIN = 100.0
 """C = 0 unless some true reading exceeds this (a wall is near)."""
 
+TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall")
+"""The named reward terms `reward_terms` returns, in this order (the store's column order)."""
+
 
 def reward_terms(true_readings: np.ndarray, commands: np.ndarray) -> dict[str, np.ndarray]:
     """Eq. 2.7: r = (vR + vL)/20 · (1 − sqrt(|vR − vL|/20)) · C.
