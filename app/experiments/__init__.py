@@ -1,0 +1,1 @@
+"""Experiments: arms × seeds × implementation conditions, on Dask, with statistics."""

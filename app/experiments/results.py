@@ -1,0 +1,142 @@
+"""What an experiment measured, as plain arrays: the contract between the runner and the report.
+
+The runner (`app.experiments.runner`) fills an `ExperimentResults` from the run files of an
+experiment's folder (and writes it to the summary file); statistics (`app.experiments.stats`)
+and the report (`app.experiments.report`) read only this. Nothing here knows about Dask or HDF5.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+MetricKind = Literal["scalar", "curve"]
+MetricScope = Literal["training", "condition"]
+Direction = Literal["greater", "less"]
+Verdict = Literal["held", "reversed", "not shown"]
+VERDICTS: tuple[Verdict, ...] = ("held", "reversed", "not shown")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A named measurement of one run: defined once here, used by the runner and the report."""
+
+    name: str
+    label: str  # for axes and tables
+    kind: MetricKind  # one number per run, or one curve per run
+    scope: MetricScope  # of the training phase, or of one implementation condition
+    description: str
+
+
+METRICS: dict[str, Metric] = {
+    m.name: m
+    for m in (
+        Metric(
+            "final_best_fitness",
+            "final best fitness",
+            "scalar",
+            "training",
+            "best fitness (Eq. 2.8) of the last generation",
+        ),
+        Metric(
+            "best_fitness_curve",
+            "best fitness",
+            "curve",
+            "training",
+            "best fitness of each generation",
+        ),
+        Metric(
+            "mean_reward",
+            "mean reward per step",
+            "scalar",
+            "condition",
+            "reward per step averaged over a condition's trials and steps",
+        ),
+        Metric(
+            "mean_reward_after_fault",
+            "mean reward per step after the fault",
+            "scalar",
+            "condition",
+            "reward per step averaged over a condition's trials, from the fault step on",
+        ),
+        Metric(
+            "reward_per_step",
+            "reward per step",
+            "curve",
+            "condition",
+            "reward of each step, averaged over a condition's trials",
+        ),
+    )
+}
+
+
+@dataclass(frozen=True)
+class Arm:
+    name: str  # short, used in comparisons ("BS")
+    label: str  # as the thesis names it ("Fuzzy GNP-TSRL (BS) 2SS&2BS")
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One implementation condition of every run of the experiment."""
+
+    name: str
+    label: str
+    steps: int  # implementation length T
+    fault_step: int | None  # t', None when no sensor breaks
+    broken_count: int  # how many sensors break (0 = none)
+    noise_sigma: float
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A claim: arm `a` is `direction` than arm `b` on `metric` (in `condition`, if any)."""
+
+    name: str
+    a: str
+    b: str
+    metric: str  # a scalar metric of METRICS
+    condition: str | None  # required for condition metrics, None for training metrics
+    direction: Direction
+    source: str  # where the thesis claims it ("Fig. 3.9")
+
+
+@dataclass(frozen=True)
+class ThesisValue:
+    """A number the thesis reports, to sit beside ours."""
+
+    arm: str
+    metric: str
+    condition: str | None
+    value: float
+    source: str  # "Table 2.5"
+
+
+@dataclass(frozen=True)
+class ExperimentResults:
+    """Per-run values of one experiment at one scale.
+
+    `scalars[(metric, arm, condition)]` is an (n_seeds,) float array aligned with `seeds`
+    (NaN for a run or condition not finished); `curves[(metric, arm, condition)]` is
+    (n_seeds, L). `condition` is "" for training metrics.
+    """
+
+    name: str
+    description: str
+    source: str
+    scale: str
+    arms: tuple[Arm, ...]
+    seeds: tuple[int, ...]
+    conditions: tuple[Condition, ...]
+    comparisons: tuple[Comparison, ...]
+    thesis: tuple[ThesisValue, ...] = ()
+    scalars: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    curves: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+
+    def scalar(self, metric: str, arm: str, condition: str | None = None) -> np.ndarray:
+        return self.scalars[(metric, arm, condition or "")]
+
+    def curve(self, metric: str, arm: str, condition: str | None = None) -> np.ndarray:
+        return self.curves[(metric, arm, condition or "")]
