@@ -134,6 +134,13 @@ class ImplementationSettings(_Frozen):
     broken_sensors: tuple[int, ...] = Field(
         default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
     )
+    break_count: int = Field(
+        default=0,
+        ge=0,
+        le=N_SENSORS,
+        description="k sensors that break at the fault step, drawn per trial from its own "
+        "seeded stream (instead of a fixed `broken_sensors` set) [count]",
+    )
     fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
     fault_step: int = Field(
         default=500, ge=0, le=1_000_000, description="fault step t' [control steps]"
@@ -163,12 +170,22 @@ class ImplementationSettings(_Frozen):
     @model_validator(mode="after")
     def _consistent(self) -> ImplementationSettings:
         _check_ordered(self)
-        if self.broken_sensors and self.fault_step >= self.steps:
+        if self.broken_sensors and self.break_count:
+            raise ValueError(
+                "give either broken_sensors (a fixed set) or break_count (k random sensors "
+                "per trial), not both"
+            )
+        if self.has_fault and self.fault_step >= self.steps:
             raise ValueError(
                 f"fault_step ({self.fault_step}) must be below steps ({self.steps}) "
                 "for the sensors to break"
             )
         return self
+
+    @property
+    def has_fault(self) -> bool:
+        """Whether any sensor breaks."""
+        return bool(self.broken_sensors) or self.break_count > 0
 
     def schedules(self) -> tuple[Schedule, Schedule]:
         """(ε, α) after the fault: fixed values, or Eq. 4.3-4.4 from max to min."""

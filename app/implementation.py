@@ -2,24 +2,34 @@
 
 The individual (default: the final elite, with the Q tables it learned) is cloned into
 10 start poses × repeats trials. Each lives `steps` steps in the implementation arena with
-online Sarsa and no evolution; the chosen sensors break at the fault step t'. ε/α are the fixed
-values before t' and, with the "changing" schedule, follow Eq. 4.3-4.4 from t' on. Trial i
-starts at start pose i mod 10 and draws from streams keyed by (seed, trial i) only, so results
-do not depend on how trials are batched.
+online Sarsa and no evolution; sensors break at the fault step t' (a fixed set, or k drawn per
+trial). ε/α are the fixed values before t' and, with the "changing" schedule, follow Eq. 4.3-4.4
+from t' on. Trial i starts at start pose i mod 10 and draws from streams keyed by (seed, trial i)
+only, so a trial's life does not depend on its batch. Trials run in worlds of a fixed split
+(`trial_worlds`), which worker processes share out: results are identical for any worker count.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+import multiprocessing
 import re
+import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 import gnp
 import sim
 from app.config import ImplementationSettings
-from app.recording import TrajectoryRecorder
+from app.recording import Trajectory, TrajectoryRecorder
+from app.rollout import Batch, rollout
+from app.seeds import broken_sensor_draws, trial_seeds
 from app.store import (
     Implementation,
     RunFileError,
@@ -27,10 +37,12 @@ from app.store import (
     add_implementation,
 )
 
-_TAG_TRIAL = 4
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
+TRIALS_PER_WORLD = 500
+"""Trials simulated in one world: the unit of work a worker process takes."""
+_PROGRESS_EVERY = 50  # steps between progress reports
 
-StepProgress = Callable[[int, int], None]  # (steps done, total steps)
+StepProgress = Callable[[int, int], None]  # (trial-steps done, total trial-steps)
 
 
 class ImplementationError(ValueError):
@@ -52,22 +64,12 @@ def default_name(settings: ImplementationSettings) -> str:
     if settings.broken_sensors:
         sensors = "-".join(str(s) for s in settings.broken_sensors)
         fault = f"break-{sensors}-{settings.fault_mode}"
+    elif settings.break_count:
+        fault = f"break-{settings.break_count}-random-{settings.fault_mode}"
     else:
         fault = "no-fault"
     noise = f"-noise{settings.noise_sigma:g}" if settings.noise_sigma else ""
     return f"{fault}-{settings.schedule}{noise}"
-
-
-def trial_seeds(seed: int, trials: int) -> tuple[np.ndarray, np.ndarray]:
-    """(world seeds, engine seeds), (trials,) uint64 each, keyed by (seed, trial index)."""
-    states = np.array(
-        [
-            np.random.SeedSequence([seed, _TAG_TRIAL, i]).generate_state(2, np.uint64)
-            for i in range(trials)
-        ],
-        dtype=np.uint64,
-    ).reshape(trials, 2)
-    return states[:, 0] >> np.uint64(1), states[:, 1] >> np.uint64(1)
 
 
 def epsilon_alpha_at(settings: ImplementationSettings, t: int) -> tuple[float, float]:
@@ -80,6 +82,179 @@ def epsilon_alpha_at(settings: ImplementationSettings, t: int) -> tuple[float, f
     )
 
 
+def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) ε and (T,) α of every step."""
+    rates = np.array([epsilon_alpha_at(settings, t) for t in range(settings.steps)])
+    return rates[:, 0], rates[:, 1]
+
+
+def faults(settings: ImplementationSettings, seed: int, trials: np.ndarray) -> list[sim.Fault]:
+    """The scheduled faults of `trials` (indices into the phase's trials, one per robot)."""
+    if settings.broken_sensors:
+        return [sim.Fault(settings.fault_step, settings.broken_sensors, settings.fault_mode)]
+    if not settings.break_count:
+        return []
+    draws = broken_sensor_draws(seed, trials, settings.break_count, sim.N_SENSORS)
+    sets, robots = np.unique(draws, axis=0, return_inverse=True)
+    return [
+        sim.Fault(
+            settings.fault_step,
+            tuple(int(s) for s in sensors),
+            settings.fault_mode,
+            robots=tuple(int(r) for r in np.flatnonzero(robots.ravel() == i)),
+        )
+        for i, sensors in enumerate(sets)
+    ]
+
+
+def trial_worlds(trials: int, recorded: int) -> list[slice]:
+    """The fixed split of the trials into worlds: the recorded ones (traced) on their own, the
+    rest in worlds of at most TRIALS_PER_WORLD. It depends on the settings only."""
+    parts = [slice(0, recorded)] if recorded else []
+    rest = trials - recorded
+    count = math.ceil(rest / TRIALS_PER_WORLD)
+    bounds = recorded + np.linspace(0, rest, count + 1).round().astype(int)
+    return parts + [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+
+
+@dataclass(frozen=True)
+class _Part:
+    """What the trials of one world earned."""
+
+    step_reward_sums: np.ndarray  # (T,)
+    trial_sums: np.ndarray  # (n,) reward summed over the whole life
+    trial_sums_after: np.ndarray  # (n,) from the fault step on
+    trajectory: Trajectory | None
+
+
+def _live_trials(
+    cfg: gnp.GnpConfig,
+    individual: gnp.Population,
+    settings: ImplementationSettings,
+    seed: int,
+    control_period: float,
+    part: slice,
+    record: bool,
+    progress: Callable[[int], None],
+) -> _Part:
+    """The lives of trials `part` in one world."""
+    arena = sim.load_arena(settings.arena)
+    trials = np.arange(part.start, part.stop)
+    start_index = trials % len(arena.start_poses)
+    world_seeds, engine_seeds = trial_seeds(seed, trials)
+    world = sim.World(
+        arena,
+        n=len(trials),
+        seed=seed,
+        noise_sigma=settings.noise_sigma,
+        control_period=control_period,
+    )
+    world.reset(arena.start_poses[start_index], seeds=world_seeds)
+    world.schedule_faults(faults(settings, seed, trials))
+    batch = Batch(world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds)
+    steps = settings.steps
+    recorder = TrajectoryRecorder(len(trials), steps, cfg.max_visits_per_step) if record else None
+    epsilon, alpha = epsilon_alpha_per_step(settings)
+    fault_step = min(settings.fault_step, steps)
+    bounds = sorted({*range(0, steps, _PROGRESS_EVERY), fault_step, steps})
+    per_step = np.zeros(steps)
+    before, after = np.zeros(len(trials)), np.zeros(len(trials))
+    for a, b in itertools.pairwise(bounds):
+        block = rollout(batch, b - a, epsilon[a:b], alpha[a:b], recorder=recorder)
+        per_step[a:b] = block.step_reward_sums
+        (before if b <= fault_step else after)[:] += block.term_sums[:, 0]
+        progress((b - a) * len(trials))
+    return _Part(
+        step_reward_sums=per_step,
+        trial_sums=before + after,
+        trial_sums_after=after,
+        trajectory=recorder.trajectory(start_index) if recorder is not None else None,
+    )
+
+
+_progress_counter: Any = None  # a worker process's shared count of trial-steps done
+
+
+def _init_worker(counter: Any) -> None:
+    global _progress_counter
+    _progress_counter = counter
+
+
+def _count(done: int) -> None:
+    with _progress_counter.get_lock():
+        _progress_counter.value += done
+
+
+def _worker_live_trials(
+    cfg_json: str,
+    arrays: dict[str, np.ndarray],
+    settings_json: str,
+    seed: int,
+    control_period: float,
+    part: slice,
+    record: bool,
+) -> _Part:
+    cfg = gnp.GnpConfig.model_validate_json(cfg_json)
+    settings = ImplementationSettings.model_validate_json(settings_json)
+    individual = gnp.population_from_arrays(cfg, arrays)
+    return _live_trials(cfg, individual, settings, seed, control_period, part, record, _count)
+
+
+def _live_all(
+    cfg: gnp.GnpConfig,
+    individual: gnp.Population,
+    settings: ImplementationSettings,
+    seed: int,
+    control_period: float,
+    parts: list[slice],
+    recorded: int,
+    workers: int,
+    progress: StepProgress,
+) -> list[_Part]:
+    """Every world's trials, in this process or shared out over `workers` processes."""
+    total = parts[-1].stop * settings.steps
+    if workers <= 1 or len(parts) == 1:
+        done = 0
+        results = []
+        for part in parts:
+
+            def count(steps: int) -> None:
+                nonlocal done
+                done += steps
+                progress(done, total)
+
+            record = part.start == 0 and recorded > 0
+            results.append(
+                _live_trials(cfg, individual, settings, seed, control_period, part, record, count)
+            )
+        return results
+    context = multiprocessing.get_context("spawn")
+    counter = context.Value("q", 0)
+    arrays = gnp.population_to_arrays(individual)
+    with ProcessPoolExecutor(
+        min(workers, len(parts)), context, initializer=_init_worker, initargs=(counter,)
+    ) as pool:
+        futures = [
+            pool.submit(
+                _worker_live_trials,
+                cfg.model_dump_json(),
+                arrays,
+                settings.model_dump_json(),
+                seed,
+                control_period,
+                part,
+                part.start == 0 and recorded > 0,
+            )
+            for part in parts
+        ]
+        while not all(future.done() for future in futures):
+            time.sleep(0.1)
+            progress(int(counter.value), total)
+        results = [future.result() for future in futures]
+    progress(total, total)
+    return results
+
+
 def run_implementation(
     cfg: gnp.GnpConfig,
     individual: gnp.Population,
@@ -89,67 +264,58 @@ def run_implementation(
     control_period: float,
     name: str,
     generation: int,
+    workers: int = 1,
     progress: StepProgress | None = None,
 ) -> Implementation:
-    """Implement a 1-individual population; returns the results (nothing is written)."""
+    """Implement a 1-individual population; returns the results (nothing is written).
+
+    `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
+    process, such as a Dask worker); results are identical for any count.
+    """
     arena = sim.load_arena(settings.arena)
     n_starts = len(arena.start_poses)
     trials = n_starts * settings.repeats
-    start_index = np.arange(trials) % n_starts
-    world_seeds, engine_seeds = trial_seeds(seed, trials)
-    pop = gnp.take(individual, np.zeros(trials, dtype=np.int64))
-    world = sim.World(
-        arena,
-        n=trials,
-        seed=seed,
-        noise_sigma=settings.noise_sigma,
-        control_period=control_period,
+    recorded = min(settings.recorded_trials, trials)
+    parts = trial_worlds(trials, recorded)
+    results = _live_all(
+        cfg,
+        individual,
+        settings,
+        seed,
+        control_period,
+        parts,
+        recorded,
+        workers,
+        progress or (lambda done, total: None),
     )
-    world.reset(arena.start_poses[start_index], seeds=world_seeds)
-    if settings.broken_sensors:
-        world.schedule_faults(
-            [
-                sim.Fault(
-                    step=settings.fault_step,
-                    sensors=settings.broken_sensors,
-                    mode=settings.fault_mode,
-                )
-            ]
-        )
-    state = gnp.init_state(cfg, trials, engine_seeds)
-    k = min(settings.recorded_trials, trials)
     steps = settings.steps
-    rewards = np.zeros((trials, steps))
-    recorder = TrajectoryRecorder(k, steps, cfg.max_visits_per_step)
-    reward = np.zeros(trials)
-    for t in range(steps):
-        epsilon, alpha = epsilon_alpha_at(settings, t)
-        seen = world.observe()
-        commands, trace = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha, trace=True)
-        world.step(commands)
-        true_readings = world.sense()
-        terms = sim.reward_terms(true_readings, commands)
-        reward = terms["reward"]
-        rewards[:, t] = reward
-        if k:
-            recorder.record(t, world.poses, true_readings, seen, commands, terms, trace)
-        if progress is not None:
-            progress(t + 1, steps)
-    after = rewards[:, settings.fault_step :] if settings.fault_step < steps else rewards[:, :0]
-    after_mean = after.mean(axis=1) if after.shape[1] else np.full(trials, np.nan)
-    recorded = recorder.trajectory(start_index)
+    after_steps = steps - min(settings.fault_step, steps)
+    trial_mean = np.concatenate([r.trial_sums for r in results]) / steps
+    after_mean = (
+        np.concatenate([r.trial_sums_after for r in results]) / after_steps
+        if after_steps
+        else np.full(trials, np.nan)
+    )
+    per_step = np.zeros(steps)
+    for result in results:  # in the fixed order of the worlds: the same sums for any workers
+        per_step += result.step_reward_sums
+    trajectory = results[0].trajectory if recorded else None
+    if trajectory is None:
+        trajectory = TrajectoryRecorder(0, steps, cfg.max_visits_per_step).trajectory(
+            np.zeros(0, np.int64)
+        )
     return Implementation(
         name=name,
         settings=settings,
         generation=generation,
-        reward_per_step=rewards.mean(axis=0),
-        trial_mean_reward=rewards.mean(axis=1),
+        reward_per_step=per_step / trials,
+        trial_mean_reward=trial_mean,
         trial_mean_after_fault=after_mean,
-        start_index=start_index,
-        mean_reward=float(rewards.mean()),
+        start_index=np.arange(trials) % n_starts,
+        mean_reward=float(trial_mean.mean()),
         mean_after_fault=float(after_mean.mean()),
-        trials=recorded,
-        recorded=np.arange(k),
+        trials=trajectory,
+        recorded=np.arange(recorded),
     )
 
 
@@ -158,6 +324,7 @@ def implement(
     settings: ImplementationSettings,
     name: str | None = None,
     progress: StepProgress | None = None,
+    workers: int = 1,
 ) -> Implementation:
     """Implement a run's trained individual and store the result as `implementation/<name>`.
 
@@ -192,6 +359,7 @@ def implement(
         control_period=control_period,
         name=name,
         generation=generation,
+        workers=workers,
         progress=progress,
     )
     add_implementation(run_path, result)

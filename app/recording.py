@@ -40,6 +40,7 @@ class TrajectoryRecorder:
 
     def __init__(self, k: int, steps: int, visits: int) -> None:
         self.k = k
+        self._t = 0  # the next step to record
         self._arrays = {
             "poses": np.zeros((k, steps, 3)),
             "readings": np.zeros((k, steps, sim.N_SENSORS)),
@@ -56,7 +57,6 @@ class TrajectoryRecorder:
 
     def record(
         self,
-        t: int,
         poses: np.ndarray,
         readings: np.ndarray,
         observations: np.ndarray,
@@ -64,8 +64,8 @@ class TrajectoryRecorder:
         terms: dict[str, np.ndarray],
         trace: gnp.StepTrace,
     ) -> None:
-        """Step t of the batch: arrays with a leading batch axis, `trace` a gnp.StepTrace."""
-        k = self.k
+        """The next step of the batch: arrays with a leading batch axis."""
+        k, t = self.k, self._t
         a = self._arrays
         a["poses"][:, t] = poses[:k]
         a["readings"][:, t] = readings[:k]
@@ -74,6 +74,7 @@ class TrajectoryRecorder:
         a["terms"][:, t] = np.stack([terms[name][:k] for name in sim.TERM_NAMES], axis=1)
         for field, values in self._trace.items():
             values[:, t] = getattr(trace, field)[:k]
+        self._t = t + 1
 
     def trajectory(self, start_index: np.ndarray) -> Trajectory:
         """The recorded lives; `start_index` (k,) is each life's (first) start pose."""

@@ -30,13 +30,12 @@ import gnp
 import sim
 from app.config import RunConfig, TrainingSettings
 from app.recording import Trajectory, TrajectoryRecorder
+from app.rollout import Batch, rollout
+from app.seeds import LifeSeeds, evolution_rng, init_rng, life_seeds, n_segments
 from app.store import (
     RunTemplate,
     RunWriter,
 )
-
-# Purpose tags mixed into every SeedSequence so different uses never share a stream.
-_TAG_INIT, _TAG_LIFE, _TAG_EVOLVE = 1, 2, 3
 
 
 class TrainingError(RuntimeError):
@@ -51,55 +50,11 @@ class Interrupted(Exception):
         self.generations_done = generations_done
 
 
-# --- seeds ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class LifeSeeds:
-    """Random inputs of N lives: all drawn per individual, none from a batch position."""
-
-    world: np.ndarray  # (N,) uint64 seed of each robot's stream (noise, faults)
-    engine: np.ndarray  # (N,) uint64 seed of each controller's stream
-    starts: np.ndarray  # (N, S) start pose index of each of the S segments of a life
-
-    def take(self, sl: slice) -> LifeSeeds:
-        return LifeSeeds(self.world[sl], self.engine[sl], self.starts[sl])
-
-
-def n_segments(steps: int, redraw_every: int) -> int:
-    """How many start poses a life of `steps` uses when redrawn every `redraw_every` steps."""
-    return 1 if redraw_every <= 0 else math.ceil(steps / redraw_every)
-
-
-def life_seeds(
-    seed: int, generation: int, indices: np.ndarray, segments: int, n_starts: int
-) -> LifeSeeds:
-    """Seeds of individuals `indices` of `generation`, keyed by (seed, generation, index)."""
-    states = np.array(
-        [
-            np.random.SeedSequence([seed, _TAG_LIFE, generation, int(i)]).generate_state(
-                2 + segments, np.uint64
-            )
-            for i in indices
-        ],
-        dtype=np.uint64,
-    ).reshape(len(indices), 2 + segments)
-    return LifeSeeds(
-        world=states[:, 0] >> np.uint64(1),
-        engine=states[:, 1] >> np.uint64(1),
-        starts=(states[:, 2:] % np.uint64(n_starts)).astype(np.int64),
-    )
-
-
-def evolution_rng(seed: int, generation: int) -> np.random.Generator:
-    """The Generator evolution uses after `generation`."""
-    return np.random.default_rng(np.random.SeedSequence([seed, _TAG_EVOLVE, generation]))
-
-
 def initial_population(config: RunConfig) -> gnp.Population:
     """Generation 0, drawn from (seed, init)."""
-    rng = np.random.default_rng(np.random.SeedSequence([config.seed, _TAG_INIT]))
-    return gnp.init_population(config.controller.gnp_config(), config.training.population, rng)
+    return gnp.init_population(
+        config.controller.gnp_config(), config.training.population, init_rng(config.seed)
+    )
 
 
 # --- one batch of lives ---------------------------------------------------------------------
@@ -130,31 +85,19 @@ def live(
     next start pose every `redraw_every` steps and the controller starts a new episode (its Q
     tables, random stream and the world's streams carry on).
     """
-    n = pop.size
-    start_poses = world.arena.start_poses
-    state = gnp.init_state(cfg, n, seeds.engine)
-    world.reset(start_poses[seeds.starts[:, 0]], seeds=seeds.world)
-    reward = np.zeros(n)
-    sums = np.zeros((n, len(sim.TERM_NAMES)))
-    recorder = TrajectoryRecorder(n, steps, cfg.max_visits_per_step) if record else None
-    for t in range(steps):
-        if redraw_every > 0 and t > 0 and t % redraw_every == 0:
-            world.place(start_poses[seeds.starts[:, t // redraw_every]])
-            gnp.reset_episode(state)
-            reward = np.zeros(n)
-        seen = world.observe()
-        if recorder is not None:
-            commands, trace = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha, trace=True)
-        else:
-            commands = gnp.step(cfg, pop, state, seen, reward, epsilon, alpha)
-        world.step(commands)
-        true_readings = world.sense()
-        terms = sim.reward_terms(true_readings, commands)
-        reward = terms["reward"]
-        sums += np.stack([terms[name] for name in sim.TERM_NAMES], axis=1)
-        if recorder is not None:
-            recorder.record(t, world.poses, true_readings, seen, commands, terms, trace)
-    means = sums / steps
+    world.reset(world.arena.start_poses[seeds.starts[:, 0]], seeds=seeds.world)
+    batch = Batch(world, cfg, pop, seeds.engine)
+    recorder = TrajectoryRecorder(pop.size, steps, cfg.max_visits_per_step) if record else None
+    outcome = rollout(
+        batch,
+        steps,
+        epsilon,
+        alpha,
+        recorder=recorder,
+        episode_starts=seeds.starts,
+        redraw_every=redraw_every,
+    )
+    means = outcome.term_sums / steps
     lives = Lives(fitness=means[:, 0].copy(), terms=means)
     if recorder is None:
         return lives, None

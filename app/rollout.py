@@ -1,0 +1,153 @@
+"""The lab's loop: observe → controller → world → true readings → reward, for a batch of robots.
+
+Every phase steps robots through this one loop: training lives, the implementation phase, the
+dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
+with N controllers (a `gnp.Population` and its engine state); `rollout` advances it T steps with
+ε/α given per step, optionally recording the first robots' lives.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import gnp
+import sim
+from app.recording import TrajectoryRecorder
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What one step of a batch did; arrays have the batch's leading axis N."""
+
+    observations: np.ndarray  # (N, 8) what the controllers saw (noise, faults)
+    commands: np.ndarray  # (N, 2) left, right wheel commands
+    readings: np.ndarray  # (N, 8) true readings after the step
+    terms: dict[str, np.ndarray]  # reward term name -> (N,)
+    trace: gnp.StepTrace | None  # what each controller visited, when traced
+
+
+class Batch:
+    """N robots in one world, each driven by its own controller (row i of `population`).
+
+    The reward of a step is fed to the controllers at the next one (Sarsa's r_t); a new episode
+    resets it, with the controllers' walks, and keeps Q tables and random streams.
+    """
+
+    def __init__(
+        self,
+        world: sim.World,
+        cfg: gnp.GnpConfig,
+        population: gnp.Population,
+        engine_seeds: np.ndarray,
+    ) -> None:
+        if population.size != world.n:
+            raise ValueError(f"{population.size} controllers for {world.n} robots")
+        self.world = world
+        self.cfg = cfg
+        self.population = population
+        self.state = gnp.init_state(cfg, world.n, engine_seeds)
+        self.reward = np.zeros(world.n)
+
+    @property
+    def size(self) -> int:
+        return self.world.n
+
+    def new_episode(self, poses: np.ndarray) -> None:
+        """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
+        self.world.place(poses)
+        gnp.reset_episode(self.state)
+        self.reward = np.zeros(self.size)
+
+    def step(
+        self, epsilon: float, alpha: float, *, learn: bool = True, trace: bool = False
+    ) -> StepRecord:
+        """One control step of every robot."""
+        seen = self.world.observe()
+        step_trace = None
+        if trace:
+            commands, step_trace = gnp.step(
+                self.cfg,
+                self.population,
+                self.state,
+                seen,
+                self.reward,
+                epsilon,
+                alpha,
+                learn,
+                trace=True,
+            )
+        else:
+            commands = gnp.step(
+                self.cfg, self.population, self.state, seen, self.reward, epsilon, alpha, learn
+            )
+        self.world.step(commands)
+        readings = self.world.sense()
+        terms = sim.reward_terms(readings, commands)
+        self.reward = terms["reward"]
+        return StepRecord(seen, commands, readings, terms, step_trace)
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """What T steps of a batch earned."""
+
+    term_sums: np.ndarray  # (N, len(sim.TERM_NAMES)) each reward term summed over the steps
+    step_reward_sums: np.ndarray  # (T,) reward of each step summed over the batch
+
+
+def rates(value: float | np.ndarray, steps: int) -> np.ndarray:
+    """ε or α per step: a constant, or an array of one value per step."""
+    per_step = np.broadcast_to(np.asarray(value, dtype=np.float64), (steps,))
+    return per_step
+
+
+def rollout(
+    batch: Batch,
+    steps: int,
+    epsilon: float | np.ndarray,
+    alpha: float | np.ndarray,
+    *,
+    learn: bool = True,
+    recorder: TrajectoryRecorder | None = None,
+    episode_starts: np.ndarray | None = None,
+    redraw_every: int = 0,
+) -> Rollout:
+    """Advance `batch` by `steps` control steps.
+
+    Args:
+        batch: the robots and controllers; their state carries on from call to call.
+        steps: how many steps.
+        epsilon, alpha: ε and α, constant or (steps,) per step.
+        learn: online Sarsa on (Q tables change in place).
+        recorder: records the first `recorder.k` robots' steps (appended to what it holds).
+        episode_starts: (N, S) start poses of each robot's episodes, with `redraw_every` > 0:
+            every `redraw_every` steps the robots move to their next start pose.
+        redraw_every: episode length in steps (0: one episode).
+    """
+    eps, alp = rates(epsilon, steps), rates(alpha, steps)
+    names = sim.TERM_NAMES
+    sums = np.zeros((batch.size, len(names)))
+    per_step = np.zeros(steps)
+    trace = recorder is not None
+    poses = batch.world.arena.start_poses
+    for t in range(steps):
+        if redraw_every > 0 and t > 0 and t % redraw_every == 0:
+            assert episode_starts is not None
+            batch.new_episode(poses[episode_starts[:, t // redraw_every]])
+        record = batch.step(float(eps[t]), float(alp[t]), learn=learn, trace=trace)
+        for column, name in enumerate(names):
+            sums[:, column] += record.terms[name]
+        per_step[t] = record.terms["reward"].sum()
+        if recorder is not None:
+            assert record.trace is not None
+            recorder.record(
+                batch.world.poses,
+                record.readings,
+                record.observations,
+                record.commands,
+                record.terms,
+                record.trace,
+            )
+    return Rollout(term_sums=sums, step_reward_sums=per_step)
