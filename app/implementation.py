@@ -74,17 +74,13 @@ def default_name(settings: ImplementationSettings) -> str:
 
 def epsilon_alpha_at(settings: ImplementationSettings, t: int) -> tuple[float, float]:
     """(ε, α) at step t: fixed before the fault step, then the configured schedule."""
-    if settings.schedule == "fixed" or t < settings.fault_step:
-        return settings.epsilon, settings.alpha
-    eps_schedule, alpha_schedule = settings.schedules()
-    return gnp.epsilon_alpha_after_fault(
-        eps_schedule, alpha_schedule, t, settings.fault_step, settings.steps
-    )
+    return settings.learning().rates(t, settings.fault_step)
 
 
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
     """(T,) ε and (T,) α of every step."""
-    rates = np.array([epsilon_alpha_at(settings, t) for t in range(settings.steps)])
+    learning = settings.learning()
+    rates = np.array([learning.rates(t, settings.fault_step) for t in range(settings.steps)])
     return rates[:, 0], rates[:, 1]
 
 

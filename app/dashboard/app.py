@@ -542,8 +542,14 @@ class Dashboard:
         horizon = whole(self.schedule_horizon.value, "T − t'", 1, 10**6)
         learning = LearningSettings(
             online=bool(self.learn_checkbox.value),
-            epsilon=gnp.Schedule(max=eps_max, min=eps_min, n=n),
-            alpha=gnp.Schedule(max=alpha_max, min=alpha_min, n=n),
+            epsilon=eps_max,
+            alpha=alpha_max,
+            after_fault=(
+                gnp.Schedule(max=eps_max, min=eps_min, n=n),
+                gnp.Schedule(max=alpha_max, min=alpha_min, n=n),
+            )
+            if scheduled
+            else None,
             horizon=horizon,
         )
         self.learning = learning
