@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+import gnp
+import sim
 from app.config import (
     PRESET_NAMES,
     ConfigError,
@@ -92,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
-    train.add_argument("--method", choices=("RL", "BS", "CS"), help="learning method")
+    train.add_argument("--method", choices=gnp.METHODS, help="learning method")
     fuzzy = train.add_mutually_exclusive_group()
     fuzzy.add_argument(
         "--fuzzy", dest="fuzzy", action="store_true", default=None, help="fuzzy judgment"
@@ -145,7 +147,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S,S",
         help="sensors 0..7 that break ('none' for no fault)",
     )
-    implement.add_argument("--mode", choices=("dead", "saturated", "stuck", "random"))
+    implement.add_argument(
+        "--break-count",
+        type=int,
+        metavar="K",
+        help="K sensors that break, drawn per trial from its own seeded stream",
+    )
+    implement.add_argument("--mode", choices=sim.FAULT_MODES)
     implement.add_argument("--fault-step", type=int, metavar="T", help="step t' of the fault")
     implement.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
     implement.add_argument("--repeats", type=int, help="trials per start pose")
@@ -157,6 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
     implement.add_argument("--seed", type=int, help="random seed (default: the run's)")
     implement.add_argument("--name", help="name of the result in the run file")
     implement.add_argument("--quiet", action="store_true", help="no progress bar")
+    implement.add_argument(
+        "--workers",
+        type=int,
+        help="worker processes sharing the trials (default: one per core; results do not "
+        "depend on it)",
+    )
 
     runs = commands.add_parser("runs", help="list run files, or inspect one")
     runs.add_argument("name", nargs="?", metavar="NAME", help="a run to inspect")
@@ -271,6 +285,16 @@ class _GenerationBar(_Bar):
         )
 
 
+def _workers(option: int | None) -> int:
+    """--workers: default one per core, at least 1."""
+    from app.training import default_workers
+
+    workers = option if option is not None else default_workers()
+    if workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {workers}")
+    return workers
+
+
 def _interrupted(stop: Exception, path: Path) -> int:
     sys.stderr.write(f"{PROG}: interrupted: {stop}; continue with: {PROG} train --resume {path}\n")
     return EXIT_INTERRUPTED
@@ -279,9 +303,7 @@ def _interrupted(stop: Exception, path: Path) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from app import training
 
-    workers = args.workers if args.workers is not None else training.default_workers()
-    if workers < 1:
-        raise UsageError(f"--workers must be at least 1, got {workers}")
+    workers = _workers(args.workers)
     if args.resume:
         given = [f"--{name}" for name in _CONFIG_OPTIONS if getattr(args, name) is not None]
         given += ["--set"] if args.assignments else []
@@ -335,6 +357,7 @@ def cmd_implement(args: argparse.Namespace) -> int:
     changes: dict[str, Any] = {}
     for option, key in (
         ("broken", "broken_sensors"),
+        ("break_count", "break_count"),
         ("mode", "fault_mode"),
         ("fault_step", "fault_step"),
         ("steps", "steps"),
@@ -346,19 +369,26 @@ def cmd_implement(args: argparse.Namespace) -> int:
     ):
         if getattr(args, option) is not None:
             changes[key] = getattr(args, option)
+    # A fixed set and k random sensors exclude each other: the option given replaces the other.
+    if args.broken is not None and args.break_count is None:
+        changes["break_count"] = 0
+    if args.break_count is not None and args.broken is None:
+        changes["broken_sensors"] = ()
     config = build_config(
         {"implementation": stored.model_dump()},
         {"implementation": changes},
         source="implementation options",
     )
     settings: ImplementationSettings = config.implementation
-    bar = _Bar(settings.steps, 0, "implement", "step", args.quiet)
+    workers = _workers(args.workers)
+    trial_steps = sim.N_START_POSES * settings.repeats * settings.steps
+    bar = _Bar(trial_steps, 0, "implement", "trial-step", args.quiet)
 
     def progress(done: int, total: int) -> None:
         bar.update(done)
 
     try:
-        result = implement(path, settings, name=args.name, progress=progress)
+        result = implement(path, settings, name=args.name, progress=progress, workers=workers)
     finally:
         bar.close()
     print(
