@@ -131,7 +131,7 @@ class LiveRobot:
         self._rates = (epsilon, alpha)
         record = self._batch.step(epsilon, alpha, learn=learning.online, trace=True)
         assert record.trace is not None
-        reward = float(record.terms["reward"][0])
+        reward = float(record.reward[0])
         self._seen = record.observations
         self._record_trace(record.trace)
         self._trajectory.append(self.world.poses[0, :2])

@@ -61,17 +61,18 @@ class TrajectoryRecorder:
         readings: np.ndarray,
         observations: np.ndarray,
         commands: np.ndarray,
-        terms: dict[str, np.ndarray],
+        term_table: np.ndarray,
         trace: gnp.StepTrace,
     ) -> None:
-        """The next step of the batch: arrays with a leading batch axis."""
+        """The next step of the batch: arrays with a leading batch axis (`term_table`'s
+        columns are `sim.TERM_NAMES`)."""
         k, t = self.k, self._t
         a = self._arrays
         a["poses"][:, t] = poses[:k]
         a["readings"][:, t] = readings[:k]
         a["observations"][:, t] = observations[:k]
         a["commands"][:, t] = commands[:k]
-        a["terms"][:, t] = np.stack([terms[name][:k] for name in sim.TERM_NAMES], axis=1)
+        a["terms"][:, t] = term_table[:k]
         for field, values in self._trace.items():
             values[:, t] = getattr(trace, field)[:k]
         self._t = t + 1
