@@ -201,6 +201,7 @@ def compare(
     direction: Direction,
     rng: np.random.Generator,
     resamples: int = BOOTSTRAP_RESAMPLES,
+    names: tuple[str, str] = ("arm a", "arm b"),
 ) -> PairStats:
     """Every statistic of the claim "a is `direction` than b", one value per run.
 
@@ -210,6 +211,7 @@ def compare(
         direction: "greater" or "less".
         rng: the bootstrap's only source of randomness.
         resamples: bootstrap resamples.
+        names: the arms' names, for the notes.
 
     Returns:
         The claim's statistics, with notes on anything dropped or degenerate.
@@ -218,14 +220,17 @@ def compare(
     b, dropped_b = finite_values(b_values)
     summary_a, summary_b = summarise(a_values), summarise(b_values)
     notes = [
-        f"{dropped} unfinished run(s) of arm {arm} dropped"
-        for arm, dropped in (("a", dropped_a), ("b", dropped_b))
+        f"{dropped} unfinished run(s) of {arm} dropped"
+        for arm, dropped in zip(names, (dropped_a, dropped_b), strict=True)
         if dropped
     ]
     difference = summary_a.mean - summary_b.mean  # NaN when an arm has no value
     prob = probability_of_improvement(a, b, direction) if a.size and b.size else math.nan
     if a.size < 2 or b.size < 2:
-        notes.append(f"fewer than 2 finite values in an arm (a: {a.size}, b: {b.size}): no test")
+        notes.append(
+            f"fewer than 2 finite values in an arm ({names[0]}: {a.size}, {names[1]}: {b.size}): "
+            "no test"
+        )
         return PairStats(direction, summary_a, summary_b, difference, prob, tuple(notes))
     if np.ptp(a) == 0 and np.ptp(b) == 0:
         notes.append("both arms constant: t-test and effect size at their zero-variance limit")
