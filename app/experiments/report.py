@@ -37,6 +37,7 @@ from app.experiments.stats import (
     PairStats,
     compare,
     judge_claims,
+    summarise,
 )
 
 REPORT_SEED = 0  # the bootstrap's seed when `write_report` is given no generator
@@ -94,6 +95,15 @@ def _thesis_value(
     )
 
 
+def _thesis_beside_ours(results: ExperimentResults) -> list[tuple[ThesisValue, ArmSummary]]:
+    """Each of the thesis's numbers with our summary of the same arm, metric and condition."""
+    missing = np.full(len(results.seeds), np.nan)
+    return [
+        (v, summarise(results.scalars.get((v.metric, v.arm, v.condition or ""), missing)))
+        for v in results.thesis
+    ]
+
+
 def analyse(
     results: ExperimentResults,
     rng: np.random.Generator,
@@ -116,8 +126,8 @@ def analyse(
     missing = np.full(len(results.seeds), np.nan)
     pairs = []
     for c in results.comparisons:
-        if c.a not in arms or c.b not in arms:
-            raise ValueError(f"comparison {c.name!r} names an arm not in the experiment")
+        if c.a not in arms or c.b not in arms or (c.condition and c.condition not in conditions):
+            raise ValueError(f"comparison {c.name!r} names an arm or condition not in the results")
         pairs.append(
             compare(
                 results.scalars.get((c.metric, c.a, c.condition or ""), missing),
@@ -237,8 +247,9 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
                 "condition": v.condition,
                 "value": v.value,
                 "source": v.source,
+                "ours": {"mean": json_number(ours.mean), "sd": json_number(ours.sd), "n": ours.n},
             }
-            for v in results.thesis
+            for v, ours in _thesis_beside_ours(results)
         ],
     }
 
@@ -289,10 +300,6 @@ def _verdict_html(verdict: str) -> str:
 def _row(*cells: str, header: bool = False) -> str:
     tag = "th" if header else "td"
     return "<tr>" + "".join(f"<{tag}>{cell}</{tag}>" for cell in cells) + "</tr>"
-
-
-def _num(x: float | None) -> str:
-    return f'<td class="num">{_e(format_number(x))}</td>'
 
 
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
@@ -360,11 +367,26 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
     )
     summary = "".join(
         _row(_e(c.comparison.name), _e(c.sentence), _e(c.comparison.source),
-             _verdict_html(c.claim.verdict))
+             _e(format_number(c.claim.holm_p)), _verdict_html(c.claim.verdict))
         for c in report.comparisons
     )  # fmt: skip
+    thesis_rows = "".join(
+        _row(_e(v.arm), _e(METRICS[v.metric].label if v.metric in METRICS else v.metric),
+             _e(v.condition or "–"), _e(f"{format_number(v.value)} ({v.source})"),
+             _e(f"{format_number(ours.mean)} ± {format_number(ours.sd)} (n = {ours.n})"))
+        for v, ours in _thesis_beside_ours(results)
+    )  # fmt: skip
+    thesis_header = _row(
+        "arm", "metric", "condition", "thesis", "ours: mean ± sd over runs", header=True
+    )
+    thesis_section = (
+        f"<h2>The thesis's numbers beside ours</h2><table>{thesis_header}{thesis_rows}</table>"
+        if thesis_rows
+        else ""
+    )
     conditions = "".join(
-        _row(_e(c.name), _e(c.label), str(c.steps), _e(c.fault_step or "–"),
+        _row(_e(c.name), _e(c.label), str(c.steps),
+             "–" if c.fault_step is None else str(c.fault_step),
              str(c.broken_count), format_number(c.noise_sigma))
         for c in results.conditions
     )  # fmt: skip
@@ -397,7 +419,9 @@ comparison(s). Verdict: <i>held</i> if the adjusted p in the claimed direction i
 {report.alpha:g}, <i>reversed</i> if the adjusted p in the other direction is, else
 <i>not shown</i>. Unfinished runs (NaN) are left out and counted.</p>
 <h2>Verdicts</h2>
-<table>{_row("comparison", "claim", "thesis source", "verdict", header=True)}{summary}</table>
+<table>{_row("comparison", "claim", "claimed in", "Holm p", "verdict", header=True)}{summary}
+</table>
+{thesis_section}
 <h2>Comparisons</h2>{comparisons}
 <h2>Figures</h2>{other_figures or "<p>No curves were recorded.</p>"}
 <h2>Conditions</h2>

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from app.experiments.figures import mean_and_ci, moving_average, smoothing_window
 from app.experiments.report import analyse, format_number, to_json, write_report
 from app.experiments.results import (
     Arm,
@@ -82,7 +83,7 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[ExperimentResults
 
 def sections(page: str) -> list[str]:
     """The page's comparison sections, in order."""
-    return page.split("<h3>")[1:]
+    return [part.split("<h2>")[0] for part in page.split("<h3>")[1:]]
 
 
 def test_json_means_are_the_means_of_the_runs() -> None:
@@ -204,3 +205,43 @@ def test_the_bootstrap_is_seeded(tmp_path: Path) -> None:
     other = to_json(analyse(results, np.random.default_rng(2), resamples=300))
     assert first == again
     assert first["comparisons"][0]["ci"] != other["comparisons"][0]["ci"]
+
+
+def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
+    results = synthetic_results()
+    one_condition = dataclasses.replace(
+        results, conditions=results.conditions[:1], comparisons=results.comparisons[:2]
+    )
+    index = write_report(one_condition, tmp_path)
+    assert "fault.png" not in index.read_text() and not (tmp_path / "fault.png").exists()
+    assert (tmp_path / "reward-0-break1.png").exists()
+
+
+def test_mean_and_ci_is_a_t_interval_over_finite_runs() -> None:
+    samples = np.array([[1.0, 7.0, 5.0], [2.0, np.nan, 5.0], [3.0, np.nan, np.nan]])
+    mean, half_width, n = mean_and_ci(samples)
+    # df = 2: F(t) = 1/2 + t / (2√(2 + t²)) = 0.975 ⇔ t² = 2·0.95² / (1 − 0.95²)
+    t_975 = math.sqrt(2 * 0.95**2 / (1 - 0.95**2))  # ≈ 4.303
+    assert list(n) == [3, 1, 2]
+    assert mean == pytest.approx([2.0, 7.0, 5.0])
+    assert half_width[0] == pytest.approx(t_975 * 1.0 / math.sqrt(3))  # sd = 1
+    assert math.isnan(half_width[1])  # one run: no interval
+    assert half_width[2] == 0.0  # two equal runs
+
+
+def test_moving_average_is_centred_over_the_window() -> None:
+    smoothed = moving_average(np.array([[1.0, 2.0, 3.0, 6.0]]), 2)
+    assert smoothed == pytest.approx(np.array([[1.5, 2.5, 4.5]]))
+    assert smoothing_window(3000) == 50 and smoothing_window(200) == 20
+
+
+def test_the_thesis_numbers_sit_beside_ours(
+    written: tuple[ExperimentResults, Path],
+) -> None:
+    results, index = written
+    (entry,) = json.loads((index.parent / "report.json").read_text())["thesis"]
+    ours = results.scalar("mean_reward_after_fault", "BS", "break1")
+    assert (entry["arm"], entry["value"], entry["source"]) == ("BS", 0.512, "Table 3.4")
+    assert entry["ours"]["mean"] == pytest.approx(np.mean(ours)) and entry["ours"]["n"] == 4
+    table = index.read_text().split("The thesis's numbers beside ours")[1]
+    assert "0.512 (Table 3.4)" in table and format_number(entry["ours"]["mean"]) in table
