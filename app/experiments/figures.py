@@ -216,7 +216,6 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
 def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | None:
     """Each run's value of a comparison's metric for its two arms, with the mean and 95% t-CI."""
     metric = METRICS[comparison.metric]
-    arms = {arm.name: arm for arm in results.arms}
     colours = _arm_colours(results)
     figure = _new_figure(4.0, 3.2)
     axes = figure.add_subplot()
@@ -241,7 +240,7 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
         drawn = drawn or finite.size > 0
     if not drawn:
         return None
-    axes.set_xticks([0, 1], [arms[comparison.a].name, arms[comparison.b].name])
+    axes.set_xticks([0, 1], [comparison.a, comparison.b])
     axes.set_xlim(-0.5, 1.6)
     axes.set(ylabel=metric.label, title=comparison.name)
     axes.title.set_fontsize("medium")
