@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -273,3 +275,27 @@ def test_schedules_after_fault_eq_4_3() -> None:
         gnp.schedule_after_fault(eps, 0, 500, 500)
     with pytest.raises(ValueError, match="min"):
         gnp.Schedule(max=0.1, min=0.2)
+
+
+@pytest.mark.parametrize("method", ["RL", "BS", "CS"])
+def test_copies_taken_joined_and_pickled_populations_keep_their_layout(method: str) -> None:
+    """Block copies of the records (take, concat, copy, pickling to a worker) give the same
+    genes, aligned records whose fields are views, and memory of their own."""
+    cfg = gnp.GnpConfig(method=method)
+    pop = gnp.init_population(cfg, 6, np.random.default_rng(1))
+    pop.q_ss[...] = np.random.default_rng(2).normal(size=pop.q_ss.shape)
+    for other in (
+        pop.copy(),
+        gnp.take(pop, [5, -6, 2]),
+        gnp.concat([gnp.take(pop, [0, 1]), gnp.take(pop, [2, 3, 4, 5])]),
+        pickle.loads(pickle.dumps(pop)),
+    ):
+        expected = arrays_of(gnp.take(gnp.Population(**arrays_of(pop)), [5, 0, 2]))
+        if other.size == 6:
+            expected = arrays_of(pop)
+        assert_same(other, expected)
+        assert other.records.ctypes.data % 64 == 0
+        assert other.records.dtype == pop.records.dtype  # padded to whole cache lines
+        assert not np.shares_memory(other.records, pop.records)
+        other.q_bs[0, 3] = 7.0  # a field write lands in the records the engine reads
+        assert np.all(other.records["q_bs"][0, 3] == 7.0)
