@@ -149,7 +149,7 @@ def _live_trials(
     world.schedule_faults(faults(settings, seed, trials))
     batch = Batch(world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds)
     steps = settings.steps
-    recorder = TrajectoryRecorder(len(trials), steps, cfg.max_visits_per_step) if record else None
+    recorder = TrajectoryRecorder(len(trials), steps, cfg) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)
     fault_step = min(settings.fault_step, steps)
     bounds = sorted({*range(0, steps, _PROGRESS_EVERY), fault_step, steps})
@@ -297,9 +297,7 @@ def run_implementation(
         per_step += result.step_reward_sums
     trajectory = results[0].trajectory if recorded else None
     if trajectory is None:
-        trajectory = TrajectoryRecorder(0, steps, cfg.max_visits_per_step).trajectory(
-            np.zeros(0, np.int64)
-        )
+        trajectory = TrajectoryRecorder(0, steps, cfg).trajectory(np.zeros(0, np.int64))
     return Implementation(
         name=name,
         settings=settings,

@@ -38,7 +38,7 @@ class TrajectoryRecorder:
     the same arrays, dtypes and shapes.
     """
 
-    def __init__(self, k: int, steps: int, visits: int) -> None:
+    def __init__(self, k: int, steps: int, cfg: gnp.GnpConfig) -> None:
         self.k = k
         self._t = 0  # the next step to record
         self._arrays = {
@@ -49,11 +49,9 @@ class TrajectoryRecorder:
             "terms": np.zeros((k, steps, len(sim.TERM_NAMES))),
         }
         self._trace = {
-            field: np.zeros((k, steps, visits), np.int32)
-            for field in gnp.TRACE_FIELDS
-            if field != "count"
+            field: np.zeros((k, steps, *shape), gnp.TRACE_DTYPE)
+            for field, shape in gnp.trace_shapes(cfg).items()
         }
-        self._trace["count"] = np.zeros((k, steps), np.int32)
 
     def record(
         self,

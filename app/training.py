@@ -87,7 +87,7 @@ def live(
     """
     world.reset(world.arena.start_poses[seeds.starts[:, 0]], seeds=seeds.world)
     batch = Batch(world, cfg, pop, seeds.engine)
-    recorder = TrajectoryRecorder(pop.size, steps, cfg.max_visits_per_step) if record else None
+    recorder = TrajectoryRecorder(pop.size, steps, cfg) if record else None
     outcome = rollout(
         batch,
         steps,
@@ -102,17 +102,6 @@ def live(
     if recorder is None:
         return lives, None
     return lives, recorder.trajectory(seeds.starts[:, 0])
-
-
-def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
-    """One step's trace of one controller, (1, ...) per field: the shapes the store needs."""
-    rng = np.random.default_rng(0)
-    pop = gnp.init_population(cfg, 1, rng)
-    state = gnp.init_state(cfg, 1, [0])
-    _, trace = gnp.step(
-        cfg, pop, state, np.zeros((1, 8)), np.zeros(1), 0.0, 0.0, learn=False, trace=True
-    )
-    return {field: np.asarray(getattr(trace, field)) for field in gnp.TRACE_FIELDS}
 
 
 # --- evaluators: in-process or persistent worker processes ------------------------------------
@@ -434,10 +423,18 @@ def _replay(
 
 
 def run_template(config: RunConfig) -> RunTemplate:
-    """The shapes a run file of this config needs."""
+    """The shapes and dtypes a run file of this config needs: one individual's genome and
+    one step's trace of one controller."""
     cfg = config.controller.gnp_config()
-    genome = gnp.population_to_arrays(gnp.init_population(cfg, 1, np.random.default_rng(0)))
-    return RunTemplate(config=config, genome=genome, trace=trace_template(cfg))
+    genome = {
+        name: np.zeros((1, *shape), gnp.field_dtype(name))
+        for name, shape in gnp.field_shapes(cfg).items()
+    }
+    trace = {
+        name: np.zeros((1, *shape), gnp.TRACE_DTYPE)
+        for name, shape in gnp.trace_shapes(cfg).items()
+    }
+    return RunTemplate(config=config, genome=genome, trace=trace)
 
 
 def train(

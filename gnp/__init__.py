@@ -12,12 +12,23 @@ from gnp.config import (
     Method,
     Schedule,
 )
-from gnp.engine import TRACE_FIELDS, EngineState, StepTrace, init_state, reset_episode, step
+from gnp.engine import (
+    TRACE_DTYPE,
+    TRACE_FIELDS,
+    EngineState,
+    StepTrace,
+    init_state,
+    reset_episode,
+    step,
+    trace_shapes,
+)
 from gnp.evolution import crossover, evolve, mutate, nonuniform_mutation, tournament
 from gnp.population import (
     Population,
     check_population,
     concat,
+    field_dtype,
+    field_shapes,
     init_population,
     population_from_arrays,
     population_to_arrays,
@@ -28,11 +39,11 @@ from gnp.schedules import (
     epsilon_alpha_over_generations,
     schedule_after_fault,
     schedule_over_generations,
-    schedule_value,
 )
 
 __all__ = [
     "METHODS",
+    "TRACE_DTYPE",
     "TRACE_FIELDS",
     "EngineState",
     "EvolutionConfig",
@@ -48,6 +59,8 @@ __all__ = [
     "epsilon_alpha_after_fault",
     "epsilon_alpha_over_generations",
     "evolve",
+    "field_dtype",
+    "field_shapes",
     "init_population",
     "init_state",
     "mutate",
@@ -57,8 +70,8 @@ __all__ = [
     "reset_episode",
     "schedule_after_fault",
     "schedule_over_generations",
-    "schedule_value",
     "step",
     "take",
     "tournament",
+    "trace_shapes",
 ]

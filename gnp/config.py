@@ -142,7 +142,3 @@ class Schedule(BaseModel):
         if self.min > self.max:
             raise ValueError(f"min ({self.min}) must not exceed max ({self.max})")
         return self
-
-    @property
-    def is_fixed(self) -> bool:
-        return self.max == self.min

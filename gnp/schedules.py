@@ -5,7 +5,7 @@ from __future__ import annotations
 from gnp.config import GnpError, Schedule
 
 
-def schedule_value(schedule: Schedule, progress: float) -> float:
+def _value(schedule: Schedule, progress: float) -> float:
     """(max − min)·(1 − progress)^n + min, with progress clamped to [0, 1]."""
     p = min(1.0, max(0.0, float(progress)))
     return (schedule.max - schedule.min) * (1.0 - p) ** schedule.n + schedule.min
@@ -15,7 +15,7 @@ def schedule_over_generations(schedule: Schedule, generation: int, n_generations
     """Eq. 4.1–4.2: the value at generation g of G (g = 0 → max, g = G → min)."""
     if n_generations < 1:
         raise GnpError(f"n_generations must be ≥ 1, got {n_generations}")
-    return schedule_value(schedule, generation / n_generations)
+    return _value(schedule, generation / n_generations)
 
 
 def schedule_after_fault(schedule: Schedule, t: int, t_fault: int, lifetime: int) -> float:
@@ -25,7 +25,7 @@ def schedule_after_fault(schedule: Schedule, t: int, t_fault: int, lifetime: int
     """
     if lifetime <= t_fault:
         raise GnpError(f"lifetime ({lifetime}) must exceed the fault step ({t_fault})")
-    return schedule_value(schedule, (t - t_fault) / (lifetime - t_fault))
+    return _value(schedule, (t - t_fault) / (lifetime - t_fault))
 
 
 def epsilon_alpha_over_generations(
