@@ -13,7 +13,7 @@ import time
 import tomllib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import gnp
 import sim
@@ -28,6 +28,9 @@ from app.config import (
     to_toml,
 )
 from app.store import RunFileError, RunReader, list_runs, resolve_run
+
+if TYPE_CHECKING:
+    from app.training import GenerationSummary
 
 PROG = "gnp-lab"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
@@ -276,7 +279,7 @@ class _GenerationBar(_Bar):
         super().__init__(total, initial, "train", "gen", quiet)
         self.best = float("nan")
 
-    def __call__(self, summary: Any) -> None:
+    def __call__(self, summary: GenerationSummary) -> None:
         self.best = summary.best_fitness
         self.update(
             summary.generation + 1,

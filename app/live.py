@@ -64,14 +64,14 @@ class RobotSnapshot:
     """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
 
     label: str
-    method: str
+    method: gnp.Method
     fuzzy: bool
     t: int
     pose: np.ndarray  # (3,) x mm, y mm, heading rad
     true_readings: np.ndarray  # (8,)
     seen_readings: np.ndarray  # (8,) with noise and faults: what the controller used
     broken: np.ndarray  # (8,) bool
-    fault_mode: str | None
+    fault_mode: FaultMode | None
     trajectory: np.ndarray  # (P, 2) mm, oldest first
     trajectory_reward: np.ndarray  # (P,) reward of the step that ended at each point
     reward_steps: np.ndarray  # (H,) step index
@@ -104,7 +104,7 @@ class LiveRobot:
     _batch: Batch = field(init=False)
     _seen: np.ndarray = field(init=False)
     _fault_steps: list[int] = field(init=False, default_factory=list)
-    _fault_mode: str | None = field(init=False, default=None)
+    _fault_mode: FaultMode | None = field(init=False, default=None)
     _rates: tuple[float, float] = field(init=False, default=(0.0, 0.0))
 
     def __post_init__(self) -> None:
