@@ -16,7 +16,6 @@ from lab_fixtures import file_digest, tiny_config
 import gnp
 from app.store import (
     SCHEMA_VERSION,
-    TERM_NAMES,
     RunFileError,
     RunReader,
     RunWriter,
@@ -24,6 +23,7 @@ from app.store import (
     resolve_run,
 )
 from app.training import initial_population, run_template
+from sim import TERM_NAMES
 
 
 def test_finished_run_is_self_describing(finished_run: Path) -> None:
