@@ -201,25 +201,29 @@ def create_datasets(group: h5py.Group, rows: Iterable[Dataset], dims: Dims, arra
     """Create every dataset of `rows` (paths relative to `group`)."""
     for spec in place(rows, dims, arrays):
         row = spec.row
-        options: dict[str, object] = {}
-        if row.fill is not None:
-            options["fillvalue"] = row.fill
         if row.initial is not None:
             dataset = group.create_dataset(spec.path, data=np.array(row.initial, spec.dtype))
-        elif row.chunk_rows is None or 0 in spec.shape:  # HDF5 cannot chunk an empty dataset
-            dataset = group.create_dataset(spec.path, spec.shape, spec.dtype, **options)
         else:
-            rows_per_chunk = (
-                dims[row.chunk_rows] if isinstance(row.chunk_rows, str) else row.chunk_rows
-            )
-            chunks = (min(spec.shape[0], rows_per_chunk), *spec.shape[1:])
-            if row.compress:
-                options.update(compression="gzip", compression_opts=4)
+            chunks = _chunks(row, spec.shape, dims)
+            gzip = row.compress and chunks is not None
             dataset = group.create_dataset(
-                spec.path, spec.shape, spec.dtype, chunks=chunks, **options
+                spec.path,
+                spec.shape,
+                spec.dtype,
+                chunks=chunks,
+                fillvalue=row.fill,
+                compression="gzip" if gzip else None,
+                compression_opts=4 if gzip else None,
             )
         if row.shape[-1:] == ("terms",):
             dataset.attrs["columns"] = list(TERM_NAMES)
+
+
+def _chunks(row: Dataset, shape: tuple[int, ...], dims: Dims) -> tuple[int, ...] | None:
+    if row.chunk_rows is None or 0 in shape:  # HDF5 cannot chunk an empty dataset
+        return None
+    rows = dims[row.chunk_rows] if isinstance(row.chunk_rows, str) else row.chunk_rows
+    return (min(shape[0], rows), *shape[1:])
 
 
 def units_attribute() -> str:
