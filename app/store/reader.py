@@ -108,9 +108,16 @@ class RunReader:
         self._load_header()
 
     def _steady(self, read: Callable[[], _T]) -> _T:
-        """`read()`, retried while a live writer leaves the file torn (see _TORN_READ)."""
-        if not self._file.swmr_mode:
-            return read()  # opened plainly: no writer holds the file
+        """`read()`, retried while a live writer leaves the file torn (see _TORN_READ).
+
+        Raises:
+            RunFileError: the read fails in a file no writer holds, or never clears in one.
+        """
+        if not self._file.swmr_mode:  # opened plainly: no writer holds the file
+            try:
+                return read()
+            except _TORN_READ as error:
+                raise RunFileError(f"corrupt run file {self.path}: {error!r}") from error
         torn: Exception | None = None
         for attempt, pause in enumerate((0.0, *_PAUSES)):
             time.sleep(pause)

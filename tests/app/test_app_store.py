@@ -106,6 +106,18 @@ def test_foreign_and_corrupt_files(tmp_path: Path, finished_run: Path) -> None:
         RunReader(tmp_path / "missing.h5")
 
 
+def test_a_run_missing_a_dataset_is_a_run_file_error(tmp_path: Path, finished_run: Path) -> None:
+    broken = tmp_path / "broken.h5"
+    shutil.copy(finished_run, broken)
+    with h5py.File(broken, "a") as handle:
+        del handle["generations/fitness"]
+    with RunReader(broken) as run, pytest.raises(RunFileError, match="corrupt run file"):
+        run.history()
+    (summary,) = list_runs(tmp_path)  # the listing reports it instead of failing
+    assert summary.name == "broken"
+    assert summary.error is not None and "'fitness' doesn't exist" in summary.error
+
+
 def test_list_and_resolve(tmp_path: Path, finished_run: Path) -> None:
     shutil.copy(finished_run, tmp_path / "good.h5")
     (tmp_path / "bad.h5").write_text("not hdf5")
