@@ -70,7 +70,7 @@ def test_a_reader_following_a_flushing_writer_sees_only_complete_rows(tmp_path: 
     writer.start()
     try:
         while not path.exists():
-            assert writer.is_alive() or path.exists(), "the writer died before creating the file"
+            assert writer.exitcode is None, "the writer died before creating the file"
             assert time.monotonic() - start < TIME_LIMIT, "the writer never created the file"
             time.sleep(0.01)
         reads, seen = 0, 0
@@ -84,7 +84,12 @@ def test_a_reader_following_a_flushing_writer_sees_only_complete_rows(tmp_path: 
                 seen = done
                 index = np.arange(done, dtype=float)
                 assert np.array_equal(history.fitness, np.repeat(index[:, None], POPULATION, 1))
-                for values in (history.best_fitness, history.mean_fitness, history.epsilon):
+                for values in (
+                    history.best_fitness,
+                    history.mean_fitness,
+                    history.epsilon,
+                    history.alpha,
+                ):
                     assert np.array_equal(values, index)
                 assert np.array_equal(history.std_fitness, np.zeros(done))
                 assert all(np.array_equal(v, index) for v in history.best_terms.values())
