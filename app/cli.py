@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 import socket
 import sys
-import time
 import tomllib
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -27,7 +27,7 @@ from app.config import (
     read_toml,
     to_toml,
 )
-from app.store import RunFileError, RunReader, list_runs, resolve_run
+from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 
 if TYPE_CHECKING:
     from app.training import GenerationSummary
@@ -240,13 +240,6 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     return build_config(*layers, source=" + ".join([*sources, "options"]))
 
 
-def _default_out(runs_dir: Path, config: RunConfig) -> Path:
-    controller = config.controller
-    kind = "fuzzy" if controller.fuzzy else "crisp"
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    return runs_dir / f"{controller.method}-{kind}-seed{config.seed}-{stamp}.h5"
-
-
 class _Bar:
     """A tqdm bar on stderr (ETA included), created at the first update so that an error
     found before any work is the only thing printed."""
@@ -333,7 +326,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         if args.print_config:
             sys.stdout.write(to_toml(config))
             return 0
-        path = Path(args.out) if args.out else _default_out(Path(args.runs_dir), config)
+        now = datetime.now(UTC)
+        path = Path(args.out) if args.out else new_run_path(args.runs_dir, config, now)
         if path.exists():
             raise RunFileError(f"{path} already exists; choose another --out or --resume it")
         bar = _GenerationBar(config.training.generations, 0, args.quiet)
