@@ -182,17 +182,14 @@ def _count(done: int) -> None:
 
 
 def _worker_live_trials(
-    cfg_json: str,
-    arrays: dict[str, np.ndarray],
-    settings_json: str,
+    cfg: gnp.GnpConfig,
+    individual: gnp.Population,
+    settings: ImplementationSettings,
     seed: int,
     control_period: float,
     part: slice,
     record: bool,
 ) -> _Part:
-    cfg = gnp.GnpConfig.model_validate_json(cfg_json)
-    settings = ImplementationSettings.model_validate_json(settings_json)
-    individual = gnp.population_from_arrays(cfg, arrays)
     return _live_trials(cfg, individual, settings, seed, control_period, part, record, _count)
 
 
@@ -226,16 +223,15 @@ def _live_all(
         return results
     context = multiprocessing.get_context("spawn")
     counter = context.Value("q", 0)
-    arrays = gnp.population_to_arrays(individual)
     with ProcessPoolExecutor(
         min(workers, len(parts)), context, initializer=_init_worker, initargs=(counter,)
     ) as pool:
         futures = [
             pool.submit(
                 _worker_live_trials,
-                cfg.model_dump_json(),
-                arrays,
-                settings.model_dump_json(),
+                cfg,
+                individual,
+                settings,
                 seed,
                 control_period,
                 part,
