@@ -106,7 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--population", type=int, metavar="N", help="individuals")
     train.add_argument("--generations", type=int, metavar="G", help="generations")
     train.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
-    train.add_argument("--noise", type=float, metavar="SIGMA", help="sensor noise σ (0..1023)")
+    train.add_argument(
+        "--noise", type=float, metavar="SIGMA", help=f"sensor noise σ (0..{sim.IR_MAX:g})"
+    )
     train.add_argument("--seed", type=int, help="random seed")
     train.add_argument(
         "--set",

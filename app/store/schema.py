@@ -19,7 +19,7 @@ import h5py
 import numpy as np
 
 from app.config import RunConfig
-from sim import TERM_NAMES
+from sim import IR_MAX, TERM_NAMES
 
 FORMAT = "gnp-lab-run"
 SCHEMA_VERSION = 1
@@ -46,7 +46,7 @@ TERMS = Unit("generations/*_terms", "mean per step of each reward term, 0..1")
 EPSILON = Unit("generations/epsilon", "ε-greedy probability")
 ALPHA = Unit("generations/alpha", "learning rate α")
 POSE = Unit("elite/poses, trials/poses", "x mm, y mm, heading rad")
-IR = Unit("elite/readings, elite/observations", "IR reading 0..1023")
+IR = Unit("elite/readings, elite/observations", f"IR reading 0..{IR_MAX:g}")
 WHEELS = Unit("elite/commands", "wheel angular speed rad/s (left, right), −10..10")
 REWARD_PER_STEP = Unit("implementation/*/reward_per_step", "reward per step, mean over trials")
 
