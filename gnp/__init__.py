@@ -12,6 +12,7 @@ from gnp.config import (
     Method,
     Schedule,
 )
+from gnp.controller_file import load_controller, save_controller
 from gnp.engine import (
     TRACE_DTYPE,
     TRACE_FIELDS,
@@ -63,11 +64,13 @@ __all__ = [
     "field_shapes",
     "init_population",
     "init_state",
+    "load_controller",
     "mutate",
     "nonuniform_mutation",
     "population_from_arrays",
     "population_to_arrays",
     "reset_episode",
+    "save_controller",
     "schedule_after_fault",
     "schedule_over_generations",
     "step",

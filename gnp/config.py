@@ -78,6 +78,14 @@ class GnpConfig(BaseModel):
         cost.setflags(write=False)
         return cost
 
+    def __eq__(self, other: object) -> bool:
+        # By settings: pydantic's default compares __dict__, which also holds the cached
+        # arrays above and cannot be compared with ==.
+        return isinstance(other, GnpConfig) and self.model_dump() == other.model_dump()
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.model_dump().items()))
+
     @property
     def max_visits_per_step(self) -> int:
         """Longest possible node sequence in one world step: the start node + 5 unit nodes."""
