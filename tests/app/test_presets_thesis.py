@@ -33,7 +33,7 @@ COMMON: list[tuple[str, Any, str]] = [
     ("evolution.p_mutation", 0.01, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
     ("evolution.tournament_size", 7, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
     ("evolution.nonuniform_b", 2.0, "§2.3.3 Eq. 2.5, l. 502: 'Here, b = 2 is used'"),
-    ("evolution.judgment_pair", "joint", "§2.3.3 l. 489: a_ip = {β_ip, α_ip} is one parameter"),
+    ("evolution.judgment_pair", "joint", "§2.3.3 l. 494-498: a_ip = {β_ip, α_ip} is one parameter"),
     ("controller.gamma", 0.9, "Tables 2.4/3.1/4.1/5.1: γ = 0.9"),
     ("training.arena", "training", "Fig. 2.7(a): the training environment (§2.5.3 l. 552)"),
     ("implementation.arena", "implementation", "Fig. 2.7(b): a different environment (l. 569)"),
