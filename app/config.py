@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 import gnp
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
+from gnp.config import GenerationProgress
 from sim import IR_MAX, N_SENSORS, FaultMode
 
 ScheduleKind = Literal["fixed", "changing"]
@@ -100,6 +101,11 @@ class TrainingSettings(_Frozen):
     alpha_min: float = Field(default=0.10, ge=0.0, le=1.0, description="changing α at g = G [1]")
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
+    )
+    schedule_progress: GenerationProgress = Field(
+        default="last-generation-min",
+        description="progress of Eq. 4.1-4.2 at generation g = 0..G-1: g/(G-1), so the last "
+        "generation uses the min (last-generation-min), or g/G as printed (g-over-G)",
     )
     checkpoint_every: int = Field(
         default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"

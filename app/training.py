@@ -318,7 +318,7 @@ def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tup
     """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
     eps_schedule, alpha_schedule = training.schedules()
     return gnp.epsilon_alpha_over_generations(
-        eps_schedule, alpha_schedule, generation, training.generations
+        eps_schedule, alpha_schedule, generation, training.generations, training.schedule_progress
     )
 
 
