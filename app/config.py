@@ -6,6 +6,7 @@ value raises `ConfigError` naming the field and what it allows.
 
 from __future__ import annotations
 
+import json
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -96,9 +97,13 @@ class TrainingSettings(_Frozen):
     epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
     alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
     epsilon_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
-    epsilon_min: float = Field(default=0.01, ge=0.0, le=1.0, description="changing ε at g = G [1]")
+    epsilon_min: float = Field(
+        default=0.01, ge=0.0, le=1.0, description="changing ε at the last generation [1]"
+    )
     alpha_max: float = Field(default=0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
-    alpha_min: float = Field(default=0.10, ge=0.0, le=1.0, description="changing α at g = G [1]")
+    alpha_min: float = Field(
+        default=0.10, ge=0.0, le=1.0, description="changing α at the last generation [1]"
+    )
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
     )
@@ -298,6 +303,30 @@ def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]
         else:
             merged[key] = value
     return merged
+
+
+LEGACY_DEFAULTS: dict[tuple[str, str], Any] = {
+    ("training", "schedule_progress"): "g-over-G",
+    ("evolution", "judgment_pair"): "independent",
+}
+"""Settings added when their default changed, with the behaviour that files which do not name
+them ran with: a stored config is read with these, so a resumed old run goes on as it began."""
+
+
+def stored_config(text: str) -> RunConfig:
+    """A `RunConfig` as stored in a file (JSON), settings it predates taking LEGACY_DEFAULTS.
+
+    Raises:
+        ValueError: not JSON, or an invalid config.
+    """
+    data = json.loads(text)
+    if not isinstance(data, dict):
+        raise ValueError("a stored config is a JSON object")
+    for (section, key), value in LEGACY_DEFAULTS.items():
+        part = data.setdefault(section, {})
+        if isinstance(part, dict):
+            part.setdefault(key, value)
+    return RunConfig.model_validate(data)
 
 
 def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> RunConfig:

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 
 import gnp
-from app.config import ImplementationSettings, RunConfig
+from app.config import ImplementationSettings, stored_config
 from app.recording import Trajectory
 from app.store.files import RunFileError, open_for_read
 from app.store.schema import FORMAT, SCHEMA_VERSION
@@ -92,7 +92,7 @@ class RunReader:
                 f"{self.path} has run-file schema {version}; this gnp-lab reads {SCHEMA_VERSION}"
             )
         try:
-            self.config = RunConfig.model_validate_json(attrs["config"])
+            self.config = stored_config(attrs["config"])
         except ValueError as error:
             raise RunFileError(f"{self.path} holds an invalid config: {error}") from None
         self.seed = int(attrs["seed"])

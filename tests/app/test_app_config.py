@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import tomllib
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from app.config import (
     load_preset,
     to_toml,
 )
+from app.store import RunReader
 
 
 def test_defaults_are_the_thesis_table_2_4() -> None:
@@ -153,3 +155,21 @@ def test_cli_layers_preset_then_file_then_options(tmp_path: Path) -> None:
     assert config.training.redraw_every == 50
     assert config.implementation.fault_mode == "stuck"
     assert config.controller.fuzzy is False
+
+
+def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> None:
+    from app.config import RunConfig, stored_config
+
+    new = RunConfig()
+    assert new.training.schedule_progress == "last-generation-min"
+    assert new.evolution.judgment_pair == "joint"
+    assert stored_config(new.model_dump_json()) == new  # named settings are kept
+    old = json.loads(new.model_dump_json())
+    del old["training"]["schedule_progress"], old["evolution"]["judgment_pair"]
+    legacy = stored_config(json.dumps(old))
+    assert legacy.training.schedule_progress == "g-over-G"
+    assert legacy.evolution.judgment_pair == "independent"
+    # The bundled demo run was written before both settings existed.
+    with RunReader(Path(__file__).parents[2] / "saved_runs" / "demo.h5") as run:
+        assert run.config.training.schedule_progress == "g-over-G"
+        assert run.config.evolution.judgment_pair == "independent"
