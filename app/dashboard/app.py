@@ -37,8 +37,8 @@ from app.dashboard.controls import (
 )
 from app.dashboard.genome import genome_view, node_label, node_markdown
 from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
-from app.dashboard.jobs import TrainingJob
 from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, ArenaView, GraphView
+from app.dashboard.training_job import TrainingJob
 from app.live import (
     FAULT_MODES,
     LearningSettings,

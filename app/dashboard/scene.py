@@ -14,7 +14,7 @@ import viser
 import sim
 from app.dashboard import geometry as geo
 from app.dashboard.genome import GenomeView
-from app.dashboard.graph_layout import JUDGMENT, PROCESSING, START, GraphLayout, graph_layout
+from app.dashboard.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
 from app.live import RobotSnapshot
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
@@ -375,6 +375,3 @@ def transition_kinds(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     kinds[source[:, 3] > 0] = BRANCH_SWITCH
     kinds[(target[:, 4] > 0) | (source[:, 4] > 0)] = CREDIT_SKIP
     return kinds
-
-
-KIND_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}

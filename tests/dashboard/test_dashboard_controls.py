@@ -21,7 +21,7 @@ from app.dashboard.controls import (
     whole,
 )
 from app.dashboard.genome import genome_view, node_label, node_markdown
-from app.dashboard.jobs import TrainingJob
+from app.dashboard.training_job import TrainingJob
 
 
 @pytest.mark.parametrize(
