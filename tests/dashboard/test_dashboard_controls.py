@@ -90,7 +90,7 @@ def test_the_train_tab_overrides_its_preset() -> None:
     [
         ({"population": 1}, "population must be in 2..100000"),
         ({"noise_sigma": 2000.0}, "noise σ must be a number in 0..1023"),
-        ({"method": "XX"}, "method must be RL, BS or CS"),
+        ({"method": "XX"}, "method must be one of RL, BS, CS"),
         ({"preset": "nope"}, "unknown preset"),
         ({"generations": 1.5}, "generations must be a whole number"),
     ],
@@ -180,10 +180,10 @@ def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> N
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     dashboard = Dashboard(server, tmp_path)
     try:
-        assert "no runs in" in dashboard.status_md.content
-        assert "an untrained random CS individual" in dashboard.show_md.content
-        assert "junk | ⚠ unreadable" in dashboard.runs_md.content
-        session = dashboard.session
+        assert "no runs in" in dashboard.status.text
+        assert "an untrained random CS individual" in dashboard.show.description.content
+        assert "junk | ⚠ unreadable" in dashboard.runs.table.content
+        session = dashboard.stage.session
         assert session is not None
         wait_until(lambda: session.robots[0].t > 0, 30)  # the live loop runs
         assert (tmp_path / "junk.h5").read_bytes() == b"not an HDF5 file"
@@ -192,7 +192,7 @@ def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> N
         server.stop()
 
 
-def test_replays_live_t_steps_then_start_again_from_the_next_pose(runs_dir: Path) -> None:
+def test_the_loop_plays_the_run_on_show_and_a_fault_turns_new_lives_off(runs_dir: Path) -> None:
     import viser
 
     from app.dashboard.app import Dashboard
@@ -200,15 +200,18 @@ def test_replays_live_t_steps_then_start_again_from_the_next_pose(runs_dir: Path
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     dashboard = Dashboard(server, runs_dir, "cs")
     try:
-        show = dashboard.show
+        stage = dashboard.stage
+        show = stage.show
         assert show is not None and show.life == 600 and show.start == 0  # the run's T
-        dashboard.speed = 200.0
-        wait_until(lambda: dashboard.show is not None and dashboard.show.start == 1, 30)
-        session = dashboard.session
+        stage.speed = 200.0
+        wait_until(lambda: dashboard.show.start.value == "1", 30)  # a new life, echoed
+        session = stage.session
         assert session is not None and session.robots[0].t < 600
-        dashboard._guarded(None, dashboard._break_now)  # sensors 2,3 by default
-        assert dashboard.lives_checkbox.value is False  # a fault is watched, not wiped
+        dashboard.status.guarded(None, dashboard.faults.break_now)  # sensors 2,3 by default
+        assert dashboard.show.new_lives.value is False  # a fault is watched, not wiped
         assert session.snapshot()[0].broken[[2, 3]].all()
+        dashboard.status.guarded(None, lambda: dashboard.show.inspect(99))
+        assert dashboard.status.text == "⚠ node must be in 0..60, got 99"
     finally:
         dashboard.stop()
         server.stop()
