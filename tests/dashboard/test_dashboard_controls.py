@@ -132,6 +132,14 @@ def wait_until(condition: object, timeout: float) -> None:
         time.sleep(0.1)
 
 
+def generations_done(path: Path) -> int:
+    """Generations a run file holds (0 while it does not exist yet)."""
+    if not path.exists():
+        return 0
+    with store.RunReader(path) as run:
+        return run.generations_done
+
+
 def process_state(pid: int) -> str:
     return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
 
@@ -142,7 +150,8 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
     )
     job = TrainingJob(config, tmp_path / "run.h5", workers=1)
     try:
-        wait_until(lambda: (tmp_path / "run.h5").exists(), 60)
+        # Past the start (numba compiles there): SIGTERM then always meets the training loop.
+        wait_until(lambda: generations_done(tmp_path / "run.h5") >= 1, 120)
         job.pause()
         assert job.state == "paused"
         wait_until(lambda: process_state(job.pid) == "T", 10)  # the process really is stopped
@@ -154,6 +163,7 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
         job.stop()
         job.wait()
         assert job.state == "stopped"
+        assert "interrupted: stopped after" in job.error()  # the CLI's own message
         with store.RunReader(tmp_path / "run.h5") as run:
             assert run.config == config
             assert not run.finished
