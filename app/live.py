@@ -84,10 +84,6 @@ class RobotSnapshot:
     alpha: float
     mean_reward: float  # over the reward history
 
-    @property
-    def nodes_per_step(self) -> float:
-        return len(self.visits) / max(1, min(self.t, len(self.rewards)))
-
 
 @dataclass
 class LiveRobot:

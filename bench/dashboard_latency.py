@@ -1,8 +1,8 @@
 """How fast the dashboard's controls answer while it trains, on the server side.
 
 Builds the dashboard (no browser), starts a training run from its Train tab, and every 100 ms
-applies a control action the way a GUI callback does (`_guarded`: wait for the dashboard's lock,
-act). Prints the latency distribution; the brief asks for answers within 200 ms.
+applies a control action the way a GUI callback does (`status.guarded`: wait for the
+dashboard's lock, act). Prints the latency distribution; the brief asks for answers within 200 ms.
 
     .venv/bin/python bench/dashboard_latency.py --seconds 30
 """
@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import viser
 
-from app.dashboard.app import Dashboard, _set
+from app.dashboard.app import Dashboard
+from app.dashboard.status import set_value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,18 +32,18 @@ def main(argv: list[str] | None = None) -> int:
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
         dashboard = Dashboard(server, runs_dir)
         try:
-            _set(dashboard.train_preset, "quick")
-            _set(dashboard.train_generations, 10_000)  # keeps training for the whole measure
-            dashboard._guarded(None, dashboard._start_training)
+            set_value(dashboard.train.preset, "quick")
+            set_value(dashboard.train.generations, 10_000)  # keeps training for the whole measure
+            dashboard.status.guarded(None, dashboard.train.start)
             latencies = []
             end = time.monotonic() + args.seconds
             while time.monotonic() < end:
                 start = time.perf_counter()
-                dashboard._guarded(None, dashboard._repair)
+                dashboard.status.guarded(None, dashboard.faults.repair)
                 latencies.append(time.perf_counter() - start)
                 time.sleep(0.1)
             ms = 1000 * np.array(latencies)
-            generation = dashboard._fitness_points
+            generation = dashboard.plots.fitness_points
             print(
                 f"{len(ms)} control actions during training (generation {generation} reached): "
                 f"median {np.median(ms):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms, "

@@ -9,21 +9,40 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
+import gnp
+import sim
+from app import store
 from app.config import PRESET_NAMES, ConfigError, RunConfig, build_config, preset_layer
 from app.live import LiveError, check_mode, check_sensors
+
+NO_RUNS = "(none)"
+"""What a list of runs offers when the runs dir holds none."""
 
 
 class DashboardInputError(ValueError):
     """A control holds a value the dashboard cannot use; the message says which and why."""
 
 
+def open_run(runs_dir: Path, name: str) -> store.RunReader:
+    """The run picked in a list of runs, opened for reading.
+
+    Raises:
+        DashboardInputError: the list is empty.
+        RunFileError: the run is missing or unreadable.
+    """
+    if name == NO_RUNS:
+        raise DashboardInputError(f"no runs in {runs_dir}")
+    return store.RunReader(store.resolve_run(runs_dir, name))
+
+
 def parse_sensors(text: str) -> tuple[int, ...]:
     """Sensors typed as `2,3` or `s2 s3` → (2, 3).
 
     Raises:
-        DashboardInputError: empty, not numbers, or outside 0..7.
+        DashboardInputError: empty, not numbers, or not sensors.
     """
     tokens = [t for t in re.split(r"[,\s;]+", text.strip()) if t]
     if not tokens:
@@ -33,7 +52,7 @@ def parse_sensors(text: str) -> tuple[int, ...]:
         digits = token.lower().removeprefix("s")
         if not digits.isdigit():
             raise DashboardInputError(
-                f"sensors are numbers 0..7 separated by commas, got {token!r}"
+                f"sensors are numbers 0..{sim.N_SENSORS - 1} separated by commas, got {token!r}"
             )
         sensors.append(int(digits))
     try:
@@ -87,8 +106,9 @@ def training_config(request: TrainingRequest) -> RunConfig:
     """
     if request.preset not in PRESET_NAMES:
         raise DashboardInputError(f"unknown preset {request.preset!r}")
-    if request.method not in ("RL", "BS", "CS"):
-        raise DashboardInputError(f"method must be RL, BS or CS, got {request.method!r}")
+    if request.method not in gnp.METHODS:
+        methods = ", ".join(gnp.METHODS)
+        raise DashboardInputError(f"method must be one of {methods}, got {request.method!r}")
     if request.judgment not in ("fuzzy", "crisp"):
         raise DashboardInputError(f"judgment must be fuzzy or crisp, got {request.judgment!r}")
     overrides: dict[str, Any] = {
@@ -98,7 +118,7 @@ def training_config(request: TrainingRequest) -> RunConfig:
             "population": whole(request.population, "population", 2, 100_000),
             "generations": whole(request.generations, "generations", 1, 1_000_000),
             "steps": whole(request.steps, "steps (life time T)", 1, 1_000_000),
-            "noise_sigma": finite(request.noise_sigma, "noise σ", 0.0, 1023.0),
+            "noise_sigma": finite(request.noise_sigma, "noise σ", 0.0, sim.IR_MAX),
         },
     }
     try:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+import sim
+
 MM = 1e-3
 """Scene units are metres; the world is in millimetres."""
 
@@ -101,8 +103,8 @@ _READING_HIGH = np.array([255, 120, 0], np.float64)
 
 
 def reading_colors(readings: np.ndarray) -> np.ndarray:
-    """Grey-blue for 0 to orange for 1023: (..., 3) uint8."""
-    t = np.clip(np.asarray(readings, np.float64) / 1023.0, 0.0, 1.0)[..., None]
+    """Grey-blue for 0 to orange for the sensor's maximum: (..., 3) uint8."""
+    t = np.clip(np.asarray(readings, np.float64) / sim.IR_MAX, 0.0, 1.0)[..., None]
     return np.round(_READING_LOW * (1.0 - t) + _READING_HIGH * t).astype(np.uint8)
 
 

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim import N_SENSORS
+
 START, JUDGMENT, PROCESSING = 0, 1, 2
-N_SENSORS = 8
 N_WHEELS = 2
 WHEEL_NAMES = ("P0 right", "P1 left")
 
@@ -72,7 +73,7 @@ def graph_layout(
     if not np.all(judgment | processing | (kinds == START)):
         raise GraphLayoutError(f"unknown node kind in {sorted(set(kinds.tolist()))}")
     if np.any((functions[judgment] < 0) | (functions[judgment] >= N_SENSORS)):
-        raise GraphLayoutError("a judgment node's sensor must be in 0..7")
+        raise GraphLayoutError(f"a judgment node's sensor must be in 0..{N_SENSORS - 1}")
     if np.any((functions[processing] < 0) | (functions[processing] >= N_WHEELS)):
         raise GraphLayoutError("a processing node's wheel must be 0 (right) or 1 (left)")
 
@@ -81,7 +82,9 @@ def graph_layout(
     column_of[processing] = 1 + N_SENSORS + functions[processing]
     n_columns = 1 + N_SENSORS + N_WHEELS
     # Start alone at the left, a gap, the sensor columns, a wider gap, the wheel columns.
-    slots = np.concatenate([[0.0], 1.5 + np.arange(N_SENSORS), 2.5 + N_SENSORS + np.arange(2)])
+    slots = np.concatenate(
+        [[0.0], 1.5 + np.arange(N_SENSORS), 2.5 + N_SENSORS + np.arange(N_WHEELS)]
+    )
     column_x = width * slots / slots[-1]
 
     positions = np.zeros((kinds.size, 2))

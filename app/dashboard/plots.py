@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import viser
 
+import sim
 from app.dashboard.scene import ROBOT_COLORS
 from app.live import RobotSnapshot
 
@@ -49,7 +50,11 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         data=_empty(len(series)),
         series=series,  # type: ignore[arg-type]
         title="Reward per step (robots on show)",
-        scales={**X_NOT_TIME, "y": {"range": (0.0, 1.0)}, "n": {"range": (0.0, 8.0)}},
+        scales={
+            **X_NOT_TIME,
+            "y": {"range": (0.0, 1.0)},
+            "n": {"range": (0.0, float(sim.N_SENSORS))},
+        },
         axes=({}, {"scale": "y"}, {"scale": "n", "side": 1, "grid": {"show": False}}),
         aspect=1.9,
     )

@@ -14,14 +14,13 @@ import viser
 import sim
 from app.dashboard import geometry as geo
 from app.dashboard.genome import GenomeView
-from app.dashboard.graph_layout import JUDGMENT, PROCESSING, START, GraphLayout, graph_layout
+from app.dashboard.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
 from app.live import RobotSnapshot
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
 """Robot 1 blue, robot 2 orange (also their reward curves)."""
 BROKEN_RED = (230, 20, 20)
 WALL_COLOR = (40, 40, 48)
-BODY_RADIUS_MM = 28.5
 TRAIL_POINTS = 600
 
 
@@ -126,11 +125,11 @@ class ArenaView:
         pose = robot.pose[None, :]
         x, y, heading = robot.pose
         nose = np.array(
-            [[x + BODY_RADIUS_MM * np.cos(heading), y + BODY_RADIUS_MM * np.sin(heading)]]
+            [[x + sim.BODY_RADIUS_MM * np.cos(heading), y + sim.BODY_RADIUS_MM * np.sin(heading)]]
         )
         body = np.concatenate(
             [
-                geo.circle_segments(pose[:, :2] * geo.MM, BODY_RADIUS_MM * geo.MM),
+                geo.circle_segments(pose[:, :2] * geo.MM, sim.BODY_RADIUS_MM * geo.MM),
                 geo.flat_to_3d(np.stack([pose[:, :2], nose], axis=1) * geo.MM),
             ]
         )
@@ -149,10 +148,10 @@ class ArenaView:
 
         # A broken sensor: a red cross at its origin (degenerate when intact, fixed shape).
         marks = origins[0] + directions[0] * 12.0  # just outside the body, on the ray
-        crosses = geo.cross_segments(marks * geo.MM, 0.014).reshape(8, 2, 2, 3)
+        crosses = geo.cross_segments(marks * geo.MM, 0.014).reshape(sim.N_SENSORS, 2, 2, 3)
         crosses[~robot.broken] = 0.0
         crosses[~robot.broken] += np.array([x, y, 0.0]) * geo.MM
-        faults = crosses.reshape(16, 2, 3)
+        faults = crosses.reshape(2 * sim.N_SENSORS, 2, 3)
         handles["faults"].points = faults.astype(np.float32)
         handles["faults"].colors = np.broadcast_to(
             np.array(BROKEN_RED, np.uint8), faults.shape
@@ -375,6 +374,3 @@ def transition_kinds(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     kinds[source[:, 3] > 0] = BRANCH_SWITCH
     kinds[(target[:, 4] > 0) | (source[:, 4] > 0)] = CREDIT_SKIP
     return kinds
-
-
-KIND_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}

@@ -21,7 +21,7 @@ from app.dashboard.controls import (
     whole,
 )
 from app.dashboard.genome import genome_view, node_label, node_markdown
-from app.dashboard.jobs import TrainingJob
+from app.dashboard.training_job import TrainingJob
 
 
 @pytest.mark.parametrize(
@@ -90,7 +90,7 @@ def test_the_train_tab_overrides_its_preset() -> None:
     [
         ({"population": 1}, "population must be in 2..100000"),
         ({"noise_sigma": 2000.0}, "noise σ must be a number in 0..1023"),
-        ({"method": "XX"}, "method must be RL, BS or CS"),
+        ({"method": "XX"}, "method must be one of RL, BS, CS"),
         ({"preset": "nope"}, "unknown preset"),
         ({"generations": 1.5}, "generations must be a whole number"),
     ],
@@ -132,6 +132,14 @@ def wait_until(condition: object, timeout: float) -> None:
         time.sleep(0.1)
 
 
+def generations_done(path: Path) -> int:
+    """Generations a run file holds (0 while it does not exist yet)."""
+    if not path.exists():
+        return 0
+    with store.RunReader(path) as run:
+        return run.generations_done
+
+
 def process_state(pid: int) -> str:
     return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
 
@@ -142,7 +150,8 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
     )
     job = TrainingJob(config, tmp_path / "run.h5", workers=1)
     try:
-        wait_until(lambda: (tmp_path / "run.h5").exists(), 60)
+        # Past the start (numba compiles there): SIGTERM then always meets the training loop.
+        wait_until(lambda: generations_done(tmp_path / "run.h5") >= 1, 120)
         job.pause()
         assert job.state == "paused"
         wait_until(lambda: process_state(job.pid) == "T", 10)  # the process really is stopped
@@ -154,6 +163,7 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
         job.stop()
         job.wait()
         assert job.state == "stopped"
+        assert "interrupted: stopped after" in job.error()  # the CLI's own message
         with store.RunReader(tmp_path / "run.h5") as run:
             assert run.config == config
             assert not run.finished
@@ -180,10 +190,10 @@ def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> N
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     dashboard = Dashboard(server, tmp_path)
     try:
-        assert "no runs in" in dashboard.status_md.content
-        assert "an untrained random CS individual" in dashboard.show_md.content
-        assert "junk | ⚠ unreadable" in dashboard.runs_md.content
-        session = dashboard.session
+        assert "no runs in" in dashboard.status.text
+        assert "an untrained random CS individual" in dashboard.show.description.content
+        assert "junk | ⚠ unreadable" in dashboard.runs.table.content
+        session = dashboard.stage.session
         assert session is not None
         wait_until(lambda: session.robots[0].t > 0, 30)  # the live loop runs
         assert (tmp_path / "junk.h5").read_bytes() == b"not an HDF5 file"
@@ -192,7 +202,7 @@ def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> N
         server.stop()
 
 
-def test_replays_live_t_steps_then_start_again_from_the_next_pose(runs_dir: Path) -> None:
+def test_the_loop_plays_the_run_on_show_and_a_fault_turns_new_lives_off(runs_dir: Path) -> None:
     import viser
 
     from app.dashboard.app import Dashboard
@@ -200,15 +210,46 @@ def test_replays_live_t_steps_then_start_again_from_the_next_pose(runs_dir: Path
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     dashboard = Dashboard(server, runs_dir, "cs")
     try:
-        show = dashboard.show
+        stage = dashboard.stage
+        show = stage.show
         assert show is not None and show.life == 600 and show.start == 0  # the run's T
-        dashboard.speed = 200.0
-        wait_until(lambda: dashboard.show is not None and dashboard.show.start == 1, 30)
-        session = dashboard.session
+        stage.speed = 200.0
+        wait_until(lambda: dashboard.show.start.value == "1", 30)  # a new life, echoed
+        session = stage.session
         assert session is not None and session.robots[0].t < 600
-        dashboard._guarded(None, dashboard._break_now)  # sensors 2,3 by default
-        assert dashboard.lives_checkbox.value is False  # a fault is watched, not wiped
+        dashboard.status.guarded(None, dashboard.faults.break_now)  # sensors 2,3 by default
+        assert dashboard.show.new_lives.value is False  # a fault is watched, not wiped
         assert session.snapshot()[0].broken[[2, 3]].all()
+        dashboard.status.guarded(None, lambda: dashboard.show.inspect(99))
+        assert dashboard.status.text == "⚠ node must be in 0..60, got 99"
+    finally:
+        dashboard.stop()
+        server.stop()
+
+
+def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Path) -> None:
+    import viser
+
+    from app.dashboard.app import Dashboard
+    from app.dashboard.tab_faults import SCHEDULED
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path)
+    try:
+        faults = dashboard.faults
+        faults.eps_fixed.value, faults.alpha_fixed.value = 0.05, 0.2
+        faults.schedule.value = SCHEDULED
+        faults.eps_max.value, faults.eps_min.value = 0.015, 0.0
+        faults.alpha_max.value, faults.alpha_min.value = 0.15, 0.0
+        faults.horizon.value = 1000
+        dashboard.status.guarded(None, faults.apply_learning)
+        learning = dashboard.stage.learning
+        assert learning.rates(10, None) == (0.05, 0.2)  # no fault yet: the fixed values
+        assert learning.rates(600, 100) == pytest.approx((0.0075, 0.075))  # halfway down
+        faults.eps_min.value = 0.5  # above its max
+        dashboard.status.guarded(None, faults.apply_learning)
+        assert dashboard.status.text == "⚠ a schedule's min must not exceed its max"
+        assert dashboard.stage.learning is learning  # nothing applied
     finally:
         dashboard.stop()
         server.stop()

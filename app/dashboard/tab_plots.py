@@ -1,0 +1,105 @@
+"""The left panel's Plots tab: a plain-text readout of the state, and the three charts.
+
+The readout is what the browser tests read: each part of the dashboard sets its own line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+from app import store
+from app.dashboard import plots
+from app.dashboard.stage import Show
+from app.live import RobotSnapshot
+
+
+@dataclass
+class PlotsTab:
+    """The readout, its lines, and the reward, fitness and implementation charts."""
+
+    readout: viser.GuiMarkdownHandle
+    reward: viser.GuiUplotHandle
+    fitness: viser.GuiUplotHandle
+    implementation: viser.GuiUplotHandle
+    show_line: str = "on show: nothing"
+    training_line: str = "training: idle"
+    implementation_line: str = "implementation: none run"
+    fitness_points: int = 0  # generations on the fitness chart
+
+    def staged(self, show: Show) -> None:
+        """A new show: one reward curve per robot."""
+        plots.set_reward_series(self.reward, [r.label for r in show.robots])
+
+    def draw(self, robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> None:
+        """The robots' reward curves and the readout."""
+        plots.set_rewards(self.reward, robots)
+        self.show_line = show_line(robots, noise_sigma)
+        self.readout.content = "  \n".join(
+            [
+                self.show_line,
+                self.training_line,
+                f"fitness plot: {self.fitness_points} generations",
+                self.implementation_line,
+            ]
+        )
+
+    def set_fitness(self, best: np.ndarray, mean: np.ndarray) -> None:
+        """Best and mean fitness per generation."""
+        plots.set_fitness(self.fitness, best, mean)
+        self.fitness_points = len(best)
+
+    def show_implementation(self, name: str, result: store.Implementation) -> None:
+        settings = result.settings
+        plots.set_implementation(self.implementation, result.reward_per_step, settings.fault_step)
+        sensors = ", ".join(f"s{s}" for s in settings.broken_sensors) or "none"
+        self.implementation_line = (
+            f"implementation: {name} · {len(result.trial_mean_reward)} trials · breaks {sensors} "
+            f"({settings.fault_mode}) at {settings.fault_step} · mean reward/step "
+            f"{result.mean_reward:.4f}, after the fault {result.mean_after_fault:.4f}"
+        )
+
+
+def populate_plots_tab(gui: viser.GuiApi) -> PlotsTab:
+    """Add the Plots tab in a panel docked on the left."""
+    panel = gui.add_panel()
+    with panel.add_tab("Plots", viser.Icon.CHART_LINE):
+        tab = PlotsTab(
+            readout=gui.add_markdown(""),
+            reward=plots.reward_plot(gui),
+            fitness=plots.fitness_plot(gui),
+            implementation=plots.implementation_plot(gui),
+        )
+    panel.dock_left()
+    panel.set_width(360)
+    return tab
+
+
+def show_line(robots: Sequence[RobotSnapshot], noise_sigma: float) -> str:
+    """The readout's lines about the robots on show (also what the browser tests read)."""
+    first = robots[0]
+    rewards = " · ".join(f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots)
+    sub = f" sub {first.visits[-1, 1]}" if len(first.visits) else ""
+    lines = [
+        f"on show: step {first.t} · {rewards} · node {first.current_node}{sub} · "
+        f"ε {first.epsilon:.3f} α {first.alpha:.3f} · noise σ {noise_sigma:g}"
+    ]
+    broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))
+    if broken:
+        since = f" since step {first.fault_steps[-1]}" if first.fault_steps else ""
+        lines.append(f"broken: {broken} ({first.fault_mode}){since}")
+    else:
+        lines.append("broken: none")
+    plot = f"reward plot: {len(first.rewards)} steps"
+    if first.fault_steps:
+        fault = first.fault_steps[-1]
+        before = first.rewards[first.reward_steps < fault]
+        after = first.rewards[first.reward_steps >= fault]
+        plot += f" · fault marked at step {fault}"
+        if len(before) and len(after):
+            plot += f" · reward/step before {before.mean():.3f}, after {after.mean():.3f}"
+    lines.append(plot)
+    return "  \n".join(lines)

@@ -1,0 +1,224 @@
+"""The Runs tab: the runs dir's runs, loading one, replaying a generation's best, and running
+its implementation phase (in a child process, nothing written)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import viser
+
+import sim
+from app import store
+from app.dashboard.controls import (
+    NO_RUNS,
+    DashboardInputError,
+    open_run,
+    parse_mode,
+    parse_sensors,
+    whole,
+)
+from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
+from app.dashboard.stage import Show, Stage, run_robot
+from app.dashboard.status import Status, set_value
+from app.dashboard.tab_plots import PlotsTab
+
+SCHEDULES = ("fixed", "changing")
+
+
+@dataclass
+class RunsTab:
+    """The Runs tab's handles, the run loaded and the implementation phase running."""
+
+    stage: Stage
+    status: Status
+    plots: PlotsTab
+    runs_dir: Path
+    table: viser.GuiMarkdownHandle
+    run: viser.GuiDropdownHandle[str]
+    summary: viser.GuiMarkdownHandle
+    arena: viser.GuiDropdownHandle[str]
+    generation: viser.GuiNumberHandle[int]
+    sensors: viser.GuiTextHandle
+    mode: viser.GuiDropdownHandle[str]
+    fault_step: viser.GuiNumberHandle[int]
+    steps: viser.GuiNumberHandle[int]
+    repeats: viser.GuiNumberHandle[int]
+    schedule: viser.GuiDropdownHandle[str]
+    loaded: store.RunReader | None = None
+    implementation: ImplementationJob | None = None
+
+    def list_runs(self, runs: Sequence[store.RunSummary]) -> None:
+        """Offer `runs` to load and describe them in a table."""
+        set_options(self.run, [r.name for r in runs if r.error is None])
+        self.table.content = runs_table(runs, self.runs_dir)
+
+    def load(self, name: str) -> None:
+        """Load a run: its summary, fitness history, stored implementation, fault settings."""
+        reader = open_run(self.runs_dir, name)
+        if self.loaded is not None:
+            self.loaded.close()
+        self.loaded = reader
+        if self.run.value != name and name in self.run.options:
+            set_value(self.run, name)
+        history = reader.history()
+        self.plots.set_fitness(history.best_fitness, history.mean_fitness)
+        config = reader.config
+        impls = reader.implementation_names()
+        best = float(history.best_fitness.max()) if len(history.best_fitness) else 0.0
+        self.summary.content = (
+            f"**{name}**: {config.controller.method} "
+            f"{'fuzzy' if config.controller.fuzzy else 'crisp'}, population "
+            f"{config.training.population}, {reader.generations_done}/"
+            f"{config.training.generations} generations, T = {config.training.steps}, "
+            f"σ = {config.training.noise_sigma:g}, seed {config.seed}  \n"
+            f"best fitness {best:.4f}"
+            f" · implementations: {', '.join(impls) or 'none'}"
+        )
+        implementation = config.implementation  # the run's own fault, as a starting point
+        sensors = implementation.broken_sensors
+        set_value(self.sensors, ",".join(map(str, sensors)) if sensors else "2,3")
+        set_value(self.mode, implementation.fault_mode)
+        set_value(self.fault_step, implementation.fault_step)
+        set_value(self.steps, implementation.steps)
+        set_value(self.repeats, implementation.repeats)
+        set_value(self.schedule, implementation.schedule)
+        if impls:
+            results = {impl: reader.implementation(impl) for impl in impls}
+            # Prefer a stored phase with a fault: that is what the plot's marker is for.
+            faulted = [i for i, r in results.items() if r.settings.broken_sensors]
+            shown = (faulted or impls)[-1]
+            self.plots.show_implementation(f"{name}/{shown}", results[shown])
+        self.status.set(f"loaded run {name}")
+
+    def replay(self) -> None:
+        """Put the loaded run's best of the chosen generation on show, from the pose on show."""
+        if self.loaded is None:
+            raise DashboardInputError("load a run first")
+        generation = whole(self.generation.value, "generation", -(10**6), 10**6)
+        robot = run_robot(self.loaded, generation)
+        shown = generation if generation >= 0 else self.loaded.generations_done + generation
+        training = self.loaded.config.training
+        self.stage.present(
+            Show(
+                f"best of generation {shown} of run {robot.label}",
+                (robot,),
+                self.arena.value,
+                self.stage.start,
+                life=training.steps,
+                control_period=training.control_period,
+            )
+        )
+        self.status.set(f"replaying the best of generation {shown} of {robot.label}")
+
+    def start_implementation(self) -> None:
+        if self.loaded is None:
+            raise DashboardInputError("load a run first")
+        if self.implementation is not None and self.implementation.active:
+            raise DashboardInputError("an implementation phase is already running")
+        request = ImplementationRequest(
+            run=self.loaded.path,
+            sensors=parse_sensors(self.sensors.value),
+            mode=parse_mode(self.mode.value),
+            fault_step=whole(self.fault_step.value, "fault step t'", 0, 10**6),
+            steps=whole(self.steps.value, "steps T", 1, 10**6),
+            repeats=whole(self.repeats.value, "repeats", 1, 1000),
+            schedule=self.schedule.value,
+        )
+        if request.fault_step >= request.steps:
+            raise DashboardInputError("the fault step t' must come before the end T")
+        self.implementation = ImplementationJob(request)
+        self.plots.implementation_line = "implementation: running"
+        self.status.set(f"implementation phase of {self.loaded.path.stem} started")
+
+    def follow_implementation(self) -> None:
+        """Plot the implementation phase once its child process is done (or say it failed)."""
+        job = self.implementation
+        if job is None or job.active or job.reported:
+            return
+        job.reported = True
+        try:
+            result = job.result()
+        except Exception as error:  # the child's error, whatever it is, belongs on the page
+            self.plots.implementation_line = f"implementation: failed: {error}"
+            self.status.set(f"⚠ implementation failed: {error}")
+            return
+        self.plots.show_implementation(job.request.run.stem, result)
+        self.status.set("implementation phase finished")
+
+    def close(self) -> None:
+        if self.implementation is not None:
+            self.implementation.close()
+        if self.loaded is not None:
+            self.loaded.close()
+
+
+def populate_runs_tab(
+    gui: viser.GuiApi,
+    stage: Stage,
+    status: Status,
+    plots: PlotsTab,
+    runs_dir: Path,
+    refresh: Callable[[], None],
+) -> RunsTab:
+    """Add the Runs tab's controls (inside the current tab) and attach their callbacks.
+
+    `refresh` re-reads the runs dir for every list of runs on the page.
+    """
+    table = gui.add_markdown("")
+    run = gui.add_dropdown("Run", (NO_RUNS,))
+    buttons = gui.add_button_group("Run file", ("Refresh list", "Load"))
+    summary = gui.add_markdown("No run loaded.")
+    arena = gui.add_dropdown("Replay in", sim.ARENA_NAMES, initial_value="training")
+    generation = gui.add_number("Generation (−1 = last)", -1, step=1)
+    replay = gui.add_button("Replay best individual", icon=viser.Icon.PLAYER_PLAY)
+    gui.add_markdown("**Implementation phase** (implementation arena, online Sarsa)")
+    tab = RunsTab(
+        stage=stage,
+        status=status,
+        plots=plots,
+        runs_dir=runs_dir,
+        table=table,
+        run=run,
+        summary=summary,
+        arena=arena,
+        generation=generation,
+        sensors=gui.add_text("Break sensors", "2,3"),
+        mode=gui.add_dropdown("Mode", sim.FAULT_MODES),
+        fault_step=gui.add_number("Fault step t'", 500, min=0, max=10**6, step=1),
+        steps=gui.add_number("Steps T", 1500, min=1, max=10**6, step=1),
+        repeats=gui.add_number("Repeats per start pose", 3, min=1, max=1000, step=1),
+        schedule=gui.add_dropdown("ε, α ", SCHEDULES),
+    )
+    run_implementation = gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY)
+
+    actions = {"Refresh list": refresh, "Load": lambda: tab.load(tab.run.value)}
+    buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
+    replay.on_click(status.guard(tab.replay))
+    run_implementation.on_click(status.guard(tab.start_implementation))
+    return tab
+
+
+def set_options(dropdown: viser.GuiDropdownHandle[str], names: Sequence[str]) -> None:
+    """Offer `names` (or the no-runs placeholder), keeping the choice if it is still there."""
+    current = dropdown.value
+    options = tuple(names) or (NO_RUNS,)
+    dropdown.options = options
+    if current in options:
+        set_value(dropdown, current)
+
+
+def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
+    """A markdown table of the runs: method, generations done, best fitness."""
+    if not runs:
+        return f"No runs in `{runs_dir}` yet: train one in the Train tab."
+    rows = ["| run | method | generations | best fitness |", "|---|---|---|---|"]
+    for r in runs:
+        if r.error is not None:
+            rows.append(f"| {r.name} | ⚠ unreadable | | |")
+            continue
+        done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
+        judgment = "fuzzy" if r.fuzzy else "crisp"
+        rows.append(f"| {r.name} | {r.method} {judgment} | {done} | {r.best_fitness:.4f} |")
+    return "\n".join(rows)

@@ -1,0 +1,148 @@
+"""The Show tab: arena, start pose, speed, new lives, and the node inspector."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import viser
+
+import sim
+from app.dashboard.controls import DashboardInputError, finite
+from app.dashboard.genome import genome_view, node_label, node_markdown
+from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, GraphView
+from app.dashboard.stage import Show, Stage
+from app.dashboard.status import Status, hex_color, set_value
+
+MAX_SPEED = 200
+
+
+@dataclass
+class ShowTab:
+    """The Show tab's handles; its methods keep them in step with the stage."""
+
+    stage: Stage
+    graph: GraphView
+    description: viser.GuiMarkdownHandle
+    arena: viser.GuiDropdownHandle[str]
+    start: viser.GuiDropdownHandle[str]
+    speed: viser.GuiSliderHandle[int]
+    playing: viser.GuiCheckboxHandle
+    new_lives: viser.GuiCheckboxHandle
+    node: viser.GuiDropdownHandle[str]
+    inspector: viser.GuiMarkdownHandle
+
+    def staged(self, show: Show) -> None:
+        """A new show: its graph's nodes to inspect, the dropdowns and the description."""
+        first = show.robots[0]
+        self.graph.set_genome(genome_view(first.cfg, first.population))
+        self.node.options = tuple(
+            node_label(first.cfg, first.population, i) for i in range(first.cfg.n_nodes)
+        )
+        # Echo the show in the dropdowns; their callbacks then find nothing to change.
+        set_value(self.arena, show.arena)
+        set_value(self.start, str(show.start))
+        self.description.content = describe(show)
+        self.inspect(self.graph.selected or 0)
+
+    def set_speed(self, value: float) -> None:
+        self.stage.speed = finite(value, "steps per second", 1, MAX_SPEED)
+
+    def inspect(self, node: int) -> None:
+        """Ring `node` on the graph and show its sub nodes and Q values."""
+        show = self.stage.show
+        if show is None:
+            return
+        n_nodes = show.robots[0].cfg.n_nodes
+        if not 0 <= node < n_nodes:
+            raise DashboardInputError(f"node must be in 0..{n_nodes - 1}, got {node}")
+        self.graph.select(node)
+        self.refresh()
+        set_value(self.node, self.node.options[node])
+
+    def echo_new_lives(self) -> None:
+        """Show the stage's new-lives setting (breaking a sensor turns it off)."""
+        set_value(self.new_lives, self.stage.new_lives)
+
+    def refresh(self) -> None:
+        """The inspected node's live Q values."""
+        session, node = self.stage.session, self.graph.selected
+        if session is None or node is None:
+            return
+        robot = session.robots[0]
+        with session.lock:
+            text = node_markdown(robot.cfg, robot.population, node)
+        self.inspector.content = text + "\n\n<small>live: Q values update as it learns</small>"
+
+
+def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: GraphView) -> ShowTab:
+    """Add the Show tab's controls (inside the current tab) and attach their callbacks."""
+    tab = ShowTab(
+        stage=stage,
+        graph=graph,
+        description=gui.add_markdown("nothing on show yet"),
+        arena=gui.add_dropdown("Arena", sim.ARENA_NAMES, initial_value=stage.arena),
+        start=gui.add_dropdown(
+            "Start pose",
+            tuple(str(i) for i in range(sim.N_START_POSES)),
+            initial_value=str(stage.start),
+        ),
+        speed=gui.add_slider(
+            "Steps per second", min=1, max=MAX_SPEED, step=1, initial_value=int(stage.speed)
+        ),
+        playing=gui.add_checkbox("Playing", initial_value=stage.playing),
+        new_lives=gui.add_checkbox(
+            "New life every T steps",
+            initial_value=stage.new_lives,
+            hint="As in training: after the run's life time T, start again from the next pose",
+        ),
+        node=gui.add_dropdown("Inspect node", ("0 · start",)),
+        inspector=gui.add_markdown("Click a node of the graph, or pick one above."),
+    )
+    restart = gui.add_button("Restart from the start pose", icon=viser.Icon.REFRESH)
+    gui.add_markdown(legend())
+
+    tab.arena.on_update(status.guard(lambda: stage.restage(arena=tab.arena.value)))
+    tab.start.on_update(status.guard(lambda: stage.restage(start=int(tab.start.value))))
+    tab.speed.on_update(status.guard(lambda: tab.set_speed(tab.speed.value)))
+    restart.on_click(status.guard(stage.restage))
+    tab.node.on_update(status.guard(lambda: tab.inspect(int(tab.node.value.split()[0]))))
+
+    @tab.playing.on_update
+    def _(_: viser.GuiEvent[viser.GuiCheckboxHandle]) -> None:
+        stage.playing = bool(tab.playing.value)
+
+    @tab.new_lives.on_update
+    def _(_: viser.GuiEvent[viser.GuiCheckboxHandle]) -> None:
+        stage.new_lives = bool(tab.new_lives.value)
+
+    return tab
+
+
+def describe(show: Show) -> str:
+    """The Show tab's description of a show: title, robots (in their colours), arena, fault."""
+    robots = ", ".join(
+        f"<span style='color:{hex_color(ROBOT_COLORS[i])}'>●</span> {r.label} "
+        f"({r.cfg.method}, {'fuzzy' if r.cfg.fuzzy else 'crisp'})"
+        for i, r in enumerate(show.robots)
+    )
+    fault = ""
+    if show.fault is not None:
+        step, sensors, mode = show.fault
+        fault = f" · breaks s{', s'.join(map(str, sensors))} ({mode}) at step {step}"
+    return (
+        f"**On show:** {show.title}  \n{robots}  \n{show.arena} arena, start pose "
+        f"{show.start}{fault}"
+    )
+
+
+def legend() -> str:
+    """What the colours of the graph and the arena mean."""
+    transitions = " · ".join(
+        f"<span style='color:{hex_color(s.color)}'>■</span> {s.name}" for s in TRANSITION_STYLES
+    )
+    return (
+        f"<small>Graph: {transitions} · <span style='color:#f01e1e'>○</span> current node · "
+        "<span style='color:#8228c8'>○</span> inspected node. Arena: rays grey→orange with "
+        "the reading, <span style='color:#e61414'>red ✕</span> a broken sensor; trail "
+        "red→green with reward.</small>"
+    )
