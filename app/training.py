@@ -338,7 +338,7 @@ def _train_from(
     evaluator = make_evaluator(config, workers)
     done = start
     try:
-        with _stop_on_sigterm():
+        with _stop_on_sigterm():  # nested in train/resume's: also when called on its own
             for generation in range(start, training.generations):
                 began = time.perf_counter()
                 epsilon, alpha = generation_epsilon_alpha(training, generation)
@@ -452,11 +452,19 @@ def train(
         TrainingError: a worker process died.
     """
     sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
-    pop = initial_population(config)
-    writer = RunWriter.create(out, run_template(config))
-    writer.write_checkpoint(0, gnp.population_to_arrays(pop))
-    writer.mark_done(0)
-    _train_from(writer, 0, pop, workers, progress)
+    # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
+    # the file leaves no file (KeyboardInterrupt), after it a resumable one (Interrupted).
+    with _stop_on_sigterm():
+        pop = initial_population(config)
+        writer = RunWriter.create(out, run_template(config))
+        try:
+            writer.write_checkpoint(0, gnp.population_to_arrays(pop))
+            writer.mark_done(0)
+        except KeyboardInterrupt:
+            writer.close()
+            Path(out).unlink(missing_ok=True)
+            raise
+        _train_from(writer, 0, pop, workers, progress)
     return writer.path
 
 
@@ -467,7 +475,12 @@ def resume(path: str | Path, *, workers: int = 1, progress: ProgressCallback | N
     Raises:
         RunFileError: not a resumable run.
     """
-    writer, generation, arrays = RunWriter.resume(path)
-    pop = gnp.population_from_arrays(writer.config.controller.gnp_config(), arrays)
-    _train_from(writer, generation, pop, workers, progress)
+    with _stop_on_sigterm():
+        writer, generation, arrays = RunWriter.resume(path)
+        try:
+            pop = gnp.population_from_arrays(writer.config.controller.gnp_config(), arrays)
+        except KeyboardInterrupt:
+            writer.close()
+            raise Interrupted(generation) from None
+        _train_from(writer, generation, pop, workers, progress)
     return writer.path
