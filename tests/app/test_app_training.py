@@ -141,11 +141,18 @@ def _follow_until(path: Path, done_at_least: int, process: subprocess.Popen[byte
     raise AssertionError(f"training did not reach {done_at_least} generations: {seen}")
 
 
+LONG_GENERATIONS = 20
+
+
 @pytest.fixture(scope="module")
 def long_config(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """(config file, the uninterrupted run of it)."""
     folder = tmp_path_factory.mktemp("long")
-    config = tiny_config(population=16, steps=150, generations=14, checkpoint_every=2)
+    # Generations long enough (16 × 1000 robot-steps) for a reader to follow a few of them
+    # before the run ends, also on a fast engine.
+    config = tiny_config(
+        population=16, steps=1000, generations=LONG_GENERATIONS, checkpoint_every=2
+    )
     config_file = folder / "long.toml"
     config_file.write_text(to_toml(config))
     reference = folder / "reference.h5"
@@ -165,9 +172,9 @@ def test_sigkill_then_resume_matches_an_uninterrupted_run(
         os.killpg(process.pid, signal.SIGKILL)  # the trainer and its workers, mid-generation
         process.wait()
     # SWMR: this process saw generations appear one by one while the other wrote them
-    assert len(set(seen)) >= 3 and max(seen) < 14
+    assert len(set(seen)) >= 3 and max(seen) < LONG_GENERATIONS
     with RunReader(out) as run:  # the killed file opens and holds what was complete
-        assert 5 <= run.generations_done < 14 and not run.finished
+        assert 5 <= run.generations_done < LONG_GENERATIONS and not run.finished
         done = run.generations_done
         assert np.array_equal(
             run.history().fitness, datasets(reference)["generations/fitness"][:done]
@@ -210,6 +217,6 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
     assert f"gnp-lab train --resume {out}" in message
     with h5py.File(out, "r") as handle:  # closed cleanly
         done = int(handle["progress/generations_done"][()])
-    assert 3 <= done < 14
+    assert 3 <= done < LONG_GENERATIONS
     resume(out, workers=2)
     assert_same_data(out, reference)
