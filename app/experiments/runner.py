@@ -227,7 +227,9 @@ class Progress:
             state = self.states[task.key]
             self._generations[task.key] = state.generations_done
             self._conditions[task.key] = set(state.conditions)
-        total = sum(self._cost(t, t.config.training.generations, len(t.conditions)) for t in self.tasks)
+        total = sum(
+            self._cost(t, t.config.training.generations, len(t.conditions)) for t in self.tasks
+        )
         self._by_key = {t.key: t for t in self.tasks}
         self._bar = tqdm(
             total=total, initial=self._done(), unit="step", unit_scale=True,
@@ -331,7 +333,9 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
             try:
                 client = Client(scheduler, timeout="20s")
             except (OSError, TimeoutError) as error:
-                raise ExperimentError(f"cannot reach the Dask scheduler {scheduler}: {error}")
+                raise ExperimentError(
+                    f"cannot reach the Dask scheduler {scheduler}: {error}"
+                ) from None
             try:
                 yield client
             finally:
@@ -367,9 +371,7 @@ def execute(
     client.subscribe_topic(TOPIC, progress.event)
     errors = []
     try:
-        futures = {
-            client.submit(run_task, t, key=t.key, pure=False, retries=2): t for t in todo
-        }
+        futures = {client.submit(run_task, t, key=t.key, pure=False, retries=2): t for t in todo}
         for future in as_completed(futures):
             task = futures[future]
             try:

@@ -109,6 +109,7 @@ class ScaleSpec(_Frozen):
 
     seeds: int | None = Field(default=None, ge=1, le=10_000, description="unset = the file's")
     config: dict[str, Any] = Field(default_factory=dict)
+    measured: str = Field(default="", description="a measured wall time, shown by `list`")
 
 
 def _unique(kind: str, names: list[str]) -> None:
@@ -186,7 +187,7 @@ class ExperimentSpec(_Frozen):
                 f"experiment {self.name!r} has no scale {scale!r}; "
                 f"choose one of {', '.join(self.scales)}"
             )
-        return self.scales[scale]  # type: ignore[index]
+        return self.scales[scale]
 
     def arm(self, name: str) -> ArmSpec:
         return next(a for a in self.arms if a.name == name)
@@ -260,6 +261,12 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
         spec = ExperimentSpec.model_validate(data)
     except ValidationError as error:
         raise ExperimentError(_one_line(error, source)) from None
+    for arm in spec.arms:  # each overlay as written, before a scale can mask a bad value
+        try:
+            build_config(preset_layer(spec.preset), spec.config, arm.config)
+        except ConfigError as error:
+            message = f"invalid experiment {source}: arm {arm.name!r}: {error}"
+            raise ExperimentError(message.replace("\n", " ")) from None
     for scale in spec.scales:
         for arm in spec.arms:
             where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
@@ -286,7 +293,8 @@ def load_file(path: str | Path) -> ExperimentSpec:
     except (IsADirectoryError, PermissionError, UnicodeDecodeError) as error:
         raise ExperimentError(f"cannot read experiment file {path}: {error}") from None
     except tomllib.TOMLDecodeError as error:
-        raise ExperimentError(f"experiment file {path} is not valid TOML: {error}") from None
+        message = f"experiment file {path} is not valid TOML: {error}"
+        raise ExperimentError(message.replace("\n", " ")) from None
     return parse(data, str(path))
 
 
