@@ -156,7 +156,12 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         )
     write_summary(results, runner.summary_path(args.runs_dir, spec.name, args.scale))
     if args.format == "json":
-        from app.experiments.report import to_json
+        try:
+            from app.experiments.report import to_json
+        except ModuleNotFoundError as error:
+            if error.name != "app.experiments.report":
+                raise
+            raise ExperimentError("this gnp-lab has no report module: no JSON report") from None
 
         json.dump(to_json(results), sys.stdout, indent=2, ensure_ascii=False)
         sys.stdout.write("\n")
