@@ -359,12 +359,16 @@ def execute(
     tasks: list[Task], client: Any, quiet: bool = False, echo: Echo | None = None
 ) -> list[str]:
     """Run the unfinished tasks on `client`; returns the errors of the tasks that failed."""
+    import sys
+
     from distributed import as_completed
 
     states = {t.key: inspect(t) for t in tasks}
     todo = [t for t in tasks if not states[t.key].complete(t)]
     if not todo:
         return []
+    if not quiet:
+        sys.stderr.write("warming numba's cache in this process (minutes the first time)...\n")
     warm_numba(todo)
     progress = Progress(tasks, states, quiet=quiet)
     say = echo or progress.write
@@ -464,9 +468,8 @@ def run_experiment(
     """
     spec.scale(scale)
     tasks = plan(spec, scale, runs_dir, seeds)
-    for task in tasks:  # refuse a foreign file before starting anything
-        inspect(task)
-    if all(inspect(t).complete(t) for t in tasks):
+    states = [inspect(task) for task in tasks]  # refuse a foreign file before starting anything
+    if all(state.complete(task) for state, task in zip(states, tasks, strict=True)):
         errors: list[str] = []
     elif client is not None:
         errors = execute(tasks, client, quiet, echo)
