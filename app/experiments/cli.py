@@ -175,7 +175,13 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     from app.experiments import runner
 
     tasks = runner.plan(spec, args.scale, args.runs_dir, args.seeds)
-    states = [runner.inspect(task) for task in tasks]
+    states, problems = [], {}
+    for task in tasks:
+        try:
+            states.append(runner.inspect(task))
+        except ExperimentError as error:  # a foreign file, or one being replaced right now
+            states.append(runner.RunState(generations=task.config.training.generations))
+            problems[task.key] = str(error)
     done = sum(s.complete(t) for s, t in zip(states, tasks, strict=True))
     generations = sum(s.generations_done for s in states), sum(s.generations for s in states)
     conditions = sum(len(s.conditions) for s in states), sum(len(t.conditions) for t in tasks)
@@ -185,13 +191,15 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         f"{conditions[0]}/{conditions[1]} conditions"
     )
     for task, state in zip(tasks, states, strict=True):
-        if not Path(task.path).exists():
+        if task.key in problems:
+            what = f"unreadable: {problems[task.key]}"
+        elif not Path(task.path).exists():
             what = "not started"
         else:
             what = "trained" if state.finished else "training or cut"
         print(
             f"  {task.name:16} {state.generations_done:6}/{state.generations} generations  "
-            f"{what:15} conditions {len(state.conditions)}/{len(task.conditions)}"
+            f"conditions {len(state.conditions)}/{len(task.conditions)}  {what}"
         )
     summary = runner.summary_path(args.runs_dir, spec.name, args.scale)
     print(f"summary: {summary if summary.exists() else 'not written yet'}")

@@ -106,6 +106,8 @@ def test_foreign_run_file_is_never_overwritten(
     train(tiny_config(), target, workers=1)  # another config at an experiment's path
     before = _files(runs)
     argv = ["experiment", "run", "--file", str(spec_path), "--runs-dir", str(runs)]
+    assert main(["experiment", "status", *argv[2:], "--scale", "smoke"]) == 0
+    assert f"unreadable: {target} holds a run with another config" in capsys.readouterr().out
     assert main([*argv, "--scale", "smoke", "--quiet"]) == 1
     _one_error_line(capsys, str(target), "another config")
     assert _files(runs) == before
