@@ -11,6 +11,7 @@ the worker count, the order, retries or resumption.
 from __future__ import annotations
 
 import hashlib
+import signal
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -253,18 +254,32 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
             finally:
                 client.close()
             return
-        with (
-            LocalCluster(
+        with _ignoring_ctrl_c():  # the worker processes inherit it
+            cluster = LocalCluster(
                 n_workers=workers or default_workers(),
                 threads_per_worker=1,
                 processes=True,
                 host="127.0.0.1",
                 dashboard_address=None,
                 silence_logs=logging.ERROR,
-            ) as cluster,
-            Client(cluster) as client,
-        ):
+            )
+        with cluster, Client(cluster) as client:
             yield client
+
+
+@contextmanager
+def _ignoring_ctrl_c() -> Iterator[None]:
+    """Ignore SIGINT meanwhile. Ctrl-C reaches the whole foreground process group; worker
+    processes started meanwhile ignore it, and the client alone stops (closing its cluster)."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
 
 
 def execute(
