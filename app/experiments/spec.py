@@ -268,6 +268,7 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
             message = f"invalid experiment {source}: arm {arm.name!r}: {error}"
             raise ExperimentError(message.replace("\n", " ")) from None
     for scale in spec.scales:
+        shapes: dict[str, tuple[int, int]] = {}
         for arm in spec.arms:
             where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
             try:
@@ -276,10 +277,16 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
                 raise ExperimentError(f"{where}: {error}".replace("\n", " ")) from None
             for condition in spec.conditions:
                 try:
-                    spec.condition_settings(condition, run, scale)
+                    settings = spec.condition_settings(condition, run, scale)
                 except ConfigError as error:
                     message = f"{where}, condition {condition.name!r}: {error}"
                     raise ExperimentError(message.replace("\n", " ")) from None
+                shape = shapes.setdefault(condition.name, (settings.steps, settings.fault_step))
+                if shape != (settings.steps, settings.fault_step):
+                    raise ExperimentError(
+                        f"{where}, condition {condition.name!r}: steps and fault_step must be "
+                        f"the same for every arm (the first arm's are {shape})"
+                    )
     return spec
 
 

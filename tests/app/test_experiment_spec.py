@@ -80,6 +80,13 @@ def _append(key: str, index: int) -> Callable[[dict[str, Any]], None]:
     return lambda data: data[key].append(dict(data[key][index]))
 
 
+def _arm_fault_step(data: dict[str, Any]) -> None:
+    for scale in data["scales"].values():
+        del scale["config"]["implementation"]["fault_step"]
+    data["config"]["implementation"]["fault_step"] = 40
+    data["arms"][1]["config"]["implementation"] = {"fault_step": 30}
+
+
 BAD: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("unknown arm", _set("comparisons.0.a", "CS"), "unknown arm 'CS'"),
     ("unknown metric", _set("comparisons.0.metric", "speed"), "unknown metric 'speed'"),
@@ -106,6 +113,7 @@ BAD: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("bad scale value", _set("scales.smoke.config.training.steps", 0), "'smoke'"),
     ("fault after end", _set("scales.small.config.implementation.fault_step", 500), "fault_step"),
     ("zero seeds", _set("seeds", 0), "seeds"),
+    ("arms' conditions differ", _arm_fault_step, "the same for every arm"),
     ("no arms", _set("arms", []), "arms"),
 ]
 
