@@ -190,6 +190,7 @@ class ExperimentSpec(_Frozen):
         return self.scales[scale]
 
     def arm(self, name: str) -> ArmSpec:
+        """An arm by name."""
         return next(a for a in self.arms if a.name == name)
 
     def run_config(self, arm: str, scale: str, seed: int) -> RunConfig:
@@ -197,7 +198,9 @@ class ExperimentSpec(_Frozen):
         layers = (preset_layer(self.preset), self.config, self.arm(arm).config)
         return build_config(*layers, self.scale(scale).config, {"seed": seed})
 
-    def condition_settings(self, condition: ConditionSpec, run: RunConfig, scale: str) -> Any:
+    def condition_settings(
+        self, condition: ConditionSpec, run: RunConfig, scale: str
+    ) -> ImplementationSettings:
         """The ImplementationSettings of a condition for a run of this experiment."""
         sized = self.scale(scale).config.get("implementation", {})
         config = build_config(
@@ -205,12 +208,12 @@ class ExperimentSpec(_Frozen):
             {"implementation": condition.implementation},
             {"implementation": sized},
         )
-        settings: ImplementationSettings = config.implementation
-        return settings
+        return config.implementation
 
     # -- the results contract --
 
     def arms_info(self) -> tuple[Arm, ...]:
+        """The arms as the report sees them."""
         return tuple(Arm(a.name, a.label) for a in self.arms)
 
     def conditions_info(self, scale: str) -> tuple[Condition, ...]:
@@ -232,9 +235,11 @@ class ExperimentSpec(_Frozen):
         return tuple(out)
 
     def comparisons_info(self) -> tuple[Comparison, ...]:
+        """The claims as the statistics see them."""
         return tuple(Comparison(**c.model_dump()) for c in self.comparisons)
 
     def thesis_info(self) -> tuple[ThesisValue, ...]:
+        """The thesis's numbers, to sit beside ours."""
         return tuple(ThesisValue(**v.model_dump()) for v in self.thesis)
 
 
