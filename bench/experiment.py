@@ -63,12 +63,14 @@ def main() -> None:
         tasks = plan(spec, args.scale, alone, args.seeds)
         warm_numba(tasks)
         durations = []
+        cpu = time.process_time()
         began = time.perf_counter()
         for task in tasks:
             t = time.perf_counter()
             run_task(task)
             durations.append(time.perf_counter() - t)
         sequential = time.perf_counter() - began
+        cpu_sequential = time.process_time() - cpu
 
         t = time.perf_counter()
         with connect(workers=args.workers) as client:
@@ -77,10 +79,13 @@ def main() -> None:
             t = time.perf_counter()
             client.gather(client.map(_noop, range(200), pure=False))
             trivial = (time.perf_counter() - t) / 200
+            cpu_before = client.run(time.process_time)
             t = time.perf_counter()
             with get_task_stream(client) as stream:
                 errors = execute(plan(spec, args.scale, cluster, args.seeds), client, quiet=True)
             parallel = time.perf_counter() - t
+            cpu_after = client.run(time.process_time)
+            cpu_workers = sum(cpu_after[w] - cpu_before[w] for w in cpu_before)
         assert not errors, errors
         a = collect(spec, args.scale, alone, args.seeds)
         b = collect(spec, args.scale, cluster, args.seeds)
@@ -105,6 +110,10 @@ def main() -> None:
         f"(best schedule of the sequential run times: {sequential / ideal:.2f}x)",
         f"  per-task overhead        {trivial * 1e3:7.2f} ms per trivial task; wall time beyond "
         f"the workers' busiest share: {parallel - sum(in_cluster) / args.workers:+.2f} s",
+        f"  CPU seconds              {cpu_sequential:7.2f} s in one process, "
+        f"{cpu_workers:.2f} s in the workers ({cpu_workers / cpu_sequential - 1:+.1%}); "
+        f"on {args.workers} idle cores: at most "
+        f"{args.workers * cpu_sequential / cpu_workers:.2f}x",
         f"  identical results: {same}",
     ]
     print("\n".join(lines))
