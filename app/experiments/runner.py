@@ -45,6 +45,7 @@ def experiment_dir(runs_dir: str | Path, name: str) -> Path:
 
 
 def summary_path(runs_dir: str | Path, name: str, scale: str) -> Path:
+    """`RUNS_DIR/experiments/NAME/summary-SCALE.h5`."""
     return experiment_dir(runs_dir, name) / f"summary-{scale}.h5"
 
 
@@ -227,6 +228,7 @@ def warm_numba(tasks: list[Task]) -> None:
 
 
 def default_workers() -> int:
+    """One worker per core."""
     from app.training import default_workers as cores
 
     return cores()
@@ -308,8 +310,9 @@ def execute(
             try:
                 outcome = future.result()
             except Exception as error:  # a failed run must not hide the others' results
-                errors.append(f"{task.name}: {type(error).__name__}: {error}".splitlines()[0])
-                say(f"{task.name}: failed: {errors[-1]}")
+                reason = f"{type(error).__name__}: {error}".splitlines()[0]
+                errors.append(f"{task.name}: {reason}")
+                say(f"{task.name} failed: {reason}")
                 continue
             progress.finished(task)
             say(outcome_line(outcome))

@@ -4,6 +4,7 @@ the summary file."""
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import socket
@@ -22,7 +23,7 @@ from lab_fixtures import assert_same_data
 
 from app.experiments.results import ExperimentResults
 from app.experiments.runner import collect, inspect, plan, run_experiment, summary_path
-from app.experiments.spec import ExperimentSpec, load_file
+from app.experiments.spec import ExperimentError, ExperimentSpec, load_file
 from app.experiments.summary import FORMAT, read_summary, write_summary
 from app.store import RunReader
 
@@ -138,6 +139,29 @@ def test_rerun_is_idempotent(spec: ExperimentSpec, reference: Path) -> None:
     results = run_experiment(spec, SCALE, reference, quiet=True)  # no cluster needed
     assert [(p.stat().st_ino, p.stat().st_mtime_ns) for p in files] == before
     assert_same_results(results, read_summary(summary_path(reference, spec.name, SCALE)))
+
+
+def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: Path) -> None:
+    from distributed import Client
+
+    blocked = Path(plan(spec, "smoke", tmp_path)[1].path)
+    blocked.parent.mkdir(parents=True)
+    lines: list[str] = []
+    with (
+        blocked.with_name(f".{blocked.name}.lock").open("a") as lock,
+        Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c,
+    ):
+        fcntl.flock(lock, fcntl.LOCK_EX)  # as if another gnp-lab process were writing it
+        with pytest.raises(
+            ExperimentError, match=r"1 run\(s\) failed; the first: BS-seed1: RunFileError"
+        ):
+            run_experiment(spec, "smoke", tmp_path, client=c, quiet=True, echo=lines.append)
+    assert sum("failed" in line for line in lines) == 1
+    assert sum("final best fitness" in line for line in lines) == 3
+    results = read_summary(summary_path(tmp_path, spec.name, "smoke"))
+    fitness = results.scalar("final_best_fitness", "BS")
+    assert np.isnan(fitness[1]) and not np.isnan(fitness[0])
+    assert not np.isnan(results.scalar("mean_reward", "RL", "no-fault")).any()
 
 
 @pytest.mark.slow
