@@ -213,10 +213,13 @@ def test_killed_worker_task_is_retried_with_identical_results(
         thread = threading.Thread(target=experiment)
         thread.start()
         deadline = time.monotonic() + 120
-        while _cut_run(spec, tmp_path) is None and time.monotonic() < deadline:
+        busy: list[tuple[str, int]] = []
+        while not busy and time.monotonic() < deadline:
             time.sleep(0.05)
-        processing = client.processing()
-        victim, pid = next((a, p) for a, p in _pids(client).items() if processing.get(a))
+            if _cut_run(spec, tmp_path) is not None:
+                processing = client.processing()
+                busy = [(a, p) for a, p in _pids(client).items() if processing.get(a)]
+        victim, pid = busy[0]
         cut_keys = list(processing[victim])
         os.kill(pid, signal.SIGKILL)
         thread.join(timeout=180)
