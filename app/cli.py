@@ -9,12 +9,14 @@ from __future__ import annotations
 import argparse
 import socket
 import sys
-import time
 import tomllib
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
+import gnp
+import sim
 from app.config import (
     PRESET_NAMES,
     ConfigError,
@@ -26,8 +28,10 @@ from app.config import (
     to_toml,
 )
 from app.experiments import cli as experiment_cli
-from app.experiments.spec import ExperimentError
-from app.store import RunFileError, RunReader, list_runs, resolve_run
+from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
+
+if TYPE_CHECKING:
+    from app.training import GenerationSummary
 
 PROG = "gnp-lab"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
@@ -94,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
-    train.add_argument("--method", choices=("RL", "BS", "CS"), help="learning method")
+    train.add_argument("--method", choices=gnp.METHODS, help="learning method")
     fuzzy = train.add_mutually_exclusive_group()
     fuzzy.add_argument(
         "--fuzzy", dest="fuzzy", action="store_true", default=None, help="fuzzy judgment"
@@ -103,7 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--population", type=int, metavar="N", help="individuals")
     train.add_argument("--generations", type=int, metavar="G", help="generations")
     train.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
-    train.add_argument("--noise", type=float, metavar="SIGMA", help="sensor noise σ (0..1023)")
+    train.add_argument(
+        "--noise", type=float, metavar="SIGMA", help=f"sensor noise σ (0..{sim.IR_MAX:g})"
+    )
     train.add_argument("--seed", type=int, help="random seed")
     train.add_argument(
         "--set",
@@ -147,7 +153,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S,S",
         help="sensors 0..7 that break ('none' for no fault)",
     )
-    implement.add_argument("--mode", choices=("dead", "saturated", "stuck", "random"))
+    implement.add_argument(
+        "--break-count",
+        type=int,
+        metavar="K",
+        help="K sensors that break, drawn per trial from its own seeded stream",
+    )
+    implement.add_argument("--mode", choices=sim.FAULT_MODES)
     implement.add_argument("--fault-step", type=int, metavar="T", help="step t' of the fault")
     implement.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
     implement.add_argument("--repeats", type=int, help="trials per start pose")
@@ -159,6 +171,12 @@ def build_parser() -> argparse.ArgumentParser:
     implement.add_argument("--seed", type=int, help="random seed (default: the run's)")
     implement.add_argument("--name", help="name of the result in the run file")
     implement.add_argument("--quiet", action="store_true", help="no progress bar")
+    implement.add_argument(
+        "--workers",
+        type=int,
+        help="worker processes sharing the trials (default: one per core; results do not "
+        "depend on it)",
+    )
 
     runs = commands.add_parser("runs", help="list run files, or inspect one")
     runs.add_argument("name", nargs="?", metavar="NAME", help="a run to inspect")
@@ -226,13 +244,6 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     return build_config(*layers, source=" + ".join([*sources, "options"]))
 
 
-def _default_out(runs_dir: Path, config: RunConfig) -> Path:
-    controller = config.controller
-    kind = "fuzzy" if controller.fuzzy else "crisp"
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    return runs_dir / f"{controller.method}-{kind}-seed{config.seed}-{stamp}.h5"
-
-
 class _Bar:
     """A tqdm bar on stderr (ETA included), created at the first update so that an error
     found before any work is the only thing printed."""
@@ -265,13 +276,23 @@ class _GenerationBar(_Bar):
         super().__init__(total, initial, "train", "gen", quiet)
         self.best = float("nan")
 
-    def __call__(self, summary: Any) -> None:
+    def __call__(self, summary: GenerationSummary) -> None:
         self.best = summary.best_fitness
         self.update(
             summary.generation + 1,
             best=f"{summary.best_fitness:.3f}",
             mean=f"{summary.mean_fitness:.3f}",
         )
+
+
+def _workers(option: int | None) -> int:
+    """--workers: default one per core, at least 1."""
+    from app.training import default_workers
+
+    workers = option if option is not None else default_workers()
+    if workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {workers}")
+    return workers
 
 
 def _interrupted(stop: Exception, path: Path) -> int:
@@ -282,9 +303,7 @@ def _interrupted(stop: Exception, path: Path) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from app import training
 
-    workers = args.workers if args.workers is not None else training.default_workers()
-    if workers < 1:
-        raise UsageError(f"--workers must be at least 1, got {workers}")
+    workers = _workers(args.workers)
     if args.resume:
         given = [f"--{name}" for name in _CONFIG_OPTIONS if getattr(args, name) is not None]
         given += ["--set"] if args.assignments else []
@@ -311,7 +330,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         if args.print_config:
             sys.stdout.write(to_toml(config))
             return 0
-        path = Path(args.out) if args.out else _default_out(Path(args.runs_dir), config)
+        now = datetime.now(UTC)
+        path = Path(args.out) if args.out else new_run_path(args.runs_dir, config, now)
         if path.exists():
             raise RunFileError(f"{path} already exists; choose another --out or --resume it")
         bar = _GenerationBar(config.training.generations, 0, args.quiet)
@@ -338,6 +358,7 @@ def cmd_implement(args: argparse.Namespace) -> int:
     changes: dict[str, Any] = {}
     for option, key in (
         ("broken", "broken_sensors"),
+        ("break_count", "break_count"),
         ("mode", "fault_mode"),
         ("fault_step", "fault_step"),
         ("steps", "steps"),
@@ -349,19 +370,26 @@ def cmd_implement(args: argparse.Namespace) -> int:
     ):
         if getattr(args, option) is not None:
             changes[key] = getattr(args, option)
+    # A fixed set and k random sensors exclude each other: the option given replaces the other.
+    if args.broken is not None and args.break_count is None:
+        changes["break_count"] = 0
+    if args.break_count is not None and args.broken is None:
+        changes["broken_sensors"] = ()
     config = build_config(
         {"implementation": stored.model_dump()},
         {"implementation": changes},
         source="implementation options",
     )
     settings: ImplementationSettings = config.implementation
-    bar = _Bar(settings.steps, 0, "implement", "step", args.quiet)
+    workers = _workers(args.workers)
+    trial_steps = sim.N_START_POSES * settings.repeats * settings.steps
+    bar = _Bar(trial_steps, 0, "implement", "trial-step", args.quiet)
 
     def progress(done: int, total: int) -> None:
         bar.update(done)
 
     try:
-        result = implement(path, settings, name=args.name, progress=progress)
+        result = implement(path, settings, name=args.name, progress=progress, workers=workers)
     finally:
         bar.close()
     print(
@@ -494,7 +522,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         TrainingError,
         sim.ArenaError,
         sim.WorldError,
-        ExperimentError,
+        experiment_cli.ExperimentError,
         gnp.GnpError,
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")

@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+import gnp
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
+from gnp.config import GenerationProgress
 from sim import IR_MAX, N_SENSORS, FaultMode
 
 ScheduleKind = Literal["fixed", "changing"]
@@ -99,6 +102,11 @@ class TrainingSettings(_Frozen):
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
     )
+    schedule_progress: GenerationProgress = Field(
+        default="last-generation-min",
+        description="progress of Eq. 4.1-4.2 at generation g = 0..G-1: g/(G-1), so the last "
+        "generation uses the min (last-generation-min), or g/G as printed (g-over-G)",
+    )
     checkpoint_every: int = Field(
         default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
     )
@@ -118,6 +126,37 @@ class TrainingSettings(_Frozen):
     def schedules(self) -> tuple[Schedule, Schedule]:
         """(ε, α) over generations: fixed values, or Eq. 4.1-4.2 from max to min."""
         return _schedules(self)
+
+
+@dataclass(frozen=True)
+class LearningSettings:
+    """Online Sarsa of a batch: ε and α at each step, given the step of the latest fault.
+
+    Before any fault ε/α are the fixed values (thesis §4.5: fixed until t'); from a fault on they
+    follow `after_fault`, the (ε, α) schedules of Eq. 4.3–4.4 from max to min over `horizon`
+    steps (the implementation phase's T − t'), or stay fixed when it is None.
+    """
+
+    online: bool = True
+    epsilon: float = 0.1
+    alpha: float = 0.1
+    after_fault: tuple[gnp.Schedule, gnp.Schedule] | None = None
+    horizon: int = 2500
+
+    def __post_init__(self) -> None:
+        for name, value in (("ε", self.epsilon), ("α", self.alpha)):
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name} must be in 0..1, got {value}")
+        if self.horizon < 1:
+            raise ValueError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
+
+    def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
+        """ε and α at step `t`, the latest fault (or the phase's t') at `fault_step`."""
+        if self.after_fault is None or fault_step is None or t < fault_step:
+            return self.epsilon, self.alpha
+        return gnp.epsilon_alpha_after_fault(
+            *self.after_fault, t, fault_step, fault_step + self.horizon
+        )
 
 
 class ImplementationSettings(_Frozen):
@@ -190,6 +229,16 @@ class ImplementationSettings(_Frozen):
     def schedules(self) -> tuple[Schedule, Schedule]:
         """(ε, α) after the fault: fixed values, or Eq. 4.3-4.4 from max to min."""
         return _schedules(self)
+
+    def learning(self) -> LearningSettings:
+        """Online learning of the trials: fixed ε/α until t', then the configured schedule
+        over T − t'."""
+        return LearningSettings(
+            epsilon=self.epsilon,
+            alpha=self.alpha,
+            after_fault=self.schedules() if self.schedule == "changing" else None,
+            horizon=max(1, self.steps - self.fault_step),
+        )
 
     @field_validator("broken_sensors")
     @classmethod

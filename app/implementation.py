@@ -74,17 +74,13 @@ def default_name(settings: ImplementationSettings) -> str:
 
 def epsilon_alpha_at(settings: ImplementationSettings, t: int) -> tuple[float, float]:
     """(ε, α) at step t: fixed before the fault step, then the configured schedule."""
-    if settings.schedule == "fixed" or t < settings.fault_step:
-        return settings.epsilon, settings.alpha
-    eps_schedule, alpha_schedule = settings.schedules()
-    return gnp.epsilon_alpha_after_fault(
-        eps_schedule, alpha_schedule, t, settings.fault_step, settings.steps
-    )
+    return settings.learning().rates(t, settings.fault_step)
 
 
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
     """(T,) ε and (T,) α of every step."""
-    rates = np.array([epsilon_alpha_at(settings, t) for t in range(settings.steps)])
+    learning = settings.learning()
+    rates = np.array([learning.rates(t, settings.fault_step) for t in range(settings.steps)])
     return rates[:, 0], rates[:, 1]
 
 
@@ -153,7 +149,7 @@ def _live_trials(
     world.schedule_faults(faults(settings, seed, trials))
     batch = Batch(world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds)
     steps = settings.steps
-    recorder = TrajectoryRecorder(len(trials), steps, cfg.max_visits_per_step) if record else None
+    recorder = TrajectoryRecorder(len(trials), steps, cfg) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)
     fault_step = min(settings.fault_step, steps)
     bounds = sorted({*range(0, steps, _PROGRESS_EVERY), fault_step, steps})
@@ -186,17 +182,14 @@ def _count(done: int) -> None:
 
 
 def _worker_live_trials(
-    cfg_json: str,
-    arrays: dict[str, np.ndarray],
-    settings_json: str,
+    cfg: gnp.GnpConfig,
+    individual: gnp.Population,
+    settings: ImplementationSettings,
     seed: int,
     control_period: float,
     part: slice,
     record: bool,
 ) -> _Part:
-    cfg = gnp.GnpConfig.model_validate_json(cfg_json)
-    settings = ImplementationSettings.model_validate_json(settings_json)
-    individual = gnp.population_from_arrays(cfg, arrays)
     return _live_trials(cfg, individual, settings, seed, control_period, part, record, _count)
 
 
@@ -230,16 +223,15 @@ def _live_all(
         return results
     context = multiprocessing.get_context("spawn")
     counter = context.Value("q", 0)
-    arrays = gnp.population_to_arrays(individual)
     with ProcessPoolExecutor(
         min(workers, len(parts)), context, initializer=_init_worker, initargs=(counter,)
     ) as pool:
         futures = [
             pool.submit(
                 _worker_live_trials,
-                cfg.model_dump_json(),
-                arrays,
-                settings.model_dump_json(),
+                cfg,
+                individual,
+                settings,
                 seed,
                 control_period,
                 part,
@@ -301,9 +293,7 @@ def run_implementation(
         per_step += result.step_reward_sums
     trajectory = results[0].trajectory if recorded else None
     if trajectory is None:
-        trajectory = TrajectoryRecorder(0, steps, cfg.max_visits_per_step).trajectory(
-            np.zeros(0, np.int64)
-        )
+        trajectory = TrajectoryRecorder(0, steps, cfg).trajectory(np.zeros(0, np.int64))
     return Implementation(
         name=name,
         settings=settings,

@@ -17,38 +17,13 @@ import numpy as np
 
 import gnp
 import sim
+from app.config import LearningSettings
+from app.rollout import Batch
 from sim import FAULT_MODES, IR_MAX, N_SENSORS, FaultMode
 
 
 class LiveError(ValueError):
     """A live-session request that cannot be honoured (bad sensor, mode, value...)."""
-
-
-@dataclass(frozen=True)
-class LearningSettings:
-    """Online learning of the robots on show.
-
-    ε and α are `gnp.Schedule`s: fixed (max = min) or Eq. 4.3–4.4 from max at the latest fault
-    down to min over `horizon` steps (the implementation phase's T − t'); before any fault they
-    sit at max, as in the implementation phase.
-    """
-
-    online: bool = True
-    epsilon: gnp.Schedule = field(default_factory=lambda: gnp.Schedule.fixed(0.1))
-    alpha: gnp.Schedule = field(default_factory=lambda: gnp.Schedule.fixed(0.1))
-    horizon: int = 2500
-
-    def __post_init__(self) -> None:
-        if self.horizon < 1:
-            raise LiveError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
-
-    def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
-        """ε and α at control step `t` given the step of the latest fault (or None)."""
-        if fault_step is None:
-            return self.epsilon.max, self.alpha.max
-        return gnp.epsilon_alpha_after_fault(
-            self.epsilon, self.alpha, t, fault_step, fault_step + self.horizon
-        )
 
 
 class Ring:
@@ -89,14 +64,14 @@ class RobotSnapshot:
     """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
 
     label: str
-    method: str
+    method: gnp.Method
     fuzzy: bool
     t: int
     pose: np.ndarray  # (3,) x mm, y mm, heading rad
     true_readings: np.ndarray  # (8,)
     seen_readings: np.ndarray  # (8,) with noise and faults: what the controller used
     broken: np.ndarray  # (8,) bool
-    fault_mode: str | None
+    fault_mode: FaultMode | None
     trajectory: np.ndarray  # (P, 2) mm, oldest first
     trajectory_reward: np.ndarray  # (P,) reward of the step that ended at each point
     reward_steps: np.ndarray  # (H,) step index
@@ -126,11 +101,10 @@ class LiveRobot:
     trajectory_capacity: int = 600
     history_capacity: int = 1000
     visit_capacity: int = 64
-    _state: gnp.EngineState = field(init=False)
-    _last_reward: np.ndarray = field(init=False)
+    _batch: Batch = field(init=False)
     _seen: np.ndarray = field(init=False)
     _fault_steps: list[int] = field(init=False, default_factory=list)
-    _fault_mode: str | None = field(init=False, default=None)
+    _fault_mode: FaultMode | None = field(init=False, default=None)
     _rates: tuple[float, float] = field(init=False, default=(0.0, 0.0))
 
     def __post_init__(self) -> None:
@@ -140,8 +114,7 @@ class LiveRobot:
         self._rewards = Ring(self.history_capacity)
         self._broken_counts = Ring(self.history_capacity, (), np.int64)
         self._visits = Ring(self.visit_capacity, (len(VISIT_FIELDS),), np.int64)
-        self._state = gnp.init_state(self.cfg, 1, np.array([self.seed], np.int64))
-        self._last_reward = np.zeros(1)
+        self._batch = Batch(self.world, self.cfg, self.population, np.array([self.seed]))
         self._seen = self.world.sense().copy()
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(0.0)
@@ -152,29 +125,15 @@ class LiveRobot:
         return int(self.world.t)
 
     def step(self, learning: LearningSettings) -> None:
-        """One control step: observe, run the controller (traced), move, judge the reward."""
+        """One control step through the lab's loop (traced), then the views' histories."""
         fault_step = self._fault_steps[-1] if self._fault_steps else None
         epsilon, alpha = learning.rates(self.t, fault_step)
         self._rates = (epsilon, alpha)
-        seen = self.world.observe()
-        result = gnp.step(
-            self.cfg,
-            self.population,
-            self._state,
-            seen,
-            self._last_reward,
-            epsilon,
-            alpha,
-            learn=learning.online,
-            trace=True,
-        )
-        assert isinstance(result, tuple)
-        commands, trace = result
-        self.world.step(commands)
-        reward = float(sim.reward_terms(self.world.sense(), commands)["reward"][0])
-        self._last_reward = np.array([reward])
-        self._seen = seen.copy()
-        self._record_trace(trace)
+        record = self._batch.step(epsilon, alpha, learn=learning.online, trace=True)
+        assert record.trace is not None
+        reward = float(record.reward[0])
+        self._seen = record.observations
+        self._record_trace(record.trace)
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(reward)
         self._reward_steps.append(self.t)

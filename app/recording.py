@@ -38,7 +38,7 @@ class TrajectoryRecorder:
     the same arrays, dtypes and shapes.
     """
 
-    def __init__(self, k: int, steps: int, visits: int) -> None:
+    def __init__(self, k: int, steps: int, cfg: gnp.GnpConfig) -> None:
         self.k = k
         self._t = 0  # the next step to record
         self._arrays = {
@@ -49,11 +49,9 @@ class TrajectoryRecorder:
             "terms": np.zeros((k, steps, len(sim.TERM_NAMES))),
         }
         self._trace = {
-            field: np.zeros((k, steps, visits), np.int32)
-            for field in gnp.TRACE_FIELDS
-            if field != "count"
+            field: np.zeros((k, steps, *shape), gnp.TRACE_DTYPE)
+            for field, shape in gnp.trace_shapes(cfg).items()
         }
-        self._trace["count"] = np.zeros((k, steps), np.int32)
 
     def record(
         self,
@@ -61,17 +59,18 @@ class TrajectoryRecorder:
         readings: np.ndarray,
         observations: np.ndarray,
         commands: np.ndarray,
-        terms: dict[str, np.ndarray],
+        term_table: np.ndarray,
         trace: gnp.StepTrace,
     ) -> None:
-        """The next step of the batch: arrays with a leading batch axis."""
+        """The next step of the batch: arrays with a leading batch axis (`term_table`'s
+        columns are `sim.TERM_NAMES`)."""
         k, t = self.k, self._t
         a = self._arrays
         a["poses"][:, t] = poses[:k]
         a["readings"][:, t] = readings[:k]
         a["observations"][:, t] = observations[:k]
         a["commands"][:, t] = commands[:k]
-        a["terms"][:, t] = np.stack([terms[name][:k] for name in sim.TERM_NAMES], axis=1)
+        a["terms"][:, t] = term_table[:k]
         for field, values in self._trace.items():
             values[:, t] = getattr(trace, field)[:k]
         self._t = t + 1

@@ -24,8 +24,18 @@ class StepRecord:
     observations: np.ndarray  # (N, 8) what the controllers saw (noise, faults)
     commands: np.ndarray  # (N, 2) left, right wheel commands
     readings: np.ndarray  # (N, 8) true readings after the step
-    terms: dict[str, np.ndarray]  # reward term name -> (N,)
+    term_table: np.ndarray  # (N, len(sim.TERM_NAMES)) reward terms, columns as TERM_NAMES
     trace: gnp.StepTrace | None  # what each controller visited, when traced
+
+    @property
+    def terms(self) -> dict[str, np.ndarray]:
+        """Reward term name -> (N,)."""
+        return {name: self.term_table[:, i] for i, name in enumerate(sim.TERM_NAMES)}
+
+    @property
+    def reward(self) -> np.ndarray:
+        """(N,) reward of the step (Eq. 2.7)."""
+        return self.term_table[:, 0]
 
 
 class Batch:
@@ -84,9 +94,9 @@ class Batch:
             )
         self.world.step(commands)
         readings = self.world.sense()
-        terms = sim.reward_terms(readings, commands)
-        self.reward = terms["reward"]
-        return StepRecord(seen, commands, readings, terms, step_trace)
+        table = sim.reward_table(readings, commands)
+        self.reward = table[:, 0]
+        return StepRecord(seen, commands, readings, table, step_trace)
 
 
 @dataclass(frozen=True)
@@ -127,8 +137,7 @@ def rollout(
         redraw_every: episode length in steps (0: one episode).
     """
     eps, alp = rates(epsilon, steps), rates(alpha, steps)
-    names = sim.TERM_NAMES
-    sums = np.zeros((batch.size, len(names)))
+    sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
     per_step = np.zeros(steps)
     trace = recorder is not None
     poses = batch.world.arena.start_poses
@@ -137,9 +146,8 @@ def rollout(
             assert episode_starts is not None
             batch.new_episode(poses[episode_starts[:, t // redraw_every]])
         record = batch.step(float(eps[t]), float(alp[t]), learn=learn, trace=trace)
-        for column, name in enumerate(names):
-            sums[:, column] += record.terms[name]
-        per_step[t] = record.terms["reward"].sum()
+        sums += record.term_table
+        per_step[t] = record.reward.sum()
         if recorder is not None:
             assert record.trace is not None
             recorder.record(
@@ -147,7 +155,7 @@ def rollout(
                 record.readings,
                 record.observations,
                 record.commands,
-                record.terms,
+                record.term_table,
                 record.trace,
             )
     return Rollout(term_sums=sums, step_reward_sums=per_step)

@@ -87,7 +87,7 @@ def live(
     """
     world.reset(world.arena.start_poses[seeds.starts[:, 0]], seeds=seeds.world)
     batch = Batch(world, cfg, pop, seeds.engine)
-    recorder = TrajectoryRecorder(pop.size, steps, cfg.max_visits_per_step) if record else None
+    recorder = TrajectoryRecorder(pop.size, steps, cfg) if record else None
     outcome = rollout(
         batch,
         steps,
@@ -104,26 +104,7 @@ def live(
     return lives, recorder.trajectory(seeds.starts[:, 0])
 
 
-def trace_template(cfg: gnp.GnpConfig) -> dict[str, np.ndarray]:
-    """One step's trace of one controller, (1, ...) per field: the shapes the store needs."""
-    rng = np.random.default_rng(0)
-    pop = gnp.init_population(cfg, 1, rng)
-    state = gnp.init_state(cfg, 1, [0])
-    _, trace = gnp.step(
-        cfg, pop, state, np.zeros((1, 8)), np.zeros(1), 0.0, 0.0, learn=False, trace=True
-    )
-    return {field: np.asarray(getattr(trace, field)) for field in gnp.TRACE_FIELDS}
-
-
 # --- evaluators: in-process or persistent worker processes ------------------------------------
-
-
-@dataclass(frozen=True)
-class _Job:
-    arrays: dict[str, np.ndarray]
-    seeds: LifeSeeds
-    epsilon: float
-    alpha: float
 
 
 class Evaluator(Protocol):
@@ -146,82 +127,63 @@ def _make_world(config: RunConfig, n: int) -> sim.World:
 
 
 def shards(training: TrainingSettings) -> list[slice]:
-    """The fixed split of the population into worlds of about `shard_size` robots.
+    """The fixed split of the population into shards of about `shard_size` robots.
 
-    Individual i always lives at the same index of the same-sized world, whatever the number
-    of workers; workers own whole shards (see docs/decisions.md).
+    Shards are the unit of work: a worker owns a contiguous run of whole shards and lives them
+    in one world. A robot's life does not depend on its world's other robots (see
+    docs/decisions.md), so results do not depend on the number of workers.
     """
     count = max(1, math.ceil(training.population / training.shard_size))
     bounds = np.linspace(0, training.population, count + 1).round().astype(int)
     return [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
 
 
-class _ShardWorlds:
-    """Lives of shards, each in its own persistent world (built on first use)."""
+def _owned(training: TrainingSettings, workers: int) -> list[slice]:
+    """The individuals each of `workers` workers lives: contiguous runs of whole shards."""
+    parts = shards(training)
+    bounds = np.linspace(0, len(parts), workers + 1).round().astype(int)
+    return [slice(parts[a].start, parts[b - 1].stop) for a, b in itertools.pairwise(bounds)]
+
+
+class _Lives:
+    """The lives of a fixed set of individuals, in one persistent world (built on first use)."""
 
     def __init__(self, config: RunConfig) -> None:
         self._config = config
         self._cfg = config.controller.gnp_config()
-        self._worlds: dict[int, sim.World] = {}
+        self._world: sim.World | None = None
 
-    def run(self, index: int, job: _Job) -> tuple[Lives, dict[str, np.ndarray]]:
-        if index not in self._worlds:
-            self._worlds[index] = _make_world(self._config, len(job.seeds.engine))
+    def run(
+        self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
+    ) -> tuple[Lives, gnp.Population]:
+        """Lives of `pop` (left as it is); returns them with the population that learned."""
+        if self._world is None:
+            self._world = _make_world(self._config, pop.size)
         training = self._config.training
-        pop = gnp.population_from_arrays(self._cfg, job.arrays)
+        learned = pop.copy()
         lives, _ = live(
-            self._worlds[index],
+            self._world,
             self._cfg,
-            pop,
-            job.seeds,
+            learned,
+            seeds,
             training.steps,
             training.redraw_every,
-            job.epsilon,
-            job.alpha,
-        )
-        return lives, gnp.population_to_arrays(pop)
-
-
-def _jobs(
-    pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float, parts: list[slice]
-) -> list[_Job]:
-    arrays = gnp.population_to_arrays(pop)
-    return [
-        _Job(
-            {name: values[part].copy() for name, values in arrays.items()},
-            seeds.take(part),
             epsilon,
             alpha,
         )
-        for part in parts
-    ]
-
-
-def _gather(
-    cfg: gnp.GnpConfig, results: list[tuple[Lives, dict[str, np.ndarray]]]
-) -> tuple[Lives, gnp.Population]:
-    lives = Lives(
-        fitness=np.concatenate([r[0].fitness for r in results]),
-        terms=np.concatenate([r[0].terms for r in results]),
-    )
-    names = results[0][1].keys()
-    learned = {name: np.concatenate([r[1][name] for r in results]) for name in names}
-    return lives, gnp.population_from_arrays(cfg, learned)
+        return lives, learned
 
 
 class LocalEvaluator:
-    """Evaluates in this process, shard after shard."""
+    """Evaluates the whole population in this process, in one world."""
 
     def __init__(self, config: RunConfig) -> None:
-        self._cfg = config.controller.gnp_config()
-        self._parts = shards(config.training)
-        self._worlds = _ShardWorlds(config)
+        self._lives = _Lives(config)
 
     def evaluate(
         self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
     ) -> tuple[Lives, gnp.Population]:
-        jobs = _jobs(pop, seeds, epsilon, alpha, self._parts)
-        return _gather(self._cfg, [self._worlds.run(i, job) for i, job in enumerate(jobs)])
+        return self._lives.run(pop, seeds, epsilon, alpha)
 
     def close(self) -> None:
         pass
@@ -232,25 +194,26 @@ def _worker_main(conn: Connection, config_json: str) -> None:
     # workers itself; a worker whose parent died sees its pipe close and exits.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    worlds = _ShardWorlds(RunConfig.model_validate_json(config_json))
+    lives = _Lives(RunConfig.model_validate_json(config_json))
     try:
         while True:
-            jobs = conn.recv()
-            if jobs is None:
+            job = conn.recv()
+            if job is None:
                 break
-            conn.send([worlds.run(index, job) for index, job in jobs])
+            conn.send(lives.run(*job))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
 
 
 class ProcessEvaluator:
-    """Persistent `spawn` worker processes, each owning the worlds of a contiguous run of shards."""
+    """Persistent `spawn` worker processes, each living a contiguous run of shards in one world.
+
+    Populations cross the pipes as themselves (their records, see `gnp.Population`): they are
+    validated where they come from files, not on every hand-off.
+    """
 
     def __init__(self, config: RunConfig, workers: int) -> None:
-        self._cfg = config.controller.gnp_config()
-        self._parts = shards(config.training)
-        bounds = np.linspace(0, len(self._parts), workers + 1).round().astype(int)
-        self._owned = [list(range(a, b)) for a, b in itertools.pairwise(bounds)]
+        self._owned = _owned(config.training, workers)
         context = multiprocessing.get_context("spawn")
         self._busy = False
         self._conns: list[Connection] = []
@@ -268,17 +231,27 @@ class ProcessEvaluator:
     def evaluate(
         self, pop: gnp.Population, seeds: LifeSeeds, epsilon: float, alpha: float
     ) -> tuple[Lives, gnp.Population]:
-        jobs = _jobs(pop, seeds, epsilon, alpha, self._parts)
         self._busy = True
         try:
-            for conn, owned in zip(self._conns, self._owned, strict=True):
-                conn.send([(index, jobs[index]) for index in owned])
-            results = [result for conn in self._conns for result in conn.recv()]
+            for conn, part in zip(self._conns, self._owned, strict=True):
+                conn.send(
+                    (
+                        gnp.take(pop, np.arange(part.start, part.stop)),
+                        seeds.take(part),
+                        epsilon,
+                        alpha,
+                    )
+                )
+            results = [conn.recv() for conn in self._conns]
         except (EOFError, OSError):
             codes = [proc.exitcode for proc in self._procs]
             raise TrainingError(f"a worker process died (exit codes {codes})") from None
         self._busy = False
-        return _gather(self._cfg, results)
+        lives = Lives(
+            fitness=np.concatenate([r[0].fitness for r in results]),
+            terms=np.concatenate([r[0].terms for r in results]),
+        )
+        return lives, gnp.concat([r[1] for r in results])
 
     def close(self) -> None:
         busy = self._busy  # interrupted mid-generation: the workers' results are not wanted
@@ -345,7 +318,7 @@ def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tup
     """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
     eps_schedule, alpha_schedule = training.schedules()
     return gnp.epsilon_alpha_over_generations(
-        eps_schedule, alpha_schedule, generation, training.generations
+        eps_schedule, alpha_schedule, generation, training.generations, training.schedule_progress
     )
 
 
@@ -430,15 +403,15 @@ def _replay(
     epsilon: float,
     alpha: float,
 ) -> Trajectory:
-    """Live the best individual's evaluation again, recording it: its whole shard is replayed
-    in a world like the one it was evaluated in, so the life is bit-identical."""
+    """Live the best individual's evaluation again, recording it. Alone in a world of its own
+    it lives the same life as in its worker's world, bit for bit (lives do not depend on
+    their world's other robots)."""
     training = config.training
-    part = next(p for p in shards(training) if p.start <= best < p.stop)
     _, trajectory = live(
-        _make_world(config, part.stop - part.start),
+        _make_world(config, 1),
         cfg,
-        gnp.take(pop, np.arange(part.start, part.stop)),
-        seeds.take(part),
+        gnp.take(pop, [best]),
+        seeds.take(slice(best, best + 1)),
         training.steps,
         training.redraw_every,
         epsilon,
@@ -446,23 +419,22 @@ def _replay(
         record=True,
     )
     assert trajectory is not None
-    row = slice(best - part.start, best - part.start + 1)
-    return Trajectory(
-        poses=trajectory.poses[row],
-        readings=trajectory.readings[row],
-        observations=trajectory.observations[row],
-        commands=trajectory.commands[row],
-        terms={name: values[row] for name, values in trajectory.terms.items()},
-        trace={name: values[row] for name, values in trajectory.trace.items()},
-        start_index=trajectory.start_index[row],
-    )
+    return trajectory
 
 
 def run_template(config: RunConfig) -> RunTemplate:
-    """The shapes a run file of this config needs."""
+    """The shapes and dtypes a run file of this config needs: one individual's genome and
+    one step's trace of one controller."""
     cfg = config.controller.gnp_config()
-    genome = gnp.population_to_arrays(gnp.init_population(cfg, 1, np.random.default_rng(0)))
-    return RunTemplate(config=config, genome=genome, trace=trace_template(cfg))
+    genome = {
+        name: np.zeros((1, *shape), gnp.field_dtype(name))
+        for name, shape in gnp.field_shapes(cfg).items()
+    }
+    trace = {
+        name: np.zeros((1, *shape), gnp.TRACE_DTYPE)
+        for name, shape in gnp.trace_shapes(cfg).items()
+    }
+    return RunTemplate(config=config, genome=genome, trace=trace)
 
 
 def train(

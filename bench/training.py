@@ -1,71 +1,131 @@
-"""Training throughput: one generation in-process vs split over worker processes, side by side.
+"""Throughput of the lab's loop against the bare world, side by side in one run.
 
-    .venv/bin/python bench/training.py [--population 300] [--steps 300] [--generations 3]
+    .venv/bin/python bench/training.py [--population 300] [--steps 1000] [--generations 3]
+                                       [--trials 1000] [--impl-steps 3000] [--rounds 2]
 
-Builds both evaluators once (worker start-up excluded), evaluates the same generation-0
-population with the same seeds `--generations` times with each, alternating, and prints the
-best wall time per generation and robot-steps per second. Also checks that both give the same
-fitness (the determinism the run store relies on).
+Measures, alternating in rounds so that the machine's drifts hit every figure alike:
+- the bare world: `sim` alone, 300 robots, fresh random commands, observe + step, one process;
+- the full training loop: the thesis-ch3 config (BS, σ = 0, 300 individuals × 1000 steps), one
+  generation = evaluate + evolve + write, through `app.training.train` on 1 and 2 workers
+  (worker start-up and the first generation excluded);
+- the implementation phase: the trained-config individual cloned into `--trials` trials of
+  `--impl-steps` steps, on 1 and 2 workers.
+Figures are robot-steps per wall-clock second (the workers run in parallel) and each one's
+ratio to the bare world.
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
-from app.config import build_config
-from app.training import (
-    Evaluator,
-    LocalEvaluator,
-    ProcessEvaluator,
-    initial_population,
-    life_seeds,
-)
+import sim
+from app.config import build_config, load_preset
+from app.implementation import run_implementation
+from app.training import GenerationSummary, initial_population, train
+
+
+def bare_world(robots: int, steps: int) -> float:
+    """Seconds for the bare world to observe and step `steps` times under random commands."""
+    arena = sim.load_arena("training")
+    world = sim.World(arena, n=robots, seed=0)
+    world.reset(np.resize(arena.start_poses, (robots, 3)))
+    commands = np.random.default_rng(0).uniform(-10, 10, (steps, robots, 2))
+    world.observe()
+    began = time.perf_counter()
+    for command in commands:
+        world.observe()
+        world.step(command)
+    return time.perf_counter() - began
+
+
+def training_loop(population: int, steps: int, generations: int, workers: int) -> float:
+    """Median seconds per generation of the full training loop, first generation excluded."""
+    config = build_config(
+        load_preset("thesis-ch3").model_dump(),
+        {"training": {"population": population, "steps": steps, "generations": generations}},
+    )
+    seconds: list[float] = []
+
+    def progress(summary: GenerationSummary) -> None:
+        seconds.append(summary.seconds)
+
+    with tempfile.TemporaryDirectory() as folder:
+        train(config, Path(folder) / "bench.h5", workers=workers, progress=progress)
+    return float(np.median(seconds[1:]))
+
+
+def implementation(trials: int, steps: int, workers: int) -> float:
+    """Seconds for the implementation phase of a generation-0 individual."""
+    config = load_preset("thesis-ch3")
+    individual = initial_population(
+        build_config(config.model_dump(), {"training": {"population": 2}})
+    )
+    settings = config.implementation.model_copy(
+        update={"repeats": trials // 10, "steps": steps, "recorded_trials": 3}
+    )
+    began = time.perf_counter()
+    run_implementation(
+        config.controller.gnp_config(),
+        individual,
+        settings,
+        seed=0,
+        control_period=config.training.control_period,
+        name="bench",
+        generation=0,
+        workers=workers,
+    )
+    return time.perf_counter() - began
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--population", type=int, default=300)
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--generations", type=int, default=3)
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--method", default="CS")
+    parser.add_argument("--trials", type=int, default=1000)
+    parser.add_argument("--impl-steps", type=int, default=3000)
+    parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
-    config = build_config(
-        {
-            "controller": {"method": args.method},
-            "training": {"population": args.population, "steps": args.steps},
-        }
-    )
-    pop = initial_population(config)
-    seeds = life_seeds(config.seed, 0, np.arange(args.population), 1, 10)
-    evaluators: dict[str, Evaluator] = {
-        "in-process": LocalEvaluator(config),
-        f"{args.workers} workers": ProcessEvaluator(config, args.workers),
+    life = args.population * args.steps
+    trial_steps = (args.trials // 10 * 10) * args.impl_steps
+    cases = {
+        "bare world, 1 process": (lambda: bare_world(300, args.steps), 300 * args.steps),
+        "training loop, 1 worker": (
+            lambda: training_loop(args.population, args.steps, args.generations, 1),
+            life,
+        ),
+        "training loop, 2 workers": (
+            lambda: training_loop(args.population, args.steps, args.generations, 2),
+            life,
+        ),
+        "implementation, 1 worker": (
+            lambda: implementation(args.trials, args.impl_steps, 1),
+            trial_steps,
+        ),
+        "implementation, 2 workers": (
+            lambda: implementation(args.trials, args.impl_steps, 2),
+            trial_steps,
+        ),
     }
-    best = dict.fromkeys(evaluators, float("inf"))
-    fitness = {}
-    try:
-        for name, evaluator in evaluators.items():  # warm-up: numba caches, first contacts
-            fitness[name] = evaluator.evaluate(pop, seeds, 0.1, 0.1)[0].fitness
-        for _ in range(args.generations):
-            for name, evaluator in evaluators.items():
-                began = time.perf_counter()
-                evaluator.evaluate(pop, seeds, 0.1, 0.1)
-                best[name] = min(best[name], time.perf_counter() - began)
-    finally:
-        for evaluator in evaluators.values():
-            evaluator.close()
-    robot_steps = args.population * args.steps
-    print(f"{args.method}, {args.population} individuals × {args.steps} steps per generation")
-    for name, seconds in best.items():
-        print(
-            f"  {name:12} {seconds:7.3f} s/generation  {robot_steps / seconds:10,.0f} robot-steps/s"
-        )
-    same = all(np.array_equal(f, fitness["in-process"]) for f in fitness.values())
-    print(f"  same fitness in-process and in workers: {same}")
+    implementation(20, 50, 1)  # compile numba's kernels before anything is timed
+    best = dict.fromkeys(cases, float("inf"))
+    for _ in range(args.rounds):
+        for name, (measure, _) in cases.items():
+            best[name] = min(best[name], measure())
+    bare = 300 * args.steps / best["bare world, 1 process"]
+    print(
+        f"robot-steps per second (best of {args.rounds} rounds); "
+        f"training {args.population} × {args.steps} steps, "
+        f"implementation {trial_steps // args.impl_steps} trials × {args.impl_steps} steps"
+    )
+    for name, (_, work) in cases.items():
+        rate = work / best[name]
+        print(f"  {name:27} {rate:12,.0f}   {rate / bare:5.2f} × bare world")
 
 
 if __name__ == "__main__":

@@ -12,12 +12,24 @@ from gnp.config import (
     Method,
     Schedule,
 )
-from gnp.engine import TRACE_FIELDS, EngineState, StepTrace, init_state, reset_episode, step
+from gnp.controller_file import load_controller, save_controller
+from gnp.engine import (
+    TRACE_DTYPE,
+    TRACE_FIELDS,
+    EngineState,
+    StepTrace,
+    init_state,
+    reset_episode,
+    step,
+    trace_shapes,
+)
 from gnp.evolution import crossover, evolve, mutate, nonuniform_mutation, tournament
 from gnp.population import (
     Population,
     check_population,
     concat,
+    field_dtype,
+    field_shapes,
     init_population,
     population_from_arrays,
     population_to_arrays,
@@ -28,11 +40,11 @@ from gnp.schedules import (
     epsilon_alpha_over_generations,
     schedule_after_fault,
     schedule_over_generations,
-    schedule_value,
 )
 
 __all__ = [
     "METHODS",
+    "TRACE_DTYPE",
     "TRACE_FIELDS",
     "EngineState",
     "EvolutionConfig",
@@ -48,17 +60,21 @@ __all__ = [
     "epsilon_alpha_after_fault",
     "epsilon_alpha_over_generations",
     "evolve",
+    "field_dtype",
+    "field_shapes",
     "init_population",
     "init_state",
+    "load_controller",
     "mutate",
     "nonuniform_mutation",
     "population_from_arrays",
     "population_to_arrays",
     "reset_episode",
+    "save_controller",
     "schedule_after_fault",
     "schedule_over_generations",
-    "schedule_value",
     "step",
     "take",
     "tournament",
+    "trace_shapes",
 ]

@@ -25,6 +25,12 @@ RIGHT_WHEEL, LEFT_WHEEL = 0, 1
 #: Parameter ranges: judgment β ≤ α in 0..1023, processing wheel speed in −10..10.
 SENSOR_MAX = 1023
 SPEED_MAX = 10
+#: How a judgment sub node's {β, α} mutates (§2.3.3, Eq. 2.4): "joint" (one parameter: one P_m
+#: draw, one ζ and one r for the pair) or "independent" (α and β each with their own P_m).
+JudgmentPair = Literal["joint", "independent"]
+#: Progress of Eq. 4.1–4.2 at generation g = 0..G−1: "last-generation-min" (g/(G−1), so the
+#: first evaluated generation uses max and the last uses min) or "g-over-G" (g/G, as printed).
+GenerationProgress = Literal["last-generation-min", "g-over-G"]
 
 
 class GnpError(ValueError):
@@ -78,6 +84,14 @@ class GnpConfig(BaseModel):
         cost.setflags(write=False)
         return cost
 
+    def __eq__(self, other: object) -> bool:
+        # By settings: pydantic's default compares __dict__, which also holds the cached
+        # arrays above and cannot be compared with ==.
+        return isinstance(other, GnpConfig) and self.model_dump() == other.model_dump()
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.model_dump().items()))
+
     @property
     def max_visits_per_step(self) -> int:
         """Longest possible node sequence in one world step: the start node + 5 unit nodes."""
@@ -102,6 +116,11 @@ class EvolutionConfig(BaseModel):
     )
     nonuniform_b: float = Field(
         default=2.0, gt=0.0, description="b of non-uniform mutation (Eq. 2.5)"
+    )
+    judgment_pair: JudgmentPair = Field(
+        default="joint",
+        description="judgment {β, α} mutates as one parameter (joint: P_m per sub node, one ζ "
+        "and r) or as two (independent: P_m each)",
     )
 
     @model_validator(mode="after")
@@ -142,7 +161,3 @@ class Schedule(BaseModel):
         if self.min > self.max:
             raise ValueError(f"min ({self.min}) must not exceed max ({self.max})")
         return self
-
-    @property
-    def is_fixed(self) -> bool:
-        return self.max == self.min

@@ -107,6 +107,13 @@ class StepTrace:
 
 TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
 """The fields of a `StepTrace`, in the store's order."""
+TRACE_DTYPE = np.int32
+
+
+def trace_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
+    """Per-controller shape (without the leading N) of every `StepTrace` field."""
+    visits = (cfg.max_visits_per_step,)
+    return {field: () if field == "count" else visits for field in TRACE_FIELDS}
 
 
 def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineState:
@@ -317,8 +324,8 @@ def step(
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
     if trace:
-        visits = np.full((5, n, cfg.max_visits_per_step), -1, np.int32)
-        count = np.zeros(n, np.int32)
+        visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
+        count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
     _step_kernel(

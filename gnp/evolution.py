@@ -17,6 +17,7 @@ from gnp.config import (
     EvolutionConfig,
     GnpConfig,
     GnpError,
+    JudgmentPair,
 )
 from gnp.population import FIELDS, Population, concat, population_to_arrays, take
 
@@ -68,6 +69,7 @@ def evolve(
                 rng,
                 evo.p_mutation,
                 evo.nonuniform_b,
+                evo.judgment_pair,
             )
         )
     return concat(parts)
@@ -112,6 +114,7 @@ def mutate(
     rng: np.random.Generator,
     p_mutation: float = 0.01,
     b: float = 2.0,
+    judgment_pair: JudgmentPair = "joint",
 ) -> Population:
     """One mutant per parent: each connection, function and parameter changes with P_m.
 
@@ -119,8 +122,10 @@ def mutate(
       among 1..V−1;
     - function: another sensor (judgment) or the other wheel (processing);
     - processing speed: redrawn uniformly in −10..10;
-    - judgment α then β: non-uniform mutation (Eq. 2.4–2.5) within [β, 1023] for α and
-      [0, α] for β, so β ≤ α holds.
+    - judgment parameter a = {β, α}, non-uniform mutation (Eq. 2.4–2.5), β ≤ α kept:
+      "joint" (the thesis's one parameter): with P_m per sub node, the pair moves by Eq. 2.4
+      with one ζ and one r, α within [0, 1023] and β within [0, α] (see `mutate_judgment_pair`);
+      "independent": α with P_m within [β, 1023], then β with its own P_m within [0, α].
     Q values are inherited unchanged.
     """
     out = {f: a.copy() for f, a in population_to_arrays(parents).items()}
@@ -150,15 +155,66 @@ def mutate(
     hit = chosen(proc)
     out["speed"][hit] = rng.integers(-SPEED_MAX, SPEED_MAX + 1, size=int(hit.sum()))
     alpha, beta = out["mu_alpha"], out["mu_beta"]
-    hit = chosen(judg)  # α within [β, 1023]
-    upper = np.full(int(hit.sum()), SENSOR_MAX)
-    alpha[hit] = nonuniform_mutation(
-        alpha[hit], beta[hit], upper, generation, n_generations, b, rng
-    )
-    hit = chosen(judg)  # then β within [0, α]
-    lower = np.zeros(int(hit.sum()))
-    beta[hit] = nonuniform_mutation(beta[hit], lower, alpha[hit], generation, n_generations, b, rng)
+    if judgment_pair == "joint":
+        hit = chosen(judg)  # the pair {β, α}, one parameter
+        alpha[hit], beta[hit] = mutate_judgment_pair(
+            alpha[hit], beta[hit], generation, n_generations, b, rng
+        )
+    elif judgment_pair == "independent":
+        hit = chosen(judg)  # α within [β, 1023]
+        upper = np.full(int(hit.sum()), SENSOR_MAX)
+        alpha[hit] = nonuniform_mutation(
+            alpha[hit], beta[hit], upper, generation, n_generations, b, rng
+        )
+        hit = chosen(judg)  # then β within [0, α]
+        lower = np.zeros(int(hit.sum()))
+        beta[hit] = nonuniform_mutation(
+            beta[hit], lower, alpha[hit], generation, n_generations, b, rng
+        )
+    else:
+        raise GnpError(f"unknown judgment_pair {judgment_pair!r}")
     return Population(**out)
+
+
+def mutate_judgment_pair(
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    generation: int,
+    n_generations: int,
+    b: float,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 2.4 applied to a = {β, α} as one parameter: one ζ and one r per pair.
+
+    ζ = 0: α' = α + Δ(g, 1023 − α), β' = β + Δ(g, α − β) (UB = α for β);
+    ζ = 1: α' = α − Δ(g, α − 0),    β' = β − Δ(g, β − 0)  (LB = 0 for both),
+    with the same Δ(g, y) = y·(1 − r^((1 − g/G)^b)) factor for both, rounded to integers.
+    The bounds are the thesis's as printed, and since both values move by the same fraction of
+    their room, β ≤ α holds without clipping (rounding is monotone).
+    """
+    a = np.asarray(alpha, dtype=np.float64)
+    be = np.asarray(beta, dtype=np.float64)
+    if a.shape != be.shape:
+        raise GnpError(f"α and β must have one shape, got {a.shape} and {be.shape}")
+    if a.size == 0:
+        return np.asarray(alpha).copy(), np.asarray(beta).copy()
+    zeta = rng.integers(0, 2, size=a.shape)
+    r = rng.random(a.shape)
+    shrink = 1.0 - r ** ((1.0 - _progress(generation, n_generations)) ** b)
+    up = zeta == 0
+    new_alpha = np.where(up, a + shrink * (SENSOR_MAX - a), a - shrink * a)
+    new_beta = np.where(up, be + shrink * (a - be), be - shrink * be)
+    new_alpha = np.clip(np.rint(new_alpha), 0, SENSOR_MAX)
+    new_beta = np.clip(np.rint(new_beta), 0, new_alpha)
+    return (
+        new_alpha.astype(np.asarray(alpha).dtype),
+        new_beta.astype(np.asarray(beta).dtype),
+    )
+
+
+def _progress(generation: int, n_generations: int) -> float:
+    """g/G of Eq. 2.5, clamped to [0, 1]."""
+    return min(1.0, max(0.0, generation / n_generations))
 
 
 def nonuniform_mutation(
@@ -183,7 +239,6 @@ def nonuniform_mutation(
     hi = np.asarray(upper, dtype=np.float64)
     zeta = rng.integers(0, 2, size=v.shape)
     r = rng.random(v.shape)
-    progress = min(1.0, max(0.0, generation / n_generations))
-    shrink = 1.0 - r ** ((1.0 - progress) ** b)
+    shrink = 1.0 - r ** ((1.0 - _progress(generation, n_generations)) ** b)
     new = np.where(zeta == 0, v + shrink * (hi - v), v - shrink * (v - lo))
     return np.clip(np.rint(new), lo, hi).astype(np.asarray(values).dtype)

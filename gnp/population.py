@@ -78,11 +78,33 @@ class Population:
     record_bytes: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        records = _pack({f: getattr(self, f) for f in FIELDS})
+        self._adopt(_pack({f: getattr(self, f) for f in FIELDS}))
+
+    def _adopt(self, records: np.ndarray) -> None:
+        """Make `records` this population's memory: every field a view into it."""
         object.__setattr__(self, "records", records)
         object.__setattr__(self, "record_bytes", records.reshape(-1).view(np.uint8))
         for f in FIELDS:
             object.__setattr__(self, f, records[f])
+
+    @classmethod
+    def from_records(cls, records: np.ndarray, index: np.ndarray | None = None) -> Population:
+        """A population over a fresh, aligned copy of (N, V) records (rows `index` only, if
+        given): one block copy, no per-field repacking. The records' dtype must be the
+        `record_dtype` of their shape, as `Population.records` is."""
+        rows = records.shape[0] if index is None else len(index)
+        fresh = _aligned_records(records.dtype, rows, records.shape[1])
+        if index is None:
+            fresh[...] = records
+        else:
+            np.take(records, index, axis=0, out=fresh)
+        pop = object.__new__(cls)
+        pop._adopt(fresh)
+        return pop
+
+    def __reduce__(self) -> tuple[object, tuple[np.ndarray]]:
+        # Pickled (to a worker process) as its records; unpickled into aligned memory.
+        return (Population.from_records, (self.records,))
 
     @property
     def size(self) -> int:
@@ -94,7 +116,7 @@ class Population:
 
     def copy(self) -> Population:
         """A deep copy (every array copied)."""
-        return Population(**population_to_arrays(self))
+        return Population.from_records(self.records)
 
 
 FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Population) if f.init)
@@ -145,6 +167,14 @@ def record_dtype(n_sub: int, n_conn_branches: int) -> np.dtype:
     )
 
 
+def _aligned_records(dtype: np.dtype, n: int, v: int) -> np.ndarray:
+    """Zeroed (n, v) records of `dtype` starting on a cache line."""
+    size = n * v * dtype.itemsize
+    raw = np.zeros(size + CACHE_LINE, np.uint8)
+    start = -raw.ctypes.data % CACHE_LINE
+    return raw[start : start + size].view(dtype).reshape(n, v)
+
+
 def _pack(arrays: dict[str, np.ndarray]) -> np.ndarray:
     """Fresh, cache-line aligned (N, V) records holding copies of the field arrays."""
     for f in FIELDS:
@@ -163,11 +193,7 @@ def _pack(arrays: dict[str, np.ndarray]) -> np.ndarray:
             raise GnpError(
                 f"population field {f!r} has shape {arrays[f].shape}, expected {(n, v, *shape)}"
             )
-    dtype = record_dtype(m, u)
-    size = n * v * dtype.itemsize
-    raw = np.zeros(size + CACHE_LINE, np.uint8)
-    start = -raw.ctypes.data % CACHE_LINE
-    records = raw[start : start + size].view(dtype).reshape(n, v)
+    records = _aligned_records(record_dtype(m, u), n, v)
     for f in FIELDS:
         try:
             np.copyto(records[f], arrays[f], casting="same_kind")
@@ -238,8 +264,7 @@ def take(pop: Population, idx: Sequence[int] | np.ndarray) -> Population:
         raise GnpError(f"take needs a 1-D integer index, got shape {index.shape} {index.dtype}")
     if index.size and (index.min() < -pop.size or index.max() >= pop.size):
         raise GnpError(f"index out of range for a population of {pop.size}")
-    index = index.astype(np.intp)
-    return Population(**{f: a[index] for f, a in population_to_arrays(pop).items()})
+    return Population.from_records(pop.records, index.astype(np.intp) % max(pop.size, 1))
 
 
 def concat(pops: Sequence[Population]) -> Population:
@@ -250,6 +275,18 @@ def concat(pops: Sequence[Population]) -> Population:
         shapes = {getattr(p, f).shape[1:] for p in pops}
         if len(shapes) > 1:
             raise GnpError(f"concat: populations disagree on the shape of {f!r}: {shapes}")
+    if len({p.records.dtype for p in pops}) == 1:
+        # np.concatenate would drop the records' padding: copy into aligned records instead.
+        records = _aligned_records(
+            pops[0].records.dtype, sum(p.size for p in pops), pops[0].records.shape[1]
+        )
+        start = 0
+        for p in pops:
+            records[start : start + p.size] = p.records
+            start += p.size
+        joined = object.__new__(Population)
+        joined._adopt(records)
+        return joined
     return Population(**{f: np.concatenate([getattr(p, f) for p in pops]) for f in FIELDS})
 
 

@@ -6,7 +6,7 @@ The constants below are the world's facts; `app` imports them rather than re-typ
 from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
 from sim.khepera import BODY_RADIUS_MM, IR_MAX, IR_RANGE_MM, MAX_COMMAND, N_SENSORS
-from sim.reward import TERM_NAMES, reward_terms
+from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import sensor_rays
 from sim.world import FAULT_MODES, Fault, FaultMode, World, WorldError
 
@@ -28,6 +28,7 @@ __all__ = [
     "WorldError",
     "check_world",
     "load_arena",
+    "reward_table",
     "reward_terms",
     "sensor_rays",
 ]

@@ -1,8 +1,9 @@
 """The reward of Eq. 2.7, as named terms."""
 
+import numba as nb
 import numpy as np
 
-from sim.khepera import MAX_COMMAND
+from sim.khepera import MAX_COMMAND, N_SENSORS
 
 NEAR_WALL_MAX = 1000.0
 """C = 0 if any true reading reaches this (touching a wall)."""
@@ -10,39 +11,61 @@ NEAR_WALL_MIN = 100.0
 """C = 0 unless some true reading exceeds this (a wall is near)."""
 
 TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall")
-"""The named reward terms `reward_terms` returns, in this order (the store's column order)."""
+"""The named reward terms, in the order of `reward_table`'s columns (the store's order)."""
 
 
-def reward_terms(true_readings: np.ndarray, commands: np.ndarray) -> dict[str, np.ndarray]:
-    """Eq. 2.7: r = (vR + vL)/20 · (1 − sqrt(|vR − vL|/20)) · C.
+@nb.njit(cache=True)
+def _reward_kernel(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
+    span = 2.0 * MAX_COMMAND
+    for i in range(readings.shape[0]):
+        left = min(max(commands[i, 0], -MAX_COMMAND), MAX_COMMAND)
+        right = min(max(commands[i, 1], -MAX_COMMAND), MAX_COMMAND)
+        touching = False
+        near = False
+        for j in range(readings.shape[1]):
+            touching |= not readings[i, j] < NEAR_WALL_MAX
+            near |= readings[i, j] > NEAR_WALL_MIN
+        near_wall = 1.0 if near and not touching else 0.0
+        speed = (right + left) / span
+        straightness = 1.0 - np.sqrt(np.abs(right - left) / span)
+        out[i, 0] = speed * straightness * near_wall
+        out[i, 1] = speed
+        out[i, 2] = straightness
+        out[i, 3] = near_wall
+
+
+def reward_table(
+    true_readings: np.ndarray, commands: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Eq. 2.7 for N robots as an (N, 4) table whose columns are `TERM_NAMES`.
+
+    r = (vR + vL)/20 · (1 − sqrt(|vR − vL|/20)) · C, with the terms speed = (vR + vL)/20,
+    straightness = 1 − sqrt(|vR − vL|/20) and near_wall = C (1 iff every true reading < 1000
+    and at least one > 100).
 
     Args:
         true_readings: (N, 8) true readings (``world.sense()``), not what the controller saw.
         commands: (N, 2) left, right wheel commands of the step, clipped to −10..10 as the
             world applies them.
-
-    Returns:
-        (N,) arrays: ``reward``, ``reward/speed`` = (vR + vL)/20, ``reward/straightness`` =
-        1 − sqrt(|vR − vL|/20), ``reward/near_wall`` = C (1 iff every reading < 1000 and at
-        least one > 100).
+        out: an (N, 4) float64 array to write into (a new one by default).
     """
-    readings = np.asarray(true_readings, dtype=np.float64)
-    cmd = np.asarray(commands, dtype=np.float64)
-    if readings.ndim != 2 or readings.shape[1] != 8:
+    readings = np.ascontiguousarray(true_readings, dtype=np.float64)
+    cmd = np.ascontiguousarray(commands, dtype=np.float64)
+    if readings.ndim != 2 or readings.shape[1] != N_SENSORS:
         raise ValueError(f"true_readings must have shape (N, 8), got {readings.shape}")
     if cmd.shape != (readings.shape[0], 2):
         raise ValueError(f"commands must have shape ({readings.shape[0]}, 2), got {cmd.shape}")
-    cmd = np.clip(cmd, -MAX_COMMAND, MAX_COMMAND)
-    left, right = cmd[:, 0], cmd[:, 1]
-    span = 2 * MAX_COMMAND
-    speed = (right + left) / span
-    straightness = 1.0 - np.sqrt(np.abs(right - left) / span)
-    near_wall = (
-        np.all(readings < NEAR_WALL_MAX, axis=1) & np.any(readings > NEAR_WALL_MIN, axis=1)
-    ).astype(np.float64)
-    return {
-        "reward": speed * straightness * near_wall,
-        "reward/speed": speed,
-        "reward/straightness": straightness,
-        "reward/near_wall": near_wall,
-    }
+    shape = (readings.shape[0], len(TERM_NAMES))
+    if out is None:
+        out = np.empty(shape)
+    elif out.shape != shape or out.dtype != np.float64:
+        raise ValueError(f"out must be a float64 array of shape {shape}, got {out.shape}")
+    _reward_kernel(readings, cmd, out)
+    return out
+
+
+def reward_terms(true_readings: np.ndarray, commands: np.ndarray) -> dict[str, np.ndarray]:
+    """Eq. 2.7 as named (N,) arrays: ``reward``, ``reward/speed``, ``reward/straightness``,
+    ``reward/near_wall`` (see `reward_table`)."""
+    table = reward_table(true_readings, commands)
+    return {name: table[:, column] for column, name in enumerate(TERM_NAMES)}

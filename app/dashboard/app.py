@@ -14,6 +14,7 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -542,8 +543,14 @@ class Dashboard:
         horizon = whole(self.schedule_horizon.value, "T − t'", 1, 10**6)
         learning = LearningSettings(
             online=bool(self.learn_checkbox.value),
-            epsilon=gnp.Schedule(max=eps_max, min=eps_min, n=n),
-            alpha=gnp.Schedule(max=alpha_max, min=alpha_min, n=n),
+            epsilon=eps_max,
+            alpha=alpha_max,
+            after_fault=(
+                gnp.Schedule(max=eps_max, min=eps_min, n=n),
+                gnp.Schedule(max=alpha_max, min=alpha_min, n=n),
+            )
+            if scheduled
+            else None,
             horizon=horizon,
         )
         self.learning = learning
@@ -743,13 +750,7 @@ class Dashboard:
             )
         )
         self.runs_dir.mkdir(parents=True, exist_ok=True)
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        judgment = "fuzzy" if config.controller.fuzzy else "crisp"
-        out = self.runs_dir / f"{config.controller.method}-{judgment}-{stamp}.h5"
-        suffix = 1
-        while out.exists():
-            suffix += 1
-            out = self.runs_dir / f"{config.controller.method}-{judgment}-{stamp}-{suffix}.h5"
+        out = store.new_run_path(self.runs_dir, config, datetime.now(UTC))
         if self.job_reader is not None:
             self.job_reader.close()
             self.job_reader = None

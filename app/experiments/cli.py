@@ -113,14 +113,9 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _write_report(results: Any, out: Path) -> str:
-    try:
-        from app.experiments.report import write_report
-    except ModuleNotFoundError as error:
-        if error.name != "app.experiments.report":
-            raise
-        return "(no report module in this gnp-lab: summary only)"
-    write_report(results, out)
-    return f"report: {out / 'index.html'}"
+    from app.experiments.report import write_report
+
+    return f"report: {write_report(results, out)}"
 
 
 def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
@@ -156,14 +151,12 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         )
     write_summary(results, runner.summary_path(args.runs_dir, spec.name, args.scale))
     if args.format == "json":
-        try:
-            from app.experiments.report import to_json
-        except ModuleNotFoundError as error:
-            if error.name != "app.experiments.report":
-                raise
-            raise ExperimentError("this gnp-lab has no report module: no JSON report") from None
+        import numpy as np
 
-        json.dump(to_json(results), sys.stdout, indent=2, ensure_ascii=False)
+        from app.experiments.report import REPORT_SEED, analyse, to_json
+
+        report = analyse(results, np.random.default_rng(REPORT_SEED))
+        json.dump(to_json(report), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
         sys.stdout.write("\n")
         return 0
     out = Path(args.out) if args.out else folder / f"report-{args.scale}"

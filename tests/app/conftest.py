@@ -5,9 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 from lab_fixtures import tiny_config
 
 from app.training import train
+
+# Properties are checked by what they assert, never by how long an example takes: a loaded
+# 2-core CI machine must not turn a slow example into a failure.
+settings.register_profile("lab", deadline=None)
+settings.load_profile("lab")
 
 
 @pytest.fixture(scope="session")

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import gnp
 from app.config import ImplementationSettings
 from app.implementation import (
     ImplementationError,
@@ -116,3 +117,69 @@ def test_an_open_reader_sees_a_new_implementation_after_refresh(
         run.refresh()  # the file was replaced by a copy holding the result
         assert run.implementation_names() == ["later"]
         assert run.implementation("later").trials.poses.shape == (1, 120, 3)
+
+
+@pytest.mark.slow
+def test_results_are_identical_for_any_number_of_workers(
+    finished_run: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import app.implementation as phase
+
+    monkeypatch.setattr(phase, "TRIALS_PER_WORLD", 6)  # 30 trials: 1 recorded + 5 worlds
+    with RunReader(finished_run) as run:
+        cfg, individual = run.best_genome()
+    settings = _settings(repeats=3, recorded_trials=1, break_count=2, broken_sensors=())
+    common = {"seed": 5, "control_period": 0.064, "name": "x", "generation": 2}
+    seen: list[tuple[int, int]] = []
+    one = run_implementation(cfg, individual, settings, workers=1, **common)  # type: ignore[arg-type]
+    two = run_implementation(
+        cfg,
+        individual,
+        settings,
+        workers=2,
+        progress=lambda done, total: seen.append((done, total)),
+        **common,  # type: ignore[arg-type]
+    )
+    for field in ("reward_per_step", "trial_mean_reward", "trial_mean_after_fault"):
+        assert np.array_equal(getattr(one, field), getattr(two, field)), field
+    assert np.array_equal(one.trials.poses, two.trials.poses)
+    assert one.mean_reward == two.mean_reward
+    assert seen[-1] == (30 * 120, 30 * 120)
+    assert [done for done, _ in seen] == sorted(done for done, _ in seen)
+
+
+def test_k_random_sensors_break_per_trial_the_same_for_every_individual(
+    finished_run: Path,
+) -> None:
+    with RunReader(finished_run) as run:
+        cfg, individual = run.best_genome()
+    settings = _settings(repeats=2, recorded_trials=20, break_count=3, broken_sensors=())
+    result = run_implementation(
+        cfg, individual, settings, seed=11, control_period=0.064, name="x", generation=2
+    )
+    dead_after = np.all(result.trials.observations[:, 61:] == 0, axis=1)  # (trials, 8)
+    draws = phase_draws(11, 20, 3)
+    expected = np.zeros((20, 8), bool)
+    np.put_along_axis(expected, draws, True, axis=1)
+    # Each trial's drawn sensors read 0 from the fault on (a healthy one sees a wall sometime).
+    assert np.all(dead_after[expected])
+    assert np.all(dead_after.sum(axis=1) >= 3)
+    assert len({tuple(row) for row in draws}) > 5  # trials draw different sets
+    # Another individual (another arm of an experiment) meets the same broken sensors.
+    other = gnp.init_population(cfg, 1, np.random.default_rng(99))
+    again = run_implementation(
+        cfg, other, settings, seed=11, control_period=0.064, name="y", generation=0
+    )
+    assert np.all(np.all(again.trials.observations[:, 61:] == 0, axis=1)[expected])
+
+
+def phase_draws(seed: int, trials: int, k: int) -> np.ndarray:
+    from app.seeds import broken_sensor_draws
+
+    return broken_sensor_draws(seed, np.arange(trials), k, 8)
+
+
+def test_a_fixed_set_and_k_random_sensors_exclude_each_other() -> None:
+    with pytest.raises(ValueError, match="either broken_sensors"):
+        _settings(break_count=2)
+    assert default_name(_settings(broken_sensors=(), break_count=2)) == "break-2-random-dead-fixed"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 import h5py
@@ -16,14 +17,16 @@ from lab_fixtures import file_digest, tiny_config
 import gnp
 from app.store import (
     SCHEMA_VERSION,
-    TERM_NAMES,
     RunFileError,
     RunReader,
     RunWriter,
     list_runs,
+    new_run_path,
     resolve_run,
+    run_name,
 )
 from app.training import initial_population, run_template
+from sim import TERM_NAMES
 
 
 def test_finished_run_is_self_describing(finished_run: Path) -> None:
@@ -103,6 +106,18 @@ def test_foreign_and_corrupt_files(tmp_path: Path, finished_run: Path) -> None:
         RunReader(tmp_path / "missing.h5")
 
 
+def test_a_run_missing_a_dataset_is_a_run_file_error(tmp_path: Path, finished_run: Path) -> None:
+    broken = tmp_path / "broken.h5"
+    shutil.copy(finished_run, broken)
+    with h5py.File(broken, "a") as handle:
+        del handle["generations/fitness"]
+    with RunReader(broken) as run, pytest.raises(RunFileError, match="corrupt run file"):
+        run.history()
+    (summary,) = list_runs(tmp_path)  # the listing reports it instead of failing
+    assert summary.name == "broken"
+    assert summary.error is not None and "'fitness' doesn't exist" in summary.error
+
+
 def test_list_and_resolve(tmp_path: Path, finished_run: Path) -> None:
     shutil.copy(finished_run, tmp_path / "good.h5")
     (tmp_path / "bad.h5").write_text("not hdf5")
@@ -115,6 +130,30 @@ def test_list_and_resolve(tmp_path: Path, finished_run: Path) -> None:
     with pytest.raises(RunFileError, match="no run named"):
         resolve_run(tmp_path, "missing")
     assert list_runs(tmp_path / "nowhere") == []
+
+
+def test_run_names_hold_method_judgment_seed_and_utc_time(tmp_path: Path) -> None:
+    config = tiny_config()  # CS, fuzzy, seed 7
+    now = datetime(2026, 1, 2, 3, 4, 5, tzinfo=UTC)
+    assert run_name(config, now) == "CS-fuzzy-seed7-20260102T030405Z"
+    # 23:04:05 on New Year's Eve at UTC−5 is 04:04:05 UTC the next day (and year).
+    new_york = datetime(2025, 12, 31, 23, 4, 5, tzinfo=timezone(timedelta(hours=-5)))
+    assert run_name(config, new_york) == "CS-fuzzy-seed7-20260101T040405Z"
+    crisp = config.model_copy(
+        update={
+            "seed": 12,
+            "controller": config.controller.model_copy(update={"method": "BS", "fuzzy": False}),
+        }
+    )
+    assert run_name(crisp, now) == "BS-crisp-seed12-20260102T030405Z"
+    # A name already taken gets the first free copy number.
+    first = new_run_path(tmp_path, config, now)
+    assert first == tmp_path / "CS-fuzzy-seed7-20260102T030405Z.h5"
+    first.touch()
+    second = new_run_path(tmp_path, config, now)
+    assert second == tmp_path / "CS-fuzzy-seed7-20260102T030405Z-2.h5"
+    second.touch()
+    assert new_run_path(tmp_path, config, now).name == "CS-fuzzy-seed7-20260102T030405Z-3.h5"
 
 
 @given(

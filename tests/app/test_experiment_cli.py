@@ -3,6 +3,7 @@ and nothing written or overwritten."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,7 @@ from app.cli import main
 from app.config import build_config
 from app.experiments.runner import plan
 from app.experiments.spec import load_file
+from app.experiments.summary import read_summary
 from app.implementation import implement
 from app.store import RunReader
 from app.training import train
@@ -166,3 +168,16 @@ def test_run_status_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert "final best fitness" not in capsys.readouterr().out
     assert main(["experiment", "report", *common, "--out", str(tmp_path / "report")]) == 0
     assert summary.stat().st_mtime_ns >= stamp
+    assert f"report: {tmp_path / 'report' / 'index.html'}" in capsys.readouterr().out
+    assert (tmp_path / "report" / "values.csv").is_file()
+    assert (tmp_path / "runs/experiments/tiny/report-smoke/index.html").is_file()  # from `run`
+    assert main(["experiment", "report", *common, "--format", "json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [c["name"] for c in report["comparisons"]] == ["fitness", "after-1"]
+    results = read_summary(summary)
+    for comparison in report["comparisons"]:  # the report's means are the run files' values
+        for side, arm in (("a", "BS"), ("b", "RL")):
+            values = results.scalar(comparison["metric"], arm, comparison["condition"])
+            assert comparison[side]["name"] == arm and comparison[side]["n"] == 2
+            assert comparison[side]["mean"] == pytest.approx(values.mean(), rel=1e-12)
+        assert comparison["verdict"] in ("held", "reversed", "not shown")

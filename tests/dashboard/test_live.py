@@ -103,21 +103,28 @@ def test_bad_requests_are_refused_and_change_nothing(arena: sim.Arena) -> None:
 
 
 def test_learning_rates_fixed_and_scheduled_after_the_fault() -> None:
-    fixed = LearningSettings(epsilon=gnp.Schedule.fixed(0.1), alpha=gnp.Schedule.fixed(0.2))
+    fixed = LearningSettings(epsilon=0.1, alpha=0.2)
     assert fixed.rates(0, None) == (0.1, 0.2)
     assert fixed.rates(900, 100) == (0.1, 0.2)
     scheduled = LearningSettings(
-        epsilon=gnp.Schedule(max=0.15, min=0.01, n=1.0),
-        alpha=gnp.Schedule(max=0.7, min=0.1, n=2.0),
+        epsilon=0.05,
+        alpha=0.3,
+        after_fault=(
+            gnp.Schedule(max=0.15, min=0.01, n=1.0),
+            gnp.Schedule(max=0.7, min=0.1, n=2.0),
+        ),
         horizon=1000,
     )
-    assert scheduled.rates(50, None) == (0.15, 0.7)  # before any fault: max
+    assert scheduled.rates(50, None) == (0.05, 0.3)  # before any fault: the fixed values
+    assert scheduled.rates(99, 100) == (0.05, 0.3)  # still before the fault
     eps, alpha = scheduled.rates(600, 100)  # halfway through the horizon
     assert eps == pytest.approx(0.14 * 0.5 + 0.01)  # Eq. 4.3, n = 1
     assert alpha == pytest.approx(0.6 * 0.25 + 0.1)  # Eq. 4.4, n = 2
     assert scheduled.rates(5000, 100) == pytest.approx((0.01, 0.1))
-    with pytest.raises(LiveError, match="horizon"):
+    with pytest.raises(ValueError, match="horizon"):
         LearningSettings(horizon=0)
+    with pytest.raises(ValueError, match=r"ε must be in 0\.\.1"):
+        LearningSettings(epsilon=1.5)
 
 
 def test_offline_replay_leaves_q_values_alone(arena: sim.Arena) -> None:

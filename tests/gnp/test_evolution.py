@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -256,7 +258,7 @@ def test_schedules_over_generations_eq_4_1() -> None:
     eps = gnp.Schedule(max=0.15, min=0.01, n=1.0)
     alpha = gnp.Schedule(max=0.70, min=0.10, n=2.0)
     assert gnp.epsilon_alpha_over_generations(eps, alpha, 0, 100) == pytest.approx((0.15, 0.70))
-    assert gnp.epsilon_alpha_over_generations(eps, alpha, 50, 100) == pytest.approx(
+    assert gnp.epsilon_alpha_over_generations(eps, alpha, 50, 100, "g-over-G") == pytest.approx(
         (0.08, 0.6 * 0.25 + 0.1)
     )
     assert gnp.epsilon_alpha_over_generations(eps, alpha, 100, 100) == pytest.approx((0.01, 0.1))
@@ -273,3 +275,141 @@ def test_schedules_after_fault_eq_4_3() -> None:
         gnp.schedule_after_fault(eps, 0, 500, 500)
     with pytest.raises(ValueError, match="min"):
         gnp.Schedule(max=0.1, min=0.2)
+
+
+@pytest.mark.parametrize("method", ["RL", "BS", "CS"])
+def test_copies_taken_joined_and_pickled_populations_keep_their_layout(method: str) -> None:
+    """Block copies of the records (take, concat, copy, pickling to a worker) give the same
+    genes, aligned records whose fields are views, and memory of their own."""
+    cfg = gnp.GnpConfig(method=method)
+    pop = gnp.init_population(cfg, 6, np.random.default_rng(1))
+    pop.q_ss[...] = np.random.default_rng(2).normal(size=pop.q_ss.shape)
+    for other in (
+        pop.copy(),
+        gnp.take(pop, [5, -6, 2]),
+        gnp.concat([gnp.take(pop, [0, 1]), gnp.take(pop, [2, 3, 4, 5])]),
+        pickle.loads(pickle.dumps(pop)),
+    ):
+        expected = arrays_of(gnp.take(gnp.Population(**arrays_of(pop)), [5, 0, 2]))
+        if other.size == 6:
+            expected = arrays_of(pop)
+        assert_same(other, expected)
+        assert other.records.ctypes.data % 64 == 0
+        assert other.records.dtype == pop.records.dtype  # padded to whole cache lines
+        assert not np.shares_memory(other.records, pop.records)
+        other.q_bs[0, 3] = 7.0  # a field write lands in the records the engine reads
+        assert np.all(other.records["q_bs"][0, 3] == 7.0)
+
+
+# --- fidelity: Eq. 4.1–4.2 progress, the judgment pair {β, α} ----------------------------------
+
+
+def test_generation_progress_reaches_min_at_the_last_generation() -> None:
+    eps = gnp.Schedule(max=0.15, min=0.01, n=1.0)  # Table 4.1, TSRLch
+    alpha = gnp.Schedule(max=0.70, min=0.10, n=1.0)
+    over = gnp.epsilon_alpha_over_generations
+    # Faithful default: g = 0 → max, g = G − 1 → min exactly (G = 1000: 0.15, ..., 0.01).
+    assert over(eps, alpha, 0, 1000) == (0.15, 0.70)
+    assert over(eps, alpha, 999, 1000) == pytest.approx((0.01, 0.10), abs=1e-15)
+    # G = 5: progress g/4 → ε = 0.15 − 0.14·g/4.
+    assert [over(eps, alpha, g, 5)[0] for g in range(5)] == pytest.approx(
+        [0.15, 0.115, 0.08, 0.045, 0.01]
+    )
+    # The printed g/G: the last evaluated generation stays 0.14/1000 above min (0.01014).
+    assert over(eps, alpha, 999, 1000, "g-over-G")[0] == pytest.approx(0.01 + 0.14 / 1000)
+    assert over(eps, alpha, 1000, 1000, "g-over-G") == pytest.approx((0.01, 0.10))
+    assert gnp.schedule_over_generations(eps, 3, 5, "g-over-G") == pytest.approx(0.15 - 0.14 * 0.6)
+    # G = 1: the only generation uses max in both readings (no division by zero).
+    assert over(eps, alpha, 0, 1) == (0.15, 0.70)
+    assert over(eps, alpha, 0, 1, "g-over-G") == (0.15, 0.70)
+    with pytest.raises(gnp.GnpError):
+        gnp.schedule_over_generations(eps, 0, 0)
+    with pytest.raises(gnp.GnpError, match="progress"):
+        gnp.schedule_over_generations(eps, 0, 10, "bogus")  # type: ignore[arg-type]
+
+
+def _pairs_changed(judgment_pair: str, seed: int) -> tuple[float, gnp.Population]:
+    """Fraction of judgment sub nodes whose (β, α) changed in one mutation of a big population
+    (β = 300, α = 700 at g = 0: a selected pair moves, bar a ~1e-6 rounding chance)."""
+    from gnp.evolution import mutate
+
+    cfg = gnp.GnpConfig(method="RL", n_sub=2)
+    pop = gnp.init_population(cfg, 5000, np.random.default_rng(seed))
+    judg = cfg.node_type == JUDGMENT
+    pop.mu_alpha[:, judg] = 700
+    pop.mu_beta[:, judg] = 300
+    mutant = mutate(
+        cfg,
+        pop,
+        0,
+        100,
+        np.random.default_rng(seed + 1),
+        0.01,
+        2.0,
+        judgment_pair,  # type: ignore[arg-type]
+    )
+    changed = (mutant.mu_alpha != pop.mu_alpha) | (mutant.mu_beta != pop.mu_beta)
+    return float(changed[:, judg].mean()), mutant
+
+
+def test_joint_judgment_pair_changes_with_p_m_independent_with_about_2_p_m() -> None:
+    # 5000 individuals × 40 judgment nodes × 2 sub nodes = 400,000 pairs: sd of the fraction
+    # ≈ 0.00016 at P_m = 0.01; the tolerance (0.001) is > 6 sd and the seed is fixed.
+    joint, mutant = _pairs_changed("joint", 11)
+    assert joint == pytest.approx(0.01, abs=0.001)
+    independent, _ = _pairs_changed("independent", 11)
+    assert independent == pytest.approx(2 * 0.01 - 0.01**2, abs=0.001)
+    assert np.all(mutant.mu_beta <= mutant.mu_alpha)
+    # The default is the joint reading, in evolve as in mutate.
+    assert gnp.EvolutionConfig().judgment_pair == "joint"
+
+
+def test_joint_pair_moves_both_values_by_one_fraction_eq_2_4() -> None:
+    from gnp.evolution import mutate_judgment_pair
+
+    alpha = np.array([700, 700, 1023, 10], dtype=np.int16)
+    beta = np.array([300, 300, 0, 10], dtype=np.int16)
+    new_a, new_b = mutate_judgment_pair(alpha, beta, 0, 100, 2.0, np.random.default_rng(5))
+    rng = np.random.default_rng(5)  # the same draws, by hand: ζ then r, one each per pair
+    zeta, r = rng.integers(0, 2, size=4), rng.random(4)
+    s = 1.0 - r  # Δ(0, y) = y(1 − r^1) at g = 0
+    a, b = alpha.astype(float), beta.astype(float)
+    want_a = np.where(zeta == 0, a + s * (1023 - a), a - s * a)
+    want_b = np.where(zeta == 0, b + s * (a - b), b - s * b)
+    np.testing.assert_array_equal(new_a, np.rint(want_a))
+    np.testing.assert_array_equal(new_b, np.rint(want_b))
+    assert new_a.dtype == np.int16 and new_b.dtype == np.int16
+    # At g = G there is no step at all (fine tuning ends).
+    same_a, same_b = mutate_judgment_pair(alpha, beta, 100, 100, 2.0, np.random.default_rng(5))
+    np.testing.assert_array_equal(same_a, alpha)
+    np.testing.assert_array_equal(same_b, beta)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    pair=st.tuples(st.integers(0, 1023), st.integers(0, 1023)).map(sorted),
+    g=st.integers(0, 100),
+    big_g=st.integers(1, 100),
+    b=st.floats(0.1, 5.0),
+    seed=st.integers(0, 2**32),
+    judgment_pair=st.sampled_from(["joint", "independent"]),
+    p_m=st.floats(0.0, 1.0),
+)
+def test_beta_never_exceeds_alpha_after_mutation(
+    pair, g, big_g, b, seed, judgment_pair, p_m
+) -> None:
+    from gnp.evolution import mutate, mutate_judgment_pair
+
+    beta0, alpha0 = pair
+    alpha = np.full(64, alpha0, dtype=np.int16)
+    beta = np.full(64, beta0, dtype=np.int16)
+    gen = min(g, big_g)
+    new_a, new_b = mutate_judgment_pair(alpha, beta, gen, big_g, b, np.random.default_rng(seed))
+    assert np.all((new_b >= 0) & (new_b <= new_a) & (new_a <= 1023))
+    cfg = gnp.GnpConfig(n_judgment=4, n_processing=2)
+    pop = gnp.init_population(cfg, 8, np.random.default_rng(seed))
+    pop.mu_alpha[:] = alpha0
+    pop.mu_beta[:] = beta0
+    mutant = mutate(cfg, pop, gen, big_g, np.random.default_rng(seed), p_m, b, judgment_pair)
+    assert np.all(mutant.mu_beta <= mutant.mu_alpha)
+    gnp.check_population(cfg, mutant)

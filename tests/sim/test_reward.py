@@ -59,3 +59,23 @@ def test_reward_is_batched_and_checks_shapes() -> None:
         sim.reward_terms(true, commands[:2])
     with pytest.raises(ValueError, match=r"true_readings must have shape \(N, 8\)"):
         sim.reward_terms(true[:, :4], commands)
+
+
+def test_the_table_matches_the_formula_written_with_numpy() -> None:
+    """The compiled table against Eq. 2.7 spelled out in numpy, bit for bit."""
+    rng = np.random.default_rng(4)
+    true = rng.choice([0.0, 50.0, 100.0, 100.5, 640.0, 999.9, 1000.0, 1023.0], (500, 8))
+    commands = rng.uniform(-12, 12, (500, 2))
+    commands[::7] = np.round(commands[::7])
+    out = np.full((500, 4), np.nan)
+    table = sim.reward_table(true, commands, out=out)
+    assert table is out
+    cmd = np.clip(commands, -10, 10)
+    speed = (cmd[:, 1] + cmd[:, 0]) / 20
+    straightness = 1 - np.sqrt(np.abs(cmd[:, 1] - cmd[:, 0]) / 20)
+    near = (np.all(true < 1000, axis=1) & np.any(true > 100, axis=1)).astype(float)
+    assert np.array_equal(
+        table, np.stack([speed * straightness * near, speed, straightness, near], 1)
+    )
+    with pytest.raises(ValueError, match="out must be a float64 array of shape"):
+        sim.reward_table(true, commands, out=np.zeros((500, 3)))

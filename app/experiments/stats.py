@@ -1,0 +1,296 @@
+"""Statistics of one experiment's claims: is arm a `direction` than arm b on a scalar metric?
+
+The unit of analysis is the run (seed). Seeds are paired across arms, but, as the thesis does,
+the arms are compared as independent samples. For each claim `compare` gives mean ± sd per arm,
+the difference of means with a percentile-bootstrap 95% CI, Welch's one-tailed t-test and a
+one-tailed Mann–Whitney U test in the claimed direction, rliable's probability of improvement
+and Hedges' g; `judge_claims` then adjusts the Welch p-values of one experiment's claims with
+Holm–Bonferroni and gives each claim its verdict.
+
+Degenerate input gives a defined outcome, never an exception:
+
+- NaN values (unfinished runs) are dropped; `ArmSummary.dropped` counts them.
+- An arm with fewer than 2 finite values: every p-value, the CI and the effect size are NaN,
+  the verdict is `not shown`, and a note says why.
+- Both arms constant (zero variance): the t statistic is the limit of vanishing variance.
+  Equal constants give t = 0 and p = 1 both ways (no evidence); different constants give
+  t = ±inf, p = 0 in the direction of the difference and p = 1 against it. Hedges' g is 0 or
+  ±inf in the same way, and the Mann–Whitney p of all-tied values is 1. A note says so.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as scipy_stats
+
+from app.experiments.results import Direction, Verdict
+
+ALPHA = 0.05
+BOOTSTRAP_RESAMPLES = 10_000
+CI_LEVEL = 0.95
+
+_OPPOSITE: dict[Direction, Direction] = {"greater": "less", "less": "greater"}
+
+
+@dataclass(frozen=True)
+class ArmSummary:
+    """The finite values of one arm in one claim, summarised."""
+
+    n: int  # finite values (finished runs)
+    dropped: int  # NaN values dropped (unfinished runs)
+    mean: float  # NaN when n = 0
+    sd: float  # sample sd (ddof = 1), NaN when n < 2
+
+
+@dataclass(frozen=True)
+class PairStats:
+    """One claim's statistics before the multiplicity correction.
+
+    Every p-value is one-tailed; `welch_p` and `mann_whitney_p` test the claimed direction,
+    `welch_p_opposite` the other one. `prob_improvement` and `hedges_g` are oriented with the
+    claim: above 0.5 and above 0 favour it.
+    """
+
+    direction: Direction
+    a: ArmSummary
+    b: ArmSummary
+    difference: float  # mean(a) − mean(b)
+    prob_improvement: float
+    notes: tuple[str, ...] = ()
+    # NaN when an arm has fewer than 2 finite values (no test):
+    ci_low: float = math.nan  # 95% percentile-bootstrap CI of the difference
+    ci_high: float = math.nan
+    welch_t: float = math.nan  # t of mean(a) − mean(b), not oriented
+    welch_df: float = math.nan  # Welch–Satterthwaite degrees of freedom
+    welch_p: float = math.nan
+    welch_p_opposite: float = math.nan
+    mann_whitney_u: float = math.nan  # U of arm a: pairs with a > b, ties counted ½
+    mann_whitney_p: float = math.nan
+    hedges_g: float = math.nan
+
+
+@dataclass(frozen=True)
+class ClaimStats:
+    """A claim's statistics with its Holm-adjusted p-values and its verdict."""
+
+    stats: PairStats
+    holm_p: float  # Holm-adjusted welch_p over the experiment's claims
+    holm_p_opposite: float  # Holm-adjusted welch_p_opposite, the same way
+    verdict: Verdict
+
+
+def finite_values(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """The finite values of `values` and how many NaN (or ±inf) values were dropped."""
+    values = np.asarray(values, dtype=float).ravel()
+    kept = values[np.isfinite(values)]
+    return kept, values.size - kept.size
+
+
+def summarise(values: np.ndarray) -> ArmSummary:
+    """Mean and sample sd (ddof = 1) of the finite values, with n and the count dropped."""
+    kept, dropped = finite_values(values)
+    mean = float(kept.mean()) if kept.size else math.nan
+    sd = float(kept.std(ddof=1)) if kept.size >= 2 else math.nan
+    return ArmSummary(n=int(kept.size), dropped=dropped, mean=mean, sd=sd)
+
+
+def bootstrap_difference_ci(
+    a: np.ndarray,
+    b: np.ndarray,
+    rng: np.random.Generator,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    level: float = CI_LEVEL,
+) -> tuple[float, float]:
+    """Percentile-bootstrap CI of mean(a) − mean(b), resampling each arm independently.
+
+    Args:
+        a: finite values of arm a (at least one).
+        b: finite values of arm b (at least one).
+        rng: the only source of randomness.
+        resamples: bootstrap resamples.
+        level: coverage of the interval.
+
+    Returns:
+        The (low, high) percentiles of the resampled differences.
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    means_a = a[rng.integers(0, a.size, size=(resamples, a.size))].mean(axis=1)
+    means_b = b[rng.integers(0, b.size, size=(resamples, b.size))].mean(axis=1)
+    tail = 100 * (1 - level) / 2
+    low, high = np.percentile(means_a - means_b, [tail, 100 - tail])
+    return float(low), float(high)
+
+
+def welch_test(a: np.ndarray, b: np.ndarray, direction: Direction) -> tuple[float, float, float]:
+    """Welch's one-tailed t-test that mean(a) is `direction` than mean(b).
+
+    Needs at least 2 values per arm. Two constant arms get the zero-variance limit described
+    in the module docstring (df is then NaN).
+
+    Returns:
+        (t, df, p) with t of mean(a) − mean(b).
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if np.ptp(a) == 0 and np.ptp(b) == 0:
+        difference = a[0] - b[0]
+        t = math.copysign(math.inf, difference) if difference else 0.0
+        shown = (t > 0) if direction == "greater" else (t < 0)
+        return t, math.nan, 0.0 if shown else 1.0
+    with warnings.catch_warnings():  # scipy warns of "precision loss" for one constant arm
+        warnings.filterwarnings("ignore", "Precision loss", RuntimeWarning)
+        result = scipy_stats.ttest_ind(a, b, equal_var=False, alternative=direction)
+    return float(result.statistic), float(result.df), float(result.pvalue)
+
+
+def mann_whitney(a: np.ndarray, b: np.ndarray, direction: Direction) -> tuple[float, float]:
+    """One-tailed Mann–Whitney U test that a tends to be `direction` than b.
+
+    scipy's default method: exact for small samples without ties, else the normal
+    approximation with tie and continuity corrections. All-tied values give p = 1.
+
+    Returns:
+        (U of arm a, p).
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if np.ptp(np.concatenate([a, b])) == 0:
+        return a.size * b.size / 2, 1.0
+    result = scipy_stats.mannwhitneyu(a, b, alternative=direction)
+    return float(result.statistic), float(result.pvalue)
+
+
+def probability_of_improvement(a: np.ndarray, b: np.ndarray, direction: Direction) -> float:
+    """rliable's probability of improvement, oriented with the claim.
+
+    P(X_a > X_b) + ½ P(X_a = X_b) over all pairs of one value of each arm for "greater"
+    (P(X_a < X_b) + ½ P(X_a = X_b) for "less"), so above 0.5 favours the claim.
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if direction == "less":
+        a, b = -a, -b
+    pairs = a[:, None] - b[None, :]
+    return float(((pairs > 0).sum() + 0.5 * (pairs == 0).sum()) / pairs.size)
+
+
+def hedges_g(a: np.ndarray, b: np.ndarray, direction: Direction) -> float:
+    """Hedges' g, oriented with the claim (above 0 favours it).
+
+    Cohen's d with the pooled sd, times the exact small-sample correction
+    J(ν) = Γ(ν/2) / (√(ν/2) Γ((ν−1)/2)) with ν = n_a + n_b − 2. Needs at least 2 values per
+    arm; a zero pooled sd gives 0 for equal means and ±inf otherwise.
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    dof = a.size + b.size - 2
+    pooled_var = ((a.size - 1) * a.var(ddof=1) + (b.size - 1) * b.var(ddof=1)) / dof
+    difference = a.mean() - b.mean()
+    if direction == "less":
+        difference = -difference
+    if pooled_var == 0:
+        return math.copysign(math.inf, difference) if difference else 0.0
+    correction = math.exp(math.lgamma(dof / 2) - math.lgamma((dof - 1) / 2)) / math.sqrt(dof / 2)
+    return float(correction * difference / math.sqrt(pooled_var))
+
+
+def compare(
+    a_values: np.ndarray,
+    b_values: np.ndarray,
+    direction: Direction,
+    rng: np.random.Generator,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    names: tuple[str, str] = ("arm a", "arm b"),
+) -> PairStats:
+    """Every statistic of the claim "a is `direction` than b", one value per run.
+
+    Args:
+        a_values: arm a's value of each run; NaN (unfinished runs) are dropped.
+        b_values: arm b's value of each run, the same way.
+        direction: "greater" or "less".
+        rng: the bootstrap's only source of randomness.
+        resamples: bootstrap resamples.
+        names: the arms' names, for the notes.
+
+    Returns:
+        The claim's statistics, with notes on anything dropped or degenerate.
+    """
+    a, dropped_a = finite_values(a_values)
+    b, dropped_b = finite_values(b_values)
+    summary_a, summary_b = summarise(a_values), summarise(b_values)
+    notes = [
+        f"{dropped} unfinished run(s) of {arm} dropped"
+        for arm, dropped in zip(names, (dropped_a, dropped_b), strict=True)
+        if dropped
+    ]
+    difference = summary_a.mean - summary_b.mean  # NaN when an arm has no value
+    prob = probability_of_improvement(a, b, direction) if a.size and b.size else math.nan
+    if a.size < 2 or b.size < 2:
+        notes.append(
+            f"fewer than 2 finite values in an arm ({names[0]}: {a.size}, {names[1]}: {b.size}): "
+            "no test"
+        )
+        return PairStats(direction, summary_a, summary_b, difference, prob, tuple(notes))
+    if np.ptp(a) == 0 and np.ptp(b) == 0:
+        notes.append("both arms constant: t-test and effect size at their zero-variance limit")
+    ci_low, ci_high = bootstrap_difference_ci(a, b, rng, resamples)
+    t, df, p = welch_test(a, b, direction)
+    _, _, p_opposite = welch_test(a, b, _OPPOSITE[direction])
+    u, mw_p = mann_whitney(a, b, direction)
+    return PairStats(
+        direction=direction,
+        a=summary_a,
+        b=summary_b,
+        difference=difference,
+        ci_low=ci_low,
+        ci_high=ci_high,
+        welch_t=t,
+        welch_df=df,
+        welch_p=p,
+        welch_p_opposite=p_opposite,
+        mann_whitney_u=u,
+        mann_whitney_p=mw_p,
+        prob_improvement=prob,
+        hedges_g=hedges_g(a, b, direction),
+        notes=tuple(notes),
+    )
+
+
+def holm(p_values: Sequence[float]) -> np.ndarray:
+    """Holm–Bonferroni adjusted p-values, in the order given.
+
+    Step-down: the i-th smallest of m p-values is multiplied by m − i + 1 (i from 1), then
+    made monotone by a running maximum in rank order and capped at 1. NaN p-values (claims
+    not tested) stay NaN and do not count in m.
+    """
+    p = np.asarray(p_values, dtype=float)
+    adjusted = np.full(p.shape, np.nan)
+    tested = np.flatnonzero(~np.isnan(p))
+    order = tested[np.argsort(p[tested], kind="stable")]
+    m = order.size
+    scaled = (m - np.arange(m)) * p[order]
+    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return adjusted
+
+
+def verdict(holm_p: float, holm_p_opposite: float, alpha: float = ALPHA) -> Verdict:
+    """`held` if significant in the claimed direction, `reversed` if the other way."""
+    if holm_p < alpha:
+        return "held"
+    if holm_p_opposite < alpha:
+        return "reversed"
+    return "not shown"  # also when the p-values are NaN
+
+
+def judge_claims(claims: Sequence[PairStats], alpha: float = ALPHA) -> tuple[ClaimStats, ...]:
+    """Holm-adjust the Welch p-values of one experiment's claims and give each its verdict.
+
+    The claimed-direction p-values form one family, the opposite-direction ones another.
+    """
+    adjusted = holm([c.welch_p for c in claims])
+    adjusted_opposite = holm([c.welch_p_opposite for c in claims])
+    return tuple(
+        ClaimStats(c, float(p), float(q), verdict(p, q, alpha))
+        for c, p, q in zip(claims, adjusted, adjusted_opposite, strict=True)
+    )

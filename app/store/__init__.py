@@ -1,0 +1,34 @@
+"""HDF5 run files: one self-describing file per run, written by SWMR, read while written.
+
+The rooms of the store, one job each (the layout is described in docs/run-format.md):
+
+- `schema`: the file layout, one table of datasets (paths, shapes, types, storage, units).
+- `files`: file safety (whole files only, the writer lock, opening missing/foreign/corrupt files).
+- `reader`: `RunReader`, also while a writer is flushing.
+- `writer`: `RunWriter` (training, resume) and `add_implementation`.
+- `catalogue`: run names and the runs folder.
+"""
+
+from app.store.catalogue import RunSummary, list_runs, new_run_path, resolve_run, run_name
+from app.store.files import RunFileError
+from app.store.reader import History, Implementation, RunReader
+from app.store.schema import FORMAT, SCHEMA_VERSION, RunTemplate, package_version
+from app.store.writer import RunWriter, add_implementation
+
+__all__ = [
+    "FORMAT",
+    "SCHEMA_VERSION",
+    "History",
+    "Implementation",
+    "RunFileError",
+    "RunReader",
+    "RunSummary",
+    "RunTemplate",
+    "RunWriter",
+    "add_implementation",
+    "list_runs",
+    "new_run_path",
+    "package_version",
+    "resolve_run",
+    "run_name",
+]

@@ -1,0 +1,297 @@
+"""Reading run files, also while a SWMR writer is still writing them."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import h5py
+import numpy as np
+
+import gnp
+from app.config import ImplementationSettings, RunConfig
+from app.recording import Trajectory
+from app.store.files import RunFileError, open_for_read
+from app.store.schema import FORMAT, SCHEMA_VERSION
+
+_T = TypeVar("_T")
+
+# A SWMR read can catch the writer mid-flush; HDF5 then reports a torn object ("invalid dataset
+# size", a bad B-tree signature, an object it cannot find). It passes: read again after a pause,
+# and reopen the file if it persists. The pauses add up to about 0.4 s.
+_TORN_READ = (OSError, KeyError, ValueError, RuntimeError)
+_PAUSES = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
+_REOPEN_AFTER = 4  # failed reads, then reopen the file
+
+
+@dataclass(frozen=True)
+class History:
+    """Per-generation arrays of the completed generations (length `generations_done`)."""
+
+    best_fitness: np.ndarray  # (g,)
+    mean_fitness: np.ndarray  # (g,)
+    std_fitness: np.ndarray  # (g,)
+    best_index: np.ndarray  # (g,) index of the best individual in its generation
+    epsilon: np.ndarray  # (g,)
+    alpha: np.ndarray  # (g,)
+    fitness: np.ndarray  # (g, population)
+    best_terms: dict[str, np.ndarray]  # term name -> (g,), mean per step of the best
+    mean_terms: dict[str, np.ndarray]  # term name -> (g,), population mean
+
+
+@dataclass(frozen=True)
+class Implementation:
+    """One implementation phase of a run (stored under `implementation/<name>`)."""
+
+    name: str
+    settings: ImplementationSettings
+    generation: int  # generation whose best individual was implemented
+    reward_per_step: np.ndarray  # (T,) mean over trials
+    trial_mean_reward: np.ndarray  # (N,) mean reward per step of each trial
+    trial_mean_after_fault: np.ndarray  # (N,) mean from the fault step on
+    start_index: np.ndarray  # (N,) start pose of each trial
+    mean_reward: float
+    mean_after_fault: float
+    trials: Trajectory  # the recorded trials
+    recorded: np.ndarray  # (k,) which trials were recorded
+
+
+class RunReader:
+    """Read a run file, also while it is being written (call `refresh()` to see new data).
+
+    Reads that catch a live writer mid-flush are retried (and the file reopened if need be), so
+    callers see consistent data or, if the file stays unreadable, a RunFileError.
+
+    Raises:
+        RunFileError: missing, foreign (not a gnp-lab run) or corrupt file.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._file = open_for_read(self.path)
+        try:
+            self._load_header()
+        except RunFileError:
+            self._file.close()
+            raise
+        except (KeyError, OSError, ValueError, TypeError) as error:
+            self._file.close()
+            raise RunFileError(f"corrupt run file {self.path}: {error}") from None
+
+    def _load_header(self) -> None:
+        attrs = self._file.attrs
+        if attrs.get("format") != FORMAT:
+            raise RunFileError(f"{self.path} is an HDF5 file but not a gnp-lab run")
+        version = int(attrs["schema_version"])
+        if version != SCHEMA_VERSION:
+            raise RunFileError(
+                f"{self.path} has run-file schema {version}; this gnp-lab reads {SCHEMA_VERSION}"
+            )
+        try:
+            self.config = RunConfig.model_validate_json(attrs["config"])
+        except ValueError as error:
+            raise RunFileError(f"{self.path} holds an invalid config: {error}") from None
+        self.seed = int(attrs["seed"])
+        self.package_version = str(attrs["package_version"])
+        self.term_names = tuple(str(t) for t in attrs["reward_terms"])
+        # The inode of the open file (not of the path, which a rename may have moved on).
+        self._inode = os.fstat(self._file.id.get_vfd_handle()).st_ino
+
+    def _reopen(self) -> None:
+        fresh = open_for_read(self.path)
+        stale, self._file = self._file, fresh
+        stale.close()
+        self._load_header()
+
+    def _steady(self, read: Callable[[], _T]) -> _T:
+        """`read()`, retried while a live writer leaves the file torn (see _TORN_READ).
+
+        Raises:
+            RunFileError: the read fails in a file no writer holds, or never clears in one.
+        """
+        if not self._file.swmr_mode:  # opened plainly: no writer holds the file
+            try:
+                return read()
+            except _TORN_READ as error:
+                raise RunFileError(f"corrupt run file {self.path}: {error!r}") from error
+        torn: Exception | None = None
+        for attempt, pause in enumerate((0.0, *_PAUSES)):
+            time.sleep(pause)
+            try:
+                if attempt == _REOPEN_AFTER:
+                    self._reopen()
+                return read()
+            except _TORN_READ as error:
+                torn = error
+        raise RunFileError(f"cannot read {self.path.name} while it is being written: {torn}")
+
+    # -- lifecycle --
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> RunReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def refresh(self) -> None:
+        """See what the writer flushed since; reopen the file if it was replaced."""
+        try:
+            inode = os.stat(self.path).st_ino
+        except FileNotFoundError:
+            return
+        if inode != self._inode:
+            self._reopen()
+        else:
+            self._steady(self._generations_done)
+
+    @property
+    def file(self) -> h5py.File:
+        """The open HDF5 file, for plain h5py reads and copies (replaced by `refresh()`)."""
+        return self._file
+
+    # -- contents --
+
+    def _dataset(self, name: str) -> h5py.Dataset:
+        dataset = self._file[name]
+        if self._file.swmr_mode:
+            dataset.refresh()  # drop what HDF5 cached of it before the writer's last flush
+        return dataset
+
+    def _read(self, name: str) -> np.ndarray:
+        return np.asarray(self._dataset(name)[()])
+
+    def _generations_done(self) -> int:
+        return int(self._read("progress/generations_done"))
+
+    @property
+    def generations_done(self) -> int:
+        """Generations whose results are complete in the file."""
+        return self._steady(self._generations_done)
+
+    @property
+    def finished(self) -> bool:
+        """True once training completed and the final elite was recorded."""
+        return self._steady(lambda: bool(self._read("progress/finished")))
+
+    @property
+    def gnp_config(self) -> gnp.GnpConfig:
+        return self.config.controller.gnp_config()
+
+    def history(self) -> History:
+        """Per-generation results of the completed generations."""
+        return self._steady(self._history)
+
+    def _history(self) -> History:
+        done = self._generations_done()
+
+        def rows(name: str) -> np.ndarray:
+            # Only complete rows: the rest may be mid-write.
+            return np.asarray(self._dataset(f"generations/{name}")[:done])
+
+        best_terms, mean_terms = rows("best_terms"), rows("mean_terms")
+        return History(
+            best_fitness=rows("best_fitness"),
+            mean_fitness=rows("mean_fitness"),
+            std_fitness=rows("std_fitness"),
+            best_index=rows("best_index"),
+            epsilon=rows("epsilon"),
+            alpha=rows("alpha"),
+            fitness=rows("fitness"),
+            best_terms={t: best_terms[:, i] for i, t in enumerate(self.term_names)},
+            mean_terms={t: mean_terms[:, i] for i, t in enumerate(self.term_names)},
+        )
+
+    def best_genome_arrays(self, generation: int = -1) -> dict[str, np.ndarray]:
+        """All genome arrays (Q tables included) of a generation's best, leading axis 1.
+
+        The genome is the one after its evaluation, with what it learned (what the elite carries
+        into the next generation). Negative generations count from the last completed one.
+        """
+        return self._steady(lambda: self._best_genome_arrays(generation))
+
+    def _best_genome_arrays(self, generation: int) -> dict[str, np.ndarray]:
+        done = self._generations_done()
+        if generation < 0:
+            generation += done
+        if not 0 <= generation < done:
+            raise RunFileError(
+                f"generation {generation} is not complete in {self.path.name} "
+                f"(generations 0..{done - 1} are)"
+                if done
+                else f"{self.path.name} has no completed generation yet"
+            )
+        return {
+            name: np.asarray(self._dataset(f"genomes/best/{name}")[generation])[None]
+            for name in self._file["genomes/best"]
+        }
+
+    def best_genome(self, generation: int = -1) -> tuple[gnp.GnpConfig, gnp.Population]:
+        """(config, a 1-individual population) of a generation's best."""
+        cfg = self.gnp_config
+        return cfg, gnp.population_from_arrays(cfg, self.best_genome_arrays(generation))
+
+    def checkpoint(self) -> tuple[int, dict[str, np.ndarray]] | None:
+        """(next generation to evaluate, full population arrays) of the last checkpoint."""
+        return self._steady(self._checkpoint)
+
+    def _checkpoint(self) -> tuple[int, dict[str, np.ndarray]] | None:
+        slot, generation = (int(v) for v in self._read("progress/checkpoint"))
+        if slot < 0:
+            return None
+        group = f"checkpoint/slot{slot}"
+        return generation, {name: self._read(f"{group}/{name}") for name in self._file[group]}
+
+    def elite(self) -> Trajectory | None:
+        """The final elite's recorded life (the evaluation that earned its fitness), if done."""
+        if not self.finished:
+            return None
+        return self._steady(lambda: self._trajectory("elite"))
+
+    def _trajectory(self, group: str) -> Trajectory:
+        terms = self._read(f"{group}/terms")
+        return Trajectory(
+            poses=self._read(f"{group}/poses"),
+            readings=self._read(f"{group}/readings"),
+            observations=self._read(f"{group}/observations"),
+            commands=self._read(f"{group}/commands"),
+            terms={t: terms[..., i] for i, t in enumerate(self.term_names)},
+            trace={
+                name: self._read(f"{group}/trace/{name}") for name in self._file[f"{group}/trace"]
+            },
+            start_index=self._read(f"{group}/start_index"),
+        )
+
+    def implementation_names(self) -> list[str]:
+        """Names of the implementation phases stored in this run."""
+        group = self._file.get("implementation")
+        return sorted(group) if group is not None else []
+
+    def implementation(self, name: str) -> Implementation:
+        """One stored implementation phase."""
+        if name not in self.implementation_names():
+            raise RunFileError(f"{self.path.name} has no implementation named {name!r}")
+        return self._steady(lambda: self._implementation(name))
+
+    def _implementation(self, name: str) -> Implementation:
+        base = f"implementation/{name}"
+        attrs = self._file[base].attrs
+        return Implementation(
+            name=name,
+            settings=ImplementationSettings.model_validate_json(attrs["settings"]),
+            generation=int(attrs["generation"]),
+            reward_per_step=self._read(f"{base}/reward_per_step"),
+            trial_mean_reward=self._read(f"{base}/trial_mean_reward"),
+            trial_mean_after_fault=self._read(f"{base}/trial_mean_after_fault"),
+            start_index=self._read(f"{base}/start_index"),
+            mean_reward=float(attrs["mean_reward"]),
+            mean_after_fault=float(attrs["mean_after_fault"]),
+            trials=self._trajectory(f"{base}/trials"),
+            recorded=self._read(f"{base}/recorded"),
+        )

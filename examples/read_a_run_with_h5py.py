@@ -1,0 +1,18 @@
+"""Read a run file with plain h5py: no GNP Lab code needed (docs/run-format.md).
+
+python examples/read_a_run_with_h5py.py RUN.h5
+"""
+
+import json
+import sys
+
+import h5py
+
+with h5py.File(sys.argv[1], "r", swmr=True) as run:
+    config = json.loads(run.attrs["config"])
+    done = int(run["progress/generations_done"][()])
+    best = run["generations/best_fitness"][:done]
+    print(f"method {config['controller']['method']}, seed {run.attrs['seed']}")
+    print(f"generations done {done}, best fitness {best.max():.6f}")
+    for name, group in run["implementation"].items():
+        print(f"implementation {name}: mean reward {group.attrs['mean_reward']:.6f}")

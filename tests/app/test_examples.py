@@ -1,0 +1,60 @@
+"""The scripts in examples/ run as documented, and print what the run files hold."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.store import RunReader
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def _run(script: str, *args: str) -> str:
+    env = dict(os.environ, PYTHONPATH=str(EXAMPLES.parent))
+    done = subprocess.run(
+        [sys.executable, str(EXAMPLES / script), *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def _number(text: str, label: str) -> float:
+    match = re.search(rf"{label} (-?[0-9.]+)", text)
+    assert match, text
+    return float(match.group(1))
+
+
+@pytest.mark.slow
+def test_train_implement_and_read_a_run_as_the_examples_do(tmp_path: Path) -> None:
+    run = tmp_path / "tiny.h5"
+    trained = _run("train_tiny_run.py", str(run))
+    implemented = _run("implement_with_a_fault.py", str(run))
+    read = _run("read_a_run_with_h5py.py", str(run))
+    with RunReader(run) as reader:
+        history = reader.history()
+        result = reader.implementation("sensors-2-3-dead")
+        assert reader.config.controller.method == "BS"
+    best = [float(v) for v in re.findall(r"best fitness ([0-9.]+)", trained)]
+    assert best == pytest.approx(history.best_fitness, abs=1e-6)
+    assert _number(implemented, "after the fault") == pytest.approx(
+        result.mean_after_fault, abs=1e-6
+    )
+    before = float(np.mean(result.reward_per_step[:100]))
+    assert _number(implemented, "before the fault") == pytest.approx(before, abs=1e-6)
+    assert "implementations stored: sensors-2-3-dead" in implemented
+    assert "method BS, seed 3" in read
+    assert _number(read, "generations done") == 3
+    assert _number(read, "best fitness") == pytest.approx(history.best_fitness.max(), abs=1e-6)
+    assert _number(read, "mean reward") == pytest.approx(result.mean_reward, abs=1e-6)

@@ -1,0 +1,247 @@
+"""The experiment report: statistics as JSON, and a static page with figures and its data."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from app.experiments.figures import mean_and_ci, moving_average, smoothing_window
+from app.experiments.report import analyse, format_number, to_json, write_report
+from app.experiments.results import (
+    Arm,
+    Comparison,
+    Condition,
+    ExperimentResults,
+    ThesisValue,
+)
+
+SEEDS = (11, 12, 13, 14)
+STEPS, FAULT_STEP, GENERATIONS = 400, 100, 30
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def synthetic_results(
+    seeds: tuple[int, ...] = SEEDS, with_curves: bool = True
+) -> ExperimentResults:
+    """Two arms where BS clearly beats RL after the fault, and barely in training."""
+    rng = np.random.default_rng(3)
+    n = len(seeds)
+    conditions = tuple(
+        Condition(f"break{k}", f"{k} sensor(s) break", STEPS, FAULT_STEP, k, 0.0) for k in (1, 2)
+    )
+    scalars: dict[tuple[str, str, str], np.ndarray] = {}
+    curves: dict[tuple[str, str, str], np.ndarray] = {}
+    for arm, skill in (("RL", 0.0), ("BS", 1.0)):
+        scalars[("final_best_fitness", arm, "")] = 20 + 0.1 * skill + rng.normal(0, 1, n)
+        if with_curves:
+            growth = np.log1p(np.arange(GENERATIONS))[None, :]
+            curves[("best_fitness_curve", arm, "")] = 4 * growth + rng.normal(0, 0.5, (n, 30))
+        for c in conditions:
+            after = 0.6 - 0.1 * c.broken_count + 0.05 * skill * c.broken_count
+            after_runs = after + rng.normal(0, 0.005, n)
+            scalars[("mean_reward_after_fault", arm, c.name)] = after_runs
+            scalars[("mean_reward", arm, c.name)] = (0.6 * FAULT_STEP + after_runs * 300) / STEPS
+            if with_curves:
+                level = np.where(np.arange(STEPS) < FAULT_STEP, 0.6, after)
+                curves[("reward_per_step", arm, c.name)] = level + rng.normal(0, 0.1, (n, STEPS))
+    comparisons = (
+        Comparison("fitness", "BS", "RL", "final_best_fitness", None, "greater", "Fig. 3.6"),
+        *(
+            Comparison(f"after {c.name}", "BS", "RL", "mean_reward_after_fault", c.name,
+                       "greater", "Fig. 3.9")
+            for c in conditions
+        ),
+    )  # fmt: skip
+    return ExperimentResults(
+        name="ch3-breaking",
+        description="Sensors break mid-run: BS against RL.",
+        source="Chapter 3",
+        scale="smoke",
+        arms=(Arm("RL", "Fuzzy GNP-RL"), Arm("BS", "Fuzzy GNP-TSRL (BS)")),
+        seeds=seeds,
+        conditions=conditions,
+        comparisons=comparisons,
+        thesis=(ThesisValue("BS", "mean_reward_after_fault", "break1", 0.512, "Table 3.4"),),
+        scalars=scalars,
+        curves=curves,
+    )
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[ExperimentResults, Path]:
+    results = synthetic_results()
+    return results, write_report(results, tmp_path_factory.mktemp("report"))
+
+
+def sections(page: str) -> list[str]:
+    """The page's comparison sections, in order."""
+    return [part.split("<h2>")[0] for part in page.split("<h3>")[1:]]
+
+
+def test_json_means_are_the_means_of_the_runs() -> None:
+    results = synthetic_results()
+    report = to_json(analyse(results, np.random.default_rng(0), resamples=500))
+    assert report["scale"] == "smoke" and report["seeds"] == list(SEEDS)
+    assert [c["name"] for c in report["comparisons"]] == [c.name for c in results.comparisons]
+    for entry, comparison in zip(report["comparisons"], results.comparisons, strict=True):
+        for side in ("a", "b"):
+            values = results.scalar(comparison.metric, getattr(comparison, side),
+                                    comparison.condition)  # fmt: skip
+            assert entry[side]["mean"] == pytest.approx(np.mean(values))
+            assert entry[side]["sd"] == pytest.approx(np.std(values, ddof=1))
+            assert entry[side]["n"] == len(SEEDS) and entry[side]["dropped"] == 0
+        a_mean, b_mean = entry["a"]["mean"], entry["b"]["mean"]
+        assert entry["difference"] == pytest.approx(a_mean - b_mean)
+        low, high = entry["ci"]
+        assert low < entry["difference"] < high
+        assert entry["holm_p"] >= entry["welch"]["p"]
+    after = report["comparisons"][1:]
+    assert [c["verdict"] for c in after] == ["held", "held"]  # 0.05 and 0.1 apart, sd 0.005
+    assert after[0]["a"]["thesis"] == {"value": 0.512, "source": "Table 3.4"}
+    assert after[0]["b"]["thesis"] is None and after[1]["a"]["thesis"] is None
+    json.dumps(report, allow_nan=False)  # valid JSON, no NaN
+
+
+def test_page_shows_each_comparisons_verdict_and_json_numbers(
+    written: tuple[ExperimentResults, Path],
+) -> None:
+    _, index = written
+    page = index.read_text()
+    report = json.loads((index.parent / "report.json").read_text())
+    assert "smoke" in page and "unit of analysis" in page and "the run (seed)" in page
+    assert ", ".join(map(str, SEEDS)) in page
+    for section, entry in zip(sections(page), report["comparisons"], strict=True):
+        assert section.startswith(entry["name"])
+        assert f'class="verdict {entry["verdict"].replace(" ", "-")}">{entry["verdict"]}' in section
+        shown = [
+            entry["a"]["mean"], entry["a"]["sd"], entry["b"]["mean"], entry["b"]["sd"],
+            entry["difference"], *entry["ci"], entry["welch"]["p"], entry["mann_whitney"]["p"],
+            entry["holm_p"], entry["prob_improvement"], entry["hedges_g"],
+        ]  # fmt: skip
+        for number in shown:
+            assert format_number(number) in section
+    thesis_section = sections(page)[1]
+    assert "0.512 (Table 3.4)" in thesis_section
+
+
+def test_every_figure_on_the_page_is_a_real_png(written: tuple[ExperimentResults, Path]) -> None:
+    _, index = written
+    images = re.findall(r'<img src="([^"]+)"', index.read_text())
+    # fitness, 2 reward curves, the fault sweep, a runs plot per comparison
+    assert len(images) == 1 + 2 + 1 + 3
+    assert {"fitness.png", "fault.png"} <= set(images)
+    for name in images:
+        path = index.parent / name
+        assert path.read_bytes()[:8] == PNG_MAGIC
+        pixels = imread(path)
+        assert pixels.shape[0] > 200 and pixels.shape[1] > 300
+        assert np.ptp(pixels[..., :3]) > 0.5  # something drawn, not a blank canvas
+
+
+def test_values_csv_round_trips(written: tuple[ExperimentResults, Path]) -> None:
+    results, index = written
+    with (index.parent / "values.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert list(rows[0]) == ["arm", "seed", "condition", "metric", "value"]
+    assert len(rows) == len(SEEDS) * len(results.scalars)
+    read: dict[tuple[str, str, str], dict[int, float]] = {}
+    for row in rows:
+        key = (row["metric"], row["arm"], row["condition"])
+        read.setdefault(key, {})[int(row["seed"])] = float(row["value"])
+    assert read.keys() == results.scalars.keys()
+    for key, values in results.scalars.items():
+        assert [read[key][seed] for seed in SEEDS] == list(values)  # exact, not approximate
+
+
+def test_unfinished_runs_are_counted_in_json_and_page(tmp_path: Path) -> None:
+    results = synthetic_results()
+    rl_after = results.scalars[("mean_reward_after_fault", "RL", "break1")].copy()
+    rl_after[[0, 2]] = np.nan
+    scalars = {**results.scalars, ("mean_reward_after_fault", "RL", "break1"): rl_after}
+    results = dataclasses.replace(results, scalars=scalars)
+    index = write_report(results, tmp_path)
+    entry = json.loads((tmp_path / "report.json").read_text())["comparisons"][1]
+    assert (entry["b"]["n"], entry["b"]["dropped"]) == (2, 2)
+    assert entry["b"]["mean"] == pytest.approx(np.nanmean(rl_after))
+    assert "2 unfinished run(s) of RL dropped" in entry["notes"]
+    assert "2 unfinished run(s) of RL dropped" in sections(index.read_text())[1]
+    with (tmp_path / "values.csv").open(newline="") as handle:
+        nan_rows = [r for r in csv.DictReader(handle) if math.isnan(float(r["value"]))]
+    assert {(r["arm"], r["seed"], r["condition"]) for r in nan_rows} == {
+        ("RL", "11", "break1"),
+        ("RL", "13", "break1"),
+    }
+
+
+def test_a_single_seed_reports_without_tests_or_bands(tmp_path: Path) -> None:
+    index = write_report(synthetic_results(seeds=(5,)), tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert all(c["verdict"] == "not shown" for c in report["comparisons"])
+    assert all(c["welch"]["p"] is None and c["a"]["sd"] is None for c in report["comparisons"])
+    for name in re.findall(r'<img src="([^"]+)"', index.read_text()):
+        assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC
+
+
+def test_missing_curves_leave_out_their_figures(tmp_path: Path) -> None:
+    index = write_report(synthetic_results(with_curves=False), tmp_path)
+    images = re.findall(r'<img src="([^"]+)"', index.read_text())
+    assert "fitness.png" not in images and not any(i.startswith("reward-") for i in images)
+    assert "fault.png" in images  # drawn from scalars, not curves
+    assert not (tmp_path / "fitness.png").exists()
+
+
+def test_the_bootstrap_is_seeded(tmp_path: Path) -> None:
+    results = synthetic_results()
+    first = to_json(analyse(results, np.random.default_rng(1), resamples=300))
+    again = to_json(analyse(results, np.random.default_rng(1), resamples=300))
+    other = to_json(analyse(results, np.random.default_rng(2), resamples=300))
+    assert first == again
+    assert first["comparisons"][0]["ci"] != other["comparisons"][0]["ci"]
+
+
+def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
+    results = synthetic_results()
+    one_condition = dataclasses.replace(
+        results, conditions=results.conditions[:1], comparisons=results.comparisons[:2]
+    )
+    index = write_report(one_condition, tmp_path)
+    assert "fault.png" not in index.read_text() and not (tmp_path / "fault.png").exists()
+    assert (tmp_path / "reward-0-break1.png").exists()
+
+
+def test_mean_and_ci_is_a_t_interval_over_finite_runs() -> None:
+    samples = np.array([[1.0, 7.0, 5.0], [2.0, np.nan, 5.0], [3.0, np.nan, np.nan]])
+    mean, half_width, n = mean_and_ci(samples)
+    # df = 2: F(t) = 1/2 + t / (2√(2 + t²)) = 0.975 ⇔ t² = 2·0.95² / (1 − 0.95²)
+    t_975 = math.sqrt(2 * 0.95**2 / (1 - 0.95**2))  # ≈ 4.303
+    assert list(n) == [3, 1, 2]
+    assert mean == pytest.approx([2.0, 7.0, 5.0])
+    assert half_width[0] == pytest.approx(t_975 * 1.0 / math.sqrt(3))  # sd = 1
+    assert math.isnan(half_width[1])  # one run: no interval
+    assert half_width[2] == 0.0  # two equal runs
+
+
+def test_moving_average_is_centred_over_the_window() -> None:
+    smoothed = moving_average(np.array([[1.0, 2.0, 3.0, 6.0]]), 2)
+    assert smoothed == pytest.approx(np.array([[1.5, 2.5, 4.5]]))
+    assert smoothing_window(3000) == 50 and smoothing_window(200) == 20
+
+
+def test_the_thesis_numbers_sit_beside_ours(
+    written: tuple[ExperimentResults, Path],
+) -> None:
+    results, index = written
+    (entry,) = json.loads((index.parent / "report.json").read_text())["thesis"]
+    ours = results.scalar("mean_reward_after_fault", "BS", "break1")
+    assert (entry["arm"], entry["value"], entry["source"]) == ("BS", 0.512, "Table 3.4")
+    assert entry["ours"]["mean"] == pytest.approx(np.mean(ours)) and entry["ours"]["n"] == 4
+    table = index.read_text().split("The thesis's numbers beside ours")[1]
+    assert "0.512 (Table 3.4)" in table and format_number(entry["ours"]["mean"]) in table

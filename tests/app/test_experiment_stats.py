@@ -1,0 +1,222 @@
+"""Statistics of an experiment's claims, checked against hand-computed values."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from app.experiments.results import VERDICTS
+from app.experiments.stats import (
+    bootstrap_difference_ci,
+    compare,
+    hedges_g,
+    holm,
+    judge_claims,
+    mann_whitney,
+    probability_of_improvement,
+    summarise,
+    verdict,
+    welch_test,
+)
+
+A = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+B = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+
+
+def welch_t_and_df(a: list[float], b: list[float]) -> tuple[float, float]:
+    """Welch's t and Welch–Satterthwaite df from their textbook formulas."""
+    na, nb = len(a), len(b)
+    ma, mb = sum(a) / na, sum(b) / nb
+    va = sum((x - ma) ** 2 for x in a) / (na - 1)
+    vb = sum((x - mb) ** 2 for x in b) / (nb - 1)
+    sa, sb = va / na, vb / nb
+    t = (ma - mb) / math.sqrt(sa + sb)
+    df = (sa + sb) ** 2 / (sa**2 / (na - 1) + sb**2 / (nb - 1))
+    return t, df
+
+
+def student_t_cdf_even_df(t: float, df: int) -> float:
+    """Student's t CDF for an even df, from its closed-form finite series."""
+    cos2 = df / (df + t * t)
+    series = sum(
+        math.factorial(2 * k) / (4**k * math.factorial(k) ** 2) * cos2**k for k in range(df // 2)
+    )
+    return 0.5 + t / (2 * math.sqrt(df + t * t)) * series
+
+
+def test_welch_matches_the_hand_formulas() -> None:
+    t_hand, df_hand = welch_t_and_df(list(A), list(B))
+    assert t_hand == pytest.approx(1.0) and df_hand == pytest.approx(8.0)  # both variances 2.5
+    p_hand = 1 - student_t_cdf_even_df(1.0, 8)  # ≈ 0.1733
+    t, df, p = welch_test(A, B, "greater")
+    assert (t, df, p) == (pytest.approx(t_hand), pytest.approx(df_hand), pytest.approx(p_hand))
+    _, _, p_less = welch_test(A, B, "less")
+    assert p_less == pytest.approx(1 - p_hand)
+
+
+def test_welch_unequal_variances_uses_the_satterthwaite_df() -> None:
+    a, b = [2.0, 4.0, 6.0, 8.0], [1.0, 2.0, 3.0]
+    t_hand, df_hand = welch_t_and_df(a, b)
+    t, df, _ = welch_test(np.array(a), np.array(b), "greater")
+    assert t == pytest.approx(t_hand) and df == pytest.approx(df_hand)
+    assert df < len(a) + len(b) - 2  # Welch's df falls below the pooled df
+
+
+def test_mann_whitney_exact_p_by_counting_splits() -> None:
+    a, b = [3.0, 5.0, 6.0], [1.0, 2.0, 4.0]
+    u_hand = sum(x > y for x in a for y in b)  # 2 + 3 + 3 = 8
+    pooled = a + b
+    splits = list(itertools.combinations(range(6), 3))
+    us = [
+        sum(pooled[i] > pooled[j] for i in chosen for j in range(6) if j not in chosen)
+        for chosen in splits
+    ]
+    u, p = mann_whitney(np.array(a), np.array(b), "greater")
+    assert u == u_hand == 8
+    assert p == pytest.approx(sum(x >= u_hand for x in us) / len(splits))  # 2/20
+    _, p_less = mann_whitney(np.array(a), np.array(b), "less")
+    assert p_less == pytest.approx(sum(x <= u_hand for x in us) / len(splits))  # 19/20
+
+
+def test_probability_of_improvement_counts_pairs() -> None:
+    a, b = [1.0, 2.0, 3.0], [0.0, 1.0, 2.0]
+    wins = sum(x > y for x in a for y in b)  # 6
+    ties = sum(x == y for x in a for y in b)  # 2
+    greater = probability_of_improvement(np.array(a), np.array(b), "greater")
+    assert greater == pytest.approx((wins + ties / 2) / 9)  # 7/9
+    less = probability_of_improvement(np.array(a), np.array(b), "less")
+    assert less == pytest.approx((sum(x < y for x in a for y in b) + ties / 2) / 9)  # 2/9
+
+
+def test_hedges_g_by_hand() -> None:
+    pooled_sd = math.sqrt(2.5)
+    correction = math.gamma(4) / (math.sqrt(4) * math.gamma(3.5))  # ν = 8
+    expected = correction * 1.0 / pooled_sd  # ≈ 0.571
+    assert hedges_g(A, B, "greater") == pytest.approx(expected)
+    assert hedges_g(A, B, "less") == pytest.approx(-expected)
+
+
+def test_holm_by_hand() -> None:
+    # sorted: 0.01·4 = 0.04, 0.03·3 = 0.09, 0.04·2 = 0.08 → 0.09 (monotone), 0.20·1 = 0.20
+    assert holm([0.01, 0.04, 0.03, 0.20]) == pytest.approx([0.04, 0.09, 0.09, 0.20])
+    assert holm([0.3, 0.4]) == pytest.approx([0.6, 0.6])  # 0.6, then max(0.6, 0.4)
+    assert holm([0.5, 0.9, 0.7]) == pytest.approx([1.0, 1.0, 1.0])  # capped at 1
+
+
+def test_holm_leaves_untested_claims_out_of_the_family() -> None:
+    adjusted = holm([0.01, math.nan, 0.04])
+    assert adjusted[0] == pytest.approx(0.02) and adjusted[2] == pytest.approx(0.04)
+    assert math.isnan(adjusted[1])
+
+
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=12))
+def test_holm_is_at_least_raw_capped_and_monotone_in_rank(p: list[float]) -> None:
+    adjusted = holm(p)
+    raw = np.asarray(p)
+    assert np.all(adjusted >= raw) and np.all(adjusted <= 1.0)
+    in_rank_order = adjusted[np.argsort(raw, kind="stable")]
+    assert np.all(np.diff(in_rank_order) >= 0)
+
+
+values = st.lists(st.integers(-5, 5).map(float), min_size=1, max_size=8).map(np.array)
+
+
+@given(values, values)
+def test_probability_of_improvement_of_both_orders_sums_to_one(a: np.ndarray, b: np.ndarray):
+    ab = probability_of_improvement(a, b, "greater")
+    assert ab + probability_of_improvement(b, a, "greater") == pytest.approx(1.0)
+    assert ab + probability_of_improvement(a, b, "less") == pytest.approx(1.0)
+
+
+@given(values, values)
+def test_compare_never_fails_and_its_p_values_are_probabilities(a: np.ndarray, b: np.ndarray):
+    stats = compare(a, b, "greater", np.random.default_rng(0), resamples=200)
+    (claim,) = judge_claims([stats])
+    assert claim.verdict in VERDICTS
+    tested = a.size >= 2 and b.size >= 2
+    for p in (stats.welch_p, stats.welch_p_opposite, stats.mann_whitney_p, claim.holm_p):
+        assert (0.0 <= p <= 1.0) if tested else math.isnan(p)
+    assert 0.0 <= stats.prob_improvement <= 1.0
+
+
+def test_bootstrap_ci_is_seeded_and_covers_a_clear_shift() -> None:
+    b = np.random.default_rng(1).normal(0.0, 1.0, 10)
+    a = b + 5.0  # the difference of means is exactly 5
+    ci = bootstrap_difference_ci(a, b, np.random.default_rng(7))
+    assert ci == bootstrap_difference_ci(a, b, np.random.default_rng(7))
+    assert ci != bootstrap_difference_ci(a, b, np.random.default_rng(8))
+    low, high = ci
+    assert 0.0 < low < 5.0 < high < 10.0
+
+
+def test_a_clear_effect_the_other_way_is_reversed() -> None:
+    (claim,) = judge_claims([compare(B - 10.0, B, "greater", np.random.default_rng(0))])
+    assert claim.verdict == "reversed"
+    assert claim.stats.prob_improvement == 0.0 and claim.stats.hedges_g < 0
+    assert claim.stats.ci_high < 0
+
+
+def test_a_clear_effect_in_the_claimed_direction_is_held() -> None:
+    (claim,) = judge_claims([compare(B, B + 10.0, "less", np.random.default_rng(0))])
+    assert claim.verdict == "held" and claim.stats.prob_improvement == 1.0
+
+
+def test_judge_adjusts_across_the_claims_of_one_experiment() -> None:
+    rng = np.random.default_rng(0)
+    weak = compare(A + 0.5, B, "greater", rng)  # one-tailed Welch p ≈ 0.06
+    strong = compare(A + 3.0, B, "greater", rng)
+    claims = judge_claims([weak, strong])
+    assert claims[1].holm_p == pytest.approx(2 * strong.welch_p)
+    assert claims[0].holm_p == pytest.approx(max(weak.welch_p, 2 * strong.welch_p))
+    assert [c.verdict for c in claims] == ["not shown", "held"]
+
+
+def test_verdict_thresholds() -> None:
+    assert verdict(0.049, 0.99) == "held"
+    assert verdict(0.99, 0.01) == "reversed"
+    assert verdict(0.05, 0.95) == "not shown"
+    assert verdict(math.nan, math.nan) == "not shown"
+
+
+def test_unfinished_runs_are_dropped_and_counted() -> None:
+    summary = summarise(np.array([1.0, 2.0, 3.0, math.nan]))
+    assert (summary.n, summary.dropped, summary.mean, summary.sd) == (3, 1, 2.0, 1.0)
+    stats = compare(np.array([1.0, 2.0, 3.0, math.nan]), B, "greater", np.random.default_rng(0))
+    assert stats.a.dropped == 1 and stats.b.dropped == 0
+    assert any("1 unfinished run(s) of arm a" in note for note in stats.notes)
+    assert math.isfinite(stats.welch_p)
+
+
+def test_an_arm_with_one_finite_value_is_not_tested() -> None:
+    a = np.array([1.0, math.nan, math.nan])
+    stats = compare(a, B, "greater", np.random.default_rng(0))
+    (claim,) = judge_claims([stats])
+    assert claim.verdict == "not shown"
+    assert stats.a.n == 1 and stats.a.dropped == 2 and math.isnan(stats.a.sd)
+    assert all(math.isnan(p) for p in (stats.welch_p, stats.mann_whitney_p, claim.holm_p))
+    assert math.isnan(stats.ci_low) and math.isnan(stats.hedges_g)
+    assert stats.difference == pytest.approx(1.0 - 2.0)
+    assert any("fewer than 2" in note for note in stats.notes)
+
+
+def test_identical_constant_arms_show_nothing_without_nan() -> None:
+    stats = compare(np.full(4, 3.0), np.full(4, 3.0), "greater", np.random.default_rng(0))
+    (claim,) = judge_claims([stats])
+    assert (stats.welch_t, stats.welch_p, stats.welch_p_opposite) == (0.0, 1.0, 1.0)
+    assert (stats.mann_whitney_p, stats.prob_improvement, stats.hedges_g) == (1.0, 0.5, 0.0)
+    assert (stats.ci_low, stats.ci_high) == (0.0, 0.0)
+    assert claim.verdict == "not shown" and claim.holm_p == 1.0
+    assert any("constant" in note for note in stats.notes)
+
+
+def test_different_constant_arms_take_the_zero_variance_limit() -> None:
+    stats = compare(np.full(4, 2.0), np.full(3, 1.0), "greater", np.random.default_rng(0))
+    (claim,) = judge_claims([stats])
+    assert stats.welch_t == math.inf and (stats.welch_p, stats.welch_p_opposite) == (0.0, 1.0)
+    assert stats.hedges_g == math.inf and (stats.ci_low, stats.ci_high) == (1.0, 1.0)
+    assert claim.verdict == "held"
