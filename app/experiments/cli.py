@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from app.experiments.results import ExperimentResults
 from app.experiments.spec import (
     SCALES,
     ExperimentError,
@@ -112,7 +113,7 @@ def main(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
 
 
-def _write_report(results: Any, out: Path) -> str:
+def _write_report(results: ExperimentResults, out: Path) -> str:
     from app.experiments.report import write_report
 
     return f"report: {write_report(results, out)}"
