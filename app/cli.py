@@ -27,6 +27,7 @@ from app.config import (
     read_toml,
     to_toml,
 )
+from app.experiments import cli as experiment_cli
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 
 if TYPE_CHECKING:
@@ -186,6 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
+    experiment_cli.add_parser(commands)
     return parser
 
 
@@ -503,6 +505,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "implement": cmd_implement,
         "runs": cmd_runs,
         "serve": cmd_serve,
+        "experiment": experiment_cli.main,
     }
     try:
         return handlers[args.command](args)
@@ -519,6 +522,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         TrainingError,
         sim.ArenaError,
         sim.WorldError,
+        experiment_cli.ExperimentError,
         gnp.GnpError,
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")

@@ -1,0 +1,230 @@
+"""`gnp-lab experiment run|report|status|list`: the experiment subcommands.
+
+`add_parser` registers them into `app.cli`'s parser and `main` runs them; a mistake raises
+`ExperimentError`, which `app.cli` prints as one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from app.experiments.results import ExperimentResults
+from app.experiments.spec import (
+    SCALES,
+    ExperimentError,
+    ExperimentSpec,
+    load_file,
+    load_shipped,
+    shipped_names,
+)
+
+DEFAULT_SCALE = "small"
+EXIT_INTERRUPTED = 130
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return value
+
+
+def add_parser(commands: Any) -> None:
+    """Add `experiment` and its subcommands to `gnp-lab`'s subparsers."""
+    experiment = commands.add_parser(
+        "experiment",
+        help="compare methods over seeds and sensor faults, on Dask, with statistics",
+        description="An experiment is arms × seeds × implementation conditions: shipped ones "
+        "by NAME (see `experiment list`), your own with --file. Its folder is "
+        "RUNS_DIR/experiments/NAME/.",
+    )
+    verbs = experiment.add_subparsers(dest="verb", required=True, parser_class=type(experiment))
+
+    def common(verb: argparse.ArgumentParser, scale: bool = True) -> None:
+        verb.add_argument("name", nargs="?", metavar="NAME", help="a shipped experiment")
+        verb.add_argument("--file", metavar="FILE", help="an experiment TOML file instead")
+        verb.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+        if scale:
+            verb.add_argument(
+                "--scale", choices=SCALES, default=DEFAULT_SCALE, help="size of the runs"
+            )
+            verb.add_argument(
+                "--seeds", type=_positive, metavar="N", help="seeds 0..N-1 (default: the scale's)"
+            )
+
+    run = verbs.add_parser("run", help="run (or finish) an experiment, then write its report")
+    common(run)
+    run.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (the runs dir must be on a "
+        "file system its workers share); default: a local cluster on 127.0.0.1",
+    )
+    run.add_argument(
+        "--workers",
+        type=_positive,
+        metavar="W",
+        help="worker processes of the local cluster (default: one per core)",
+    )
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    report = verbs.add_parser("report", help="statistics and figures from the run files")
+    common(report)
+    report.add_argument("--format", choices=("html", "json"), default="html")
+    report.add_argument("--out", metavar="DIR", help="report folder (default: in the experiment's)")
+    status = verbs.add_parser("status", help="what the experiment's folder holds so far")
+    common(status)
+    listing = verbs.add_parser("list", help="the shipped experiments and their cost per scale")
+    listing.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+
+
+def _spec(args: argparse.Namespace) -> ExperimentSpec:
+    if args.file:
+        spec = load_file(args.file)
+        if args.name and args.name != spec.name:
+            raise ExperimentError(
+                f"{args.file} defines experiment {spec.name!r}, not {args.name!r}"
+            )
+        return spec
+    if not args.name:
+        raise ExperimentError("give an experiment NAME (see `gnp-lab experiment list`) or --file")
+    return load_shipped(args.name)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run `gnp-lab experiment VERB`."""
+    if args.verb == "list":
+        return cmd_list(args)
+    spec = _spec(args)
+    spec.scale(args.scale)
+    handlers = {"run": cmd_run, "report": cmd_report, "status": cmd_status}
+    try:
+        return handlers[args.verb](spec, args)
+    except KeyboardInterrupt:
+        sys.stderr.write(
+            "gnp-lab: interrupted; finished runs are kept: run the same command to resume\n"
+        )
+        return EXIT_INTERRUPTED
+
+
+def _write_report(results: ExperimentResults, out: Path) -> str:
+    from app.experiments.report import write_report
+
+    return f"report: {write_report(results, out)}"
+
+
+def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
+    from app.experiments import runner
+
+    if args.scheduler and args.workers:
+        raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
+    results = runner.run_experiment(
+        spec,
+        args.scale,
+        args.runs_dir,
+        seeds=args.seeds,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        quiet=args.quiet,
+    )
+    folder = runner.experiment_dir(args.runs_dir, spec.name)
+    print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
+    print(_write_report(results, folder / f"report-{args.scale}"))
+    return 0
+
+
+def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
+    from app.experiments import runner
+    from app.experiments.summary import write_summary
+
+    results = runner.collect(spec, args.scale, args.runs_dir, args.seeds)
+    folder = runner.experiment_dir(args.runs_dir, spec.name)
+    if not any(Path(t.path).exists() for t in runner.plan(spec, args.scale, args.runs_dir)):
+        raise ExperimentError(
+            f"no runs of {spec.name!r} at scale {args.scale!r} in {folder}; "
+            f"start them with: gnp-lab experiment run {spec.name} --scale {args.scale}"
+        )
+    write_summary(results, runner.summary_path(args.runs_dir, spec.name, args.scale))
+    if args.format == "json":
+        import numpy as np
+
+        from app.experiments.report import REPORT_SEED, analyse, to_json
+
+        report = analyse(results, np.random.default_rng(REPORT_SEED))
+        json.dump(to_json(report), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
+        sys.stdout.write("\n")
+        return 0
+    out = Path(args.out) if args.out else folder / f"report-{args.scale}"
+    print(_write_report(results, out))
+    return 0
+
+
+def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
+    from app.experiments import runner
+
+    tasks = runner.plan(spec, args.scale, args.runs_dir, args.seeds)
+    states, problems = [], {}
+    for task in tasks:
+        try:
+            states.append(runner.inspect(task))
+        except ExperimentError as error:  # a foreign file, or one being replaced right now
+            states.append(runner.RunState(generations=task.config.training.generations))
+            problems[task.key] = str(error)
+    done = sum(s.complete(t) for s, t in zip(states, tasks, strict=True))
+    generations = sum(s.generations_done for s in states), sum(s.generations for s in states)
+    conditions = sum(len(s.conditions) for s in states), sum(len(t.conditions) for t in tasks)
+    print(
+        f"{spec.name} at scale {args.scale}: {done}/{len(tasks)} runs done, "
+        f"{generations[0]}/{generations[1]} generations, "
+        f"{conditions[0]}/{conditions[1]} conditions"
+    )
+    for task, state in zip(tasks, states, strict=True):
+        if task.key in problems:
+            what = f"unreadable: {problems[task.key]}"
+        elif not Path(task.path).exists():
+            what = "not started"
+        else:
+            what = "trained" if state.finished else "training or cut"
+        print(
+            f"  {task.name:16} {state.generations_done:6}/{state.generations} generations  "
+            f"conditions {len(state.conditions)}/{len(task.conditions)}  {what}"
+        )
+    summary = runner.summary_path(args.runs_dir, spec.name, args.scale)
+    print(f"summary: {summary if summary.exists() else 'not written yet'}")
+    return 0
+
+
+def _count(n: float) -> str:
+    for unit, size in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
+        if n >= size:
+            return f"{n / size:.3g}{unit}"
+    return f"{n:g}"
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    from app.experiments import runner
+
+    for name in shipped_names():
+        spec = load_shipped(name)
+        print(f"{name}: {spec.description}")
+        print(f"  source: {spec.source}")
+        arms = ", ".join(f"{a.name} ({a.label})" for a in spec.arms)
+        print(f"  arms: {arms}; conditions: {', '.join(c.name for c in spec.conditions)}")
+        for scale, sizes in spec.scales.items():
+            tasks = runner.plan(spec, scale, args.runs_dir)
+            t = tasks[0].config.training
+            steps = sum(task.config.training.generations * task.generation_cost for task in tasks)
+            trial_steps = sum(len(task.conditions) * task.condition_cost for task in tasks)
+            print(
+                f"  {scale:6} {len(tasks)} runs × {t.generations} generations × {t.population} "
+                f"individuals × {t.steps} steps = {_count(steps)} robot-steps; "
+                f"{len(spec.conditions)} conditions per run: {_count(trial_steps)} trial-steps"
+                + (f"; measured: {sizes.measured}" if sizes.measured else "")
+            )
+    return 0

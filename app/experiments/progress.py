@@ -1,0 +1,104 @@
+"""The client's view of a running experiment: one bar over all its runs and a line per run.
+
+Workers report each generation and condition done with `log_event` (topic `TOPIC`); the client
+subscribes and feeds `Progress.event`, and marks a run complete when its task returns.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from app.experiments.runner import RunState, Task
+
+TOPIC = "gnp-lab-progress"
+
+
+@dataclass
+class Progress:
+    """One bar over the whole experiment, in work units (robot-steps of training generations
+    and trial-steps of conditions), fed by worker events and finished tasks."""
+
+    tasks: list[Task]
+    states: dict[str, RunState]
+    quiet: bool = False
+    _generations: dict[str, int] = field(default_factory=dict)
+    _conditions: dict[str, set[str]] = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+    _bar: Any = None
+
+    def __post_init__(self) -> None:
+        from tqdm import tqdm
+
+        for task in self.tasks:
+            state = self.states[task.key]
+            self._generations[task.key] = state.generations_done
+            self._conditions[task.key] = set(state.conditions)
+        total = sum(
+            self._cost(t, t.config.training.generations, len(t.conditions)) for t in self.tasks
+        )
+        self._by_key = {t.key: t for t in self.tasks}
+        self._bar = tqdm(
+            total=total, initial=self._done(), unit="step", unit_scale=True,
+            desc="experiment", disable=self.quiet, dynamic_ncols=True,
+        )  # fmt: skip
+
+    @staticmethod
+    def _cost(task: Task, generations: int, conditions: int) -> int:
+        return generations * task.generation_cost + conditions * task.condition_cost
+
+    def _done(self) -> int:
+        return sum(
+            self._cost(t, self._generations[t.key], len(self._conditions[t.key]))
+            for t in self.tasks
+        )
+
+    def _refresh(self) -> None:
+        generations = sum(self._generations.values())
+        total = sum(t.config.training.generations for t in self.tasks)
+        conditions = sum(len(c) for c in self._conditions.values())
+        total_conditions = sum(len(t.conditions) for t in self.tasks)
+        self._bar.set_postfix_str(
+            f"gen {generations}/{total} cond {conditions}/{total_conditions}", refresh=False
+        )
+        self._bar.update(self._done() - self._bar.n)
+
+    def event(self, event: tuple[float, dict[str, Any]]) -> None:
+        """A worker's `log_event` message: a generation or a condition done."""
+        msg = event[1]
+        key = msg.get("task")
+        with self._lock:
+            if key not in self._by_key:
+                return
+            if "generations" in msg:
+                self._generations[key] = max(self._generations[key], int(msg["generations"]))
+            if "condition" in msg:
+                self._conditions[key].add(str(msg["condition"]))
+            self._refresh()
+
+    def finished(self, task: Task) -> None:
+        with self._lock:
+            self._generations[task.key] = task.config.training.generations
+            self._conditions[task.key] = {name for name, _ in task.conditions}
+            self._refresh()
+
+    def write(self, line: str) -> None:
+        """Print a line above the bar (or alone when quiet)."""
+        if self.quiet:
+            print(line)
+        else:
+            self._bar.write(line)
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def outcome_line(outcome: dict[str, Any]) -> str:
+    """The live line printed when a run finishes."""
+    parts = [f"{outcome['arm']} seed {outcome['seed']}: final best fitness "]
+    parts[0] += f"{outcome['final_best_fitness']:.4f}"
+    for name, (mean, after) in outcome["conditions"].items():
+        parts.append(f"{name} {mean:.4f} (after fault {after:.4f})")
+    return "; ".join(parts)

@@ -1,0 +1,327 @@
+"""Experiments as data: a validated TOML file of arms × seeds × implementation conditions.
+
+An experiment names a base preset and overlay, arms (config overlays), implementation
+conditions (ImplementationSettings overlays), the comparisons it makes (claims of the thesis),
+the thesis's own numbers, and scales (`smoke`, `small`, `thesis`: overlays applied last, with a
+seed count). The config of arm A, seed i, at scale S is
+
+    thesis defaults ← preset ← base overlay ← arm A ← scale S ← {seed = i}
+
+and condition C implements it with `[implementation]` ← condition C ← scale S's
+`[implementation]`, so a scale sizes every condition. Every arm × condition × scale config is
+validated when the file loads; a bad file raises `ExperimentError` with one line naming the
+problem.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from app.config import (
+    PRESET_NAMES,
+    ConfigError,
+    ImplementationSettings,
+    RunConfig,
+    build_config,
+    preset_layer,
+)
+from app.experiments.results import METRICS, Arm, Comparison, Condition, ThesisValue
+
+Scale = Literal["smoke", "small", "thesis"]
+SCALES: tuple[Scale, ...] = ("smoke", "small", "thesis")
+SHIPPED_PACKAGE = "app.experiments.shipped"
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
+_NAME_RULE = "1-64 letters, digits, '_', '.' or '-', starting with a letter or digit"
+
+
+class ExperimentError(ValueError):
+    """An experiment file, name or folder cannot be used as asked; the message is one line."""
+
+
+def check_name(name: str, what: str = "experiment name") -> str:
+    """A name that is safe as a file or folder name (no path, no hidden file)."""
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ValueError(f"{what} {name!r} must be {_NAME_RULE}")
+    return name
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class ArmSpec(_Frozen):
+    """One arm: a config overlay (e.g. the learning method)."""
+
+    name: str = Field(description="short name used in comparisons and file names")
+    label: str = Field(description="as the thesis names it")
+    config: dict[str, Any] = Field(default_factory=dict, description="RunConfig overlay")
+
+    @model_validator(mode="after")
+    def _named(self) -> ArmSpec:
+        check_name(self.name, "arm name")
+        return self
+
+
+class ConditionSpec(_Frozen):
+    """One implementation condition: an ImplementationSettings overlay (faults, noise)."""
+
+    name: str = Field(description="name of the implementation stored in every run file")
+    label: str
+    implementation: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _named(self) -> ConditionSpec:
+        check_name(self.name, "condition name")
+        return self
+
+
+class ComparisonSpec(_Frozen):
+    """A claim: arm `a` is `direction` than arm `b` on a scalar metric."""
+
+    name: str
+    a: str
+    b: str
+    metric: str
+    condition: str | None = None
+    direction: Literal["greater", "less"]
+    source: str = Field(description="where the thesis claims it, e.g. 'Fig. 3.9'")
+
+
+class ThesisValueSpec(_Frozen):
+    """A number the thesis reports, to sit beside ours."""
+
+    arm: str
+    metric: str
+    condition: str | None = None
+    value: float
+    source: str
+
+
+class ScaleSpec(_Frozen):
+    """A size: a config overlay applied after the arm's, and a seed count."""
+
+    seeds: int | None = Field(default=None, ge=1, le=10_000, description="unset = the file's")
+    config: dict[str, Any] = Field(default_factory=dict)
+    measured: str = Field(default="", description="a measured wall time, shown by `list`")
+
+
+def _unique(kind: str, names: list[str]) -> None:
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise ValueError(f"duplicate {kind} name {name!r}")
+        seen.add(name)
+
+
+def _check_metric(where: str, metric: str, condition: str | None, conditions: set[str]) -> None:
+    if metric not in METRICS:
+        raise ValueError(f"{where}: unknown metric {metric!r}; choose one of {', '.join(METRICS)}")
+    if METRICS[metric].scope == "condition":
+        if condition is None:
+            raise ValueError(f"{where}: metric {metric!r} needs a condition")
+        if condition not in conditions:
+            raise ValueError(f"{where}: unknown condition {condition!r}")
+    elif condition is not None:
+        raise ValueError(f"{where}: metric {metric!r} is a training metric; drop the condition")
+
+
+class ExperimentSpec(_Frozen):
+    """A whole experiment file."""
+
+    name: str
+    description: str
+    source: str = Field(description="the thesis result it reproduces")
+    preset: str = Field(description=f"base preset: {', '.join(PRESET_NAMES)}")
+    seeds: int = Field(default=10, ge=1, le=10_000, description="seeds 0..n-1 (paired)")
+    config: dict[str, Any] = Field(default_factory=dict, description="base overlay")
+    arms: tuple[ArmSpec, ...] = Field(min_length=1)
+    conditions: tuple[ConditionSpec, ...] = ()
+    comparisons: tuple[ComparisonSpec, ...] = ()
+    thesis: tuple[ThesisValueSpec, ...] = ()
+    scales: dict[Scale, ScaleSpec] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ExperimentSpec:
+        check_name(self.name)
+        if self.preset not in PRESET_NAMES:
+            raise ValueError(f"unknown preset {self.preset!r}; choose one of {PRESET_NAMES}")
+        _unique("arm", [a.name for a in self.arms])
+        _unique("condition", [c.name for c in self.conditions])
+        _unique("comparison", [c.name for c in self.comparisons])
+        arms, conditions = {a.name for a in self.arms}, {c.name for c in self.conditions}
+        for comp in self.comparisons:
+            where = f"comparison {comp.name!r}"
+            for arm in (comp.a, comp.b):
+                if arm not in arms:
+                    raise ValueError(f"{where}: unknown arm {arm!r}")
+            if comp.a == comp.b:
+                raise ValueError(f"{where}: compares arm {comp.a!r} with itself")
+            _check_metric(where, comp.metric, comp.condition, conditions)
+            if METRICS[comp.metric].kind != "scalar":
+                raise ValueError(f"{where}: metric {comp.metric!r} is a curve, not a number")
+        for value in self.thesis:
+            where = f"thesis value of {value.arm!r} ({value.source})"
+            if value.arm not in arms:
+                raise ValueError(f"{where}: unknown arm {value.arm!r}")
+            _check_metric(where, value.metric, value.condition, conditions)
+        return self
+
+    # -- what the runner needs --
+
+    def seed_list(self, scale: Scale, seeds: int | None = None) -> tuple[int, ...]:
+        """The paired run seeds 0..n-1: `seeds` if given, else the scale's, else the file's."""
+        count = seeds or self.scale(scale).seeds or self.seeds
+        return tuple(range(count))
+
+    def scale(self, scale: str) -> ScaleSpec:
+        """The overlay of a scale this experiment defines."""
+        if scale not in self.scales:
+            raise ExperimentError(
+                f"experiment {self.name!r} has no scale {scale!r}; "
+                f"choose one of {', '.join(self.scales)}"
+            )
+        return self.scales[scale]
+
+    def arm(self, name: str) -> ArmSpec:
+        """An arm by name."""
+        return next(a for a in self.arms if a.name == name)
+
+    def run_config(self, arm: str, scale: str, seed: int) -> RunConfig:
+        """The training config of one (arm, seed) at a scale."""
+        layers = (preset_layer(self.preset), self.config, self.arm(arm).config)
+        return build_config(*layers, self.scale(scale).config, {"seed": seed})
+
+    def condition_settings(
+        self, condition: ConditionSpec, run: RunConfig, scale: str
+    ) -> ImplementationSettings:
+        """The ImplementationSettings of a condition for a run of this experiment."""
+        sized = self.scale(scale).config.get("implementation", {})
+        config = build_config(
+            {"implementation": run.implementation.model_dump()},
+            {"implementation": condition.implementation},
+            {"implementation": sized},
+        )
+        return config.implementation
+
+    # -- the results contract --
+
+    def arms_info(self) -> tuple[Arm, ...]:
+        """The arms as the report sees them."""
+        return tuple(Arm(a.name, a.label) for a in self.arms)
+
+    def conditions_info(self, scale: str) -> tuple[Condition, ...]:
+        """Conditions as the report sees them (sizes of the first arm, seed 0)."""
+        run = self.run_config(self.arms[0].name, scale, 0)
+        out = []
+        for spec in self.conditions:
+            s = self.condition_settings(spec, run, scale)
+            out.append(
+                Condition(
+                    name=spec.name,
+                    label=spec.label,
+                    steps=s.steps,
+                    fault_step=s.fault_step if s.has_fault else None,
+                    broken_count=s.break_count or len(s.broken_sensors),
+                    noise_sigma=s.noise_sigma,
+                )
+            )
+        return tuple(out)
+
+    def comparisons_info(self) -> tuple[Comparison, ...]:
+        """The claims as the statistics see them."""
+        return tuple(Comparison(**c.model_dump()) for c in self.comparisons)
+
+    def thesis_info(self) -> tuple[ThesisValue, ...]:
+        """The thesis's numbers, to sit beside ours."""
+        return tuple(ThesisValue(**v.model_dump()) for v in self.thesis)
+
+
+def _one_line(error: ValidationError, source: str) -> str:
+    item = error.errors()[0]
+    where = ".".join(str(part) for part in item["loc"])
+    message = str(item["msg"]).removeprefix("Value error, ")
+    if item["type"] == "extra_forbidden":
+        message = "unknown setting"
+    given = item.get("input")
+    got = "" if isinstance(given, Mapping | list | tuple) or given is None else f" (got {given!r})"
+    prefix = f"{where}: " if where else ""
+    more = f" (and {len(error.errors()) - 1} more)" if len(error.errors()) > 1 else ""
+    return f"invalid experiment {source}: {prefix}{message}{got}{more}".replace("\n", " ")
+
+
+def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
+    """Validate an experiment's dict, including every arm × condition × scale config.
+
+    Raises:
+        ExperimentError: one line naming the problem.
+    """
+    try:
+        spec = ExperimentSpec.model_validate(data)
+    except ValidationError as error:
+        raise ExperimentError(_one_line(error, source)) from None
+    for arm in spec.arms:  # each overlay as written, before a scale can mask a bad value
+        try:
+            build_config(preset_layer(spec.preset), spec.config, arm.config)
+        except ConfigError as error:
+            message = f"invalid experiment {source}: arm {arm.name!r}: {error}"
+            raise ExperimentError(message.replace("\n", " ")) from None
+    for scale in spec.scales:
+        shapes: dict[str, tuple[int, int]] = {}
+        for arm in spec.arms:
+            where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
+            try:
+                run = spec.run_config(arm.name, scale, 0)
+            except ConfigError as error:
+                raise ExperimentError(f"{where}: {error}".replace("\n", " ")) from None
+            for condition in spec.conditions:
+                try:
+                    settings = spec.condition_settings(condition, run, scale)
+                except ConfigError as error:
+                    message = f"{where}, condition {condition.name!r}: {error}"
+                    raise ExperimentError(message.replace("\n", " ")) from None
+                shape = shapes.setdefault(condition.name, (settings.steps, settings.fault_step))
+                if shape != (settings.steps, settings.fault_step):
+                    raise ExperimentError(
+                        f"{where}, condition {condition.name!r}: steps and fault_step must be "
+                        f"the same for every arm (the first arm's are {shape})"
+                    )
+    return spec
+
+
+def load_file(path: str | Path) -> ExperimentSpec:
+    """An experiment TOML file."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ExperimentError(f"experiment file not found: {path}") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as error:
+        raise ExperimentError(f"cannot read experiment file {path}: {error}") from None
+    except tomllib.TOMLDecodeError as error:
+        message = f"experiment file {path} is not valid TOML: {error}"
+        raise ExperimentError(message.replace("\n", " ")) from None
+    return parse(data, str(path))
+
+
+def shipped_names() -> tuple[str, ...]:
+    """Names of the experiments shipped in the package."""
+    files = resources.files(SHIPPED_PACKAGE).iterdir()
+    return tuple(sorted(f.name.removesuffix(".toml") for f in files if f.name.endswith(".toml")))
+
+
+def load_shipped(name: str) -> ExperimentSpec:
+    """A shipped experiment by name."""
+    if name not in shipped_names():
+        raise ExperimentError(
+            f"no shipped experiment named {name!r}; choose one of {', '.join(shipped_names())} "
+            "or give --file"
+        )
+    text = resources.files(SHIPPED_PACKAGE).joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    return parse(tomllib.loads(text), f"{name!r}")

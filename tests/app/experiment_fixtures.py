@@ -1,0 +1,138 @@
+"""A tiny experiment for the experiment tests: 2 arms, 2 seeds, 3 conditions, seconds to run."""
+
+from __future__ import annotations
+
+import copy
+import json
+import tomllib
+from pathlib import Path
+from typing import Any
+
+TINY_TOML = """
+name = "tiny"
+description = "BS vs RL, tiny"
+source = "tests"
+preset = "thesis-ch3"
+seeds = 2
+
+[config.training]
+noise_sigma = 50.0
+[config.implementation]
+noise_sigma = 50.0
+broken_sensors = []
+
+[[arms]]
+name = "BS"
+label = "Fuzzy GNP-TSRL (BS)"
+config = { controller = { method = "BS" } }
+
+[[arms]]
+name = "RL"
+label = "Fuzzy GNP-RL"
+config = { controller = { method = "RL" } }
+
+[[conditions]]
+name = "break-1"
+label = "1 random sensor"
+implementation = { break_count = 1 }
+
+[[conditions]]
+name = "fixed-2-3"
+label = "sensors 2 and 3"
+implementation = { broken_sensors = [2, 3] }
+
+[[conditions]]
+name = "no-fault"
+label = "no fault"
+
+[[comparisons]]
+name = "fitness"
+a = "BS"
+b = "RL"
+metric = "final_best_fitness"
+direction = "greater"
+source = "Fig. 3.6"
+
+[[comparisons]]
+name = "after-1"
+a = "BS"
+b = "RL"
+metric = "mean_reward_after_fault"
+condition = "break-1"
+direction = "greater"
+source = "Fig. 3.7"
+
+[[thesis]]
+arm = "BS"
+metric = "mean_reward"
+condition = "break-1"
+value = 0.158
+source = "Table 4.3 (for the test)"
+
+[scales.smoke.config.training]
+population = 12
+generations = 3
+steps = 60
+shard_size = 5
+[scales.smoke.config.implementation]
+steps = 100
+fault_step = 40
+repeats = 1
+recorded_trials = 1
+
+[scales.small]
+seeds = 2
+[scales.small.config.training]
+population = 12
+generations = 14
+steps = 60
+shard_size = 5
+[scales.small.config.implementation]
+steps = 100
+fault_step = 40
+repeats = 1
+recorded_trials = 1
+"""
+
+
+def tiny_data() -> dict[str, Any]:
+    """The tiny experiment as a fresh dict (to mutate into bad files)."""
+    return copy.deepcopy(tomllib.loads(TINY_TOML))
+
+
+def write_tiny(folder: Path, text: str = TINY_TOML) -> Path:
+    path = folder / "tiny.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def to_toml(data: dict[str, Any]) -> str:
+    """A minimal TOML writer for experiment dicts (tables, arrays of tables, inline values)."""
+    lines: list[str] = []
+
+    def value(v: Any) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f'"{k}" = {value(x)}' for k, x in v.items()) + " }"
+        if isinstance(v, list | tuple):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return repr(v)
+
+    def table(prefix: str, d: dict[str, Any]) -> None:
+        for k, v in d.items():
+            if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+                for item in v:
+                    lines.append(f"[[{prefix}{k}]]")
+                    lines.extend(f'"{kk}" = {value(vv)}' for kk, vv in item.items())
+            elif not isinstance(v, dict):
+                lines.append(f'"{k}" = {value(v)}')
+        for k, v in d.items():
+            if isinstance(v, dict):
+                lines.append(f'[{prefix}"{k}"]')
+                table(f'{prefix}"{k}".', v)
+
+    table("", data)
+    return "\n".join(lines) + "\n"
