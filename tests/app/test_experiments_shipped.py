@@ -1,0 +1,237 @@
+"""The shipped experiments, one per thesis result: each loads at every scale, cites a table or
+figure of the thesis data, names arms the thesis names there, carries exactly the thesis's
+numbers (Tables 2.5, 2.6, 4.2-4.4, checked against `app/experiments/thesis/`, so they cannot
+drift) and, at `smoke` scale, runs end to end into a report with one verdict per comparison."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app.experiments.report import write_report
+from app.experiments.results import METRICS, VERDICTS
+from app.experiments.runner import run_experiment
+from app.experiments.spec import SCALES, ConditionSpec, ExperimentSpec, load_shipped, shipped_names
+from app.experiments.thesis_data import TableRow, ThesisData, load_thesis_data
+
+SHIPPED = (
+    "ch2-fuzzy-crisp",
+    "ch2-training-noise",
+    "ch3-bs-rl",
+    "ch4-exponent",
+    "ch4-schedules",
+    "ch5-cs-bs-rl",
+)
+SOURCE = re.compile(r"^(Table|Fig\.) \d\.\d+")  # "Fig. 3.6 (Simulation 1)" cites Fig. 3.6
+
+
+@pytest.fixture(scope="module")
+def data() -> ThesisData:
+    return load_thesis_data()
+
+
+def _cited(source: str) -> str:
+    match = SOURCE.match(source)
+    assert match, f"{source!r} names no table or figure"
+    return match[0]
+
+
+def _thesis_names(data: ThesisData, source: str) -> set[str]:
+    """The arms the thesis names in a table's rows or a figure's claims."""
+    if source in data.tables:
+        return {row.arm for row in data.tables[source].rows}
+    names: set[str] = set()
+    for claim in data.figures[source].claims:
+        names.update(claim.arms)
+        if claim.order_of == "arm":
+            names.update(item for group in claim.order for item in group)
+    return names
+
+
+def _all_thesis_names(data: ThesisData) -> set[str]:
+    return {
+        name for source in (*data.tables, *data.figures) for name in _thesis_names(data, source)
+    }
+
+
+def _thesis_name(label: str, names: set[str]) -> str:
+    """The thesis's name an arm's label starts with ("TSRLch (n = 10)" -> "TSRLch")."""
+    hits = [name for name in names if label == name or label.startswith(f"{name} ")]
+    assert hits, f"arm label {label!r} names no method of the thesis"
+    return max(hits, key=len)
+
+
+def _metric_of(row: TableRow) -> str:
+    """Which of our metrics a table row measures."""
+    c = row.condition
+    if c.phase == "training":
+        return "final_best_fitness"
+    if c.from_step is not None and c.from_step == c.fault_step:
+        return "mean_reward_after_fault"
+    return "mean_reward"
+
+
+def _close(a: float, b: float) -> bool:
+    return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
+
+
+def _measures(
+    row: TableRow,
+    spec: ExperimentSpec,
+    arm: str,
+    metric: str,
+    condition: str | None,
+    names: set[str],
+) -> bool:
+    """Whether a table row is the number of (arm, metric, condition) at the thesis's scale:
+    the row's arm is the arm's thesis name and every setting the row states is the config's."""
+    if row.statistic != "mean" or _thesis_name(spec.arm(arm).label, names) != row.arm:
+        return False
+    if _metric_of(row) != metric:
+        return False
+    c, run = row.condition, spec.run_config(arm, "thesis", 0)
+    checks: list[bool] = []
+    if c.training_sigma is not None:
+        checks.append(_close(c.training_sigma, run.training.noise_sigma))
+    if c.training_steps is not None:
+        checks.append(c.training_steps == run.training.steps)
+    if c.generation is not None:
+        checks.append(c.generation == run.training.generations)
+    if c.schedule_n is not None and run.training.schedule == "changing":
+        checks.append(_close(c.schedule_n, run.training.schedule_n))
+    if c.phase == "implementation":
+        assert condition is not None
+        spec_condition: ConditionSpec = next(x for x in spec.conditions if x.name == condition)
+        s = spec.condition_settings(spec_condition, run, "thesis")
+        if c.implementation_sigma is not None:
+            checks.append(_close(c.implementation_sigma, s.noise_sigma))
+        if c.implementation_steps is not None:
+            checks.append(c.implementation_steps == s.steps)
+        if c.implementation_schedule is not None:
+            checks.append(c.implementation_schedule == s.schedule)
+            if s.schedule == "changing" and c.schedule_n is not None:
+                checks.append(_close(c.schedule_n, s.schedule_n))
+        if c.broken_sensors is not None:
+            broken = s.break_count or len(s.broken_sensors)
+            checks.append(tuple(c.broken_sensors) == (broken,))
+        if c.fault_step is not None and s.has_fault:
+            checks.append(c.fault_step == s.fault_step)
+    return all(checks)
+
+
+def test_six_experiments_are_shipped() -> None:
+    assert shipped_names() == SHIPPED
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_loads_at_every_scale(name: str) -> None:
+    spec = load_shipped(name)  # validates every arm x condition x scale config
+    assert set(spec.scales) == set(SCALES)
+    for scale in SCALES:
+        assert spec.scale(scale).measured, f"{name} at {scale}: no cost stated"
+        for arm in spec.arms:
+            run = spec.run_config(arm.name, scale, 0)
+            for condition in spec.conditions:
+                spec.condition_settings(condition, run, scale)
+        assert len(spec.conditions_info(scale)) == len(spec.conditions)
+    assert spec.seed_list("small") == spec.seed_list("thesis") == tuple(range(10))
+    for arm in spec.arms:
+        small, thesis = (spec.run_config(arm.name, scale, 0) for scale in ("small", "thesis"))
+        assert (small.training.population, small.training.generations) == (300, 100)
+        assert (thesis.training.population, thesis.training.generations) == (300, 1000)
+        for condition in spec.conditions:
+            assert spec.condition_settings(condition, small, "small").repeats == 30
+            assert spec.condition_settings(condition, thesis, "thesis").repeats == 300
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_comparisons_cite_the_thesis_data(name: str, data: ThesisData) -> None:
+    """Each claim cites a table or figure with a data file, whose rows or claims name both arms."""
+    spec = load_shipped(name)
+    known = _all_thesis_names(data)
+    for comparison in spec.comparisons:
+        source = _cited(comparison.source)
+        assert source in data.tables or source in data.figures, f"{comparison.name}: {source}"
+        there = _thesis_names(data, source)
+        for arm in (comparison.a, comparison.b):
+            thesis_name = _thesis_name(spec.arm(arm).label, known)
+            assert thesis_name in there, f"{comparison.name}: {source} does not name {thesis_name}"
+    for value in spec.thesis:
+        assert _cited(value.source) == value.source and value.source in data.tables
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_thesis_values_are_the_thesis_data(name: str, data: ThesisData) -> None:
+    """Every [[thesis]] value is the one row of its table that measures its arm, metric and
+    condition (as the configs set them at thesis scale), and every printed number of a cited
+    table that measures one of the experiment's arms, metrics and conditions is there."""
+    spec, names = load_shipped(name), _all_thesis_names(data)
+    for value in spec.thesis:
+        rows = [
+            row
+            for row in data.tables[value.source].rows
+            if _measures(row, spec, value.arm, value.metric, value.condition, names)
+        ]
+        assert len(rows) == 1, f"{value}: {len(rows)} rows of {value.source} measure it"
+        assert rows[0].value == value.value, f"{value}: the thesis prints {rows[0].printed}"
+    cited = {_cited(c.source) for c in spec.comparisons} | {v.source for v in spec.thesis}
+    given = {(v.source, v.arm, v.metric, v.condition) for v in spec.thesis}
+    for source in sorted(cited & set(data.tables)):
+        for row in data.tables[source].rows:
+            if row.value is None:
+                continue  # printed "*"
+            for arm, metric, condition in _cells(spec):
+                if _measures(row, spec, arm, metric, condition, names):
+                    key = (source, arm, metric, condition)
+                    assert key in given, f"{name}: {row.printed} of {source} missing for {key}"
+
+
+def _cells(spec: ExperimentSpec) -> Iterator[tuple[str, str, str | None]]:
+    """Every (arm, scalar metric, condition or None) an experiment measures."""
+    for arm in spec.arms:
+        for metric in METRICS.values():
+            if metric.kind != "scalar":
+                continue
+            if metric.scope == "training":
+                yield arm.name, metric.name, None
+            else:
+                for condition in spec.conditions:
+                    yield arm.name, metric.name, condition.name
+
+
+@pytest.fixture(scope="module")
+def client() -> Iterator[Any]:
+    """An in-process Dask cluster (threads), shared by the smoke runs."""
+    from distributed import Client
+
+    with Client(
+        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
+    ) as client:
+        yield client
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHIPPED)
+def test_runs_end_to_end_at_smoke_scale(name: str, client: Any, tmp_path: Path) -> None:
+    spec = load_shipped(name)
+    results = run_experiment(spec, "smoke", tmp_path, client=client, quiet=True, echo=print)
+    assert results.seeds == spec.seed_list("smoke")
+    faults = {c.name for c in results.conditions if c.fault_step is not None}
+    for (metric, arm, condition), values in results.scalars.items():
+        if metric == "mean_reward_after_fault" and condition not in faults:
+            continue  # no fault, no "after"
+        assert np.isfinite(values).all(), f"{metric} {arm} {condition}: a run did not finish"
+    report = json.loads(
+        (write_report(results, tmp_path / "report").parent / "report.json").read_text()
+    )
+    verdicts = {c["name"]: c["verdict"] for c in report["comparisons"]}
+    assert list(verdicts) == [c.name for c in spec.comparisons]
+    assert set(verdicts.values()) <= set(VERDICTS)
+    assert len(report["thesis"]) == len(spec.thesis)
