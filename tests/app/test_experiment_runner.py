@@ -250,18 +250,21 @@ def test_killed_experiment_resumes_to_identical_results(
     runs = tmp_path / "runs"
     tasks = plan(spec, SCALE, runs)
     first = _cli(*argv)
+
+    def complete() -> list[Path]:
+        finished = []
+        for task in tasks:
+            try:
+                if inspect(task).complete(task):
+                    finished.append(Path(task.path))
+            except Exception:  # being written right now
+                pass
+        return finished
+
     try:
         deadline = time.monotonic() + 120
-        done: list[Path] = []
         while time.monotonic() < deadline and first.poll() is None:
-            done = []
-            for task in tasks:
-                try:
-                    if inspect(task).complete(task):
-                        done.append(Path(task.path))
-                except Exception:  # being written right now
-                    pass
-            if done and _cut_run(spec, runs) is not None:
+            if complete() and _cut_run(spec, runs) is not None:
                 break
             time.sleep(0.05)
         assert first.poll() is None, first.communicate()
@@ -270,6 +273,8 @@ def test_killed_experiment_resumes_to_identical_results(
         if first.poll() is None:
             os.killpg(first.pid, signal.SIGKILL)
         first.wait()
+    # What the kill left, read after it: a run may have finished since the last look.
+    done = complete()
     cut = [Path(t.path) for t in tasks if Path(t.path).exists() and not inspect(t).finished]
     assert done and cut, "the kill should leave finished and cut runs"
     kept = {p: (p.stat().st_ino, p.stat().st_mtime_ns) for p in done}
