@@ -281,18 +281,25 @@ class RunConfig(_Frozen):
     implementation: ImplementationSettings = ImplementationSettings()
 
 
-def _format_errors(error: ValidationError, source: str) -> str:
+def describe_problems(error: ValidationError, limit: int | None = None) -> str:
+    """A pydantic error as one line: `field: problem (got value)`, joined by "; ", the first
+    `limit` of them and a count of the rest."""
     problems = []
-    for item in error.errors():
+    items = error.errors()
+    for item in items[:limit]:
         field = ".".join(str(part) for part in item["loc"]) or "(top level)"
-        message = item["msg"]
+        message = str(item["msg"]).removeprefix("Value error, ")
         if item["type"] == "extra_forbidden":
             message = "unknown setting"
-        message = message.removeprefix("Value error, ")
         given = item.get("input")
-        got = "" if isinstance(given, Mapping) else f" (got {given!r})"
-        problems.append(f"{field}: {message}{got}")
-    return f"invalid configuration in {source}: " + "; ".join(problems)
+        shown = not isinstance(given, Mapping | list | tuple) and given is not None
+        problems.append(f"{field}: {message}" + (f" (got {given!r})" if shown else ""))
+    more = len(items) - len(problems)
+    return ("; ".join(problems) + (f" (and {more} more)" if more else "")).replace("\n", " ")
+
+
+def _format_errors(error: ValidationError, source: str) -> str:
+    return f"invalid configuration in {source}: " + describe_problems(error)
 
 
 def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from app.config import (
     ImplementationSettings,
     RunConfig,
     build_config,
+    describe_problems,
     preset_layer,
 )
 from app.experiments.results import METRICS, Arm, Comparison, Condition, ThesisValue
@@ -244,16 +245,7 @@ class ExperimentSpec(_Frozen):
 
 
 def _one_line(error: ValidationError, source: str) -> str:
-    item = error.errors()[0]
-    where = ".".join(str(part) for part in item["loc"])
-    message = str(item["msg"]).removeprefix("Value error, ")
-    if item["type"] == "extra_forbidden":
-        message = "unknown setting"
-    given = item.get("input")
-    got = "" if isinstance(given, Mapping | list | tuple) or given is None else f" (got {given!r})"
-    prefix = f"{where}: " if where else ""
-    more = f" (and {len(error.errors()) - 1} more)" if len(error.errors()) > 1 else ""
-    return f"invalid experiment {source}: {prefix}{message}{got}{more}".replace("\n", " ")
+    return f"invalid experiment {source}: {describe_problems(error, limit=1)}"
 
 
 def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:

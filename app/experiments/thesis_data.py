@@ -25,6 +25,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from app.config import describe_problems
+
 Statistic = Literal["mean", "sd", "p_one_tailed"]
 Relation = Literal["higher", "converges faster", "as large as", "better"]
 OrderOf = Literal["arm", "training noise", "implementation schedule", "broken sensors", "phase"]
@@ -232,11 +234,7 @@ def _load(folder: Traversable | Path) -> ThesisData:
             else:
                 item = ThesisFigure.model_validate(raw)
         except ValidationError as error:
-            problems = "; ".join(
-                f"{'.'.join(str(p) for p in e['loc']) or '(top)'}: {e['msg']}"
-                for e in error.errors()
-            )
-            raise ThesisDataError(f"{file.name}: {problems}") from None
+            raise ThesisDataError(f"{file.name}: {describe_problems(error)}") from None
         if file.name != _expected_name(item.source):
             raise ThesisDataError(
                 f"{file.name} holds {item.source}; name it {_expected_name(item.source)}"
