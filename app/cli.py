@@ -27,6 +27,7 @@ from app.config import (
     read_toml,
     to_toml,
 )
+from app.export.cli import add_export_parser, cmd_export
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 
 if TYPE_CHECKING:
@@ -186,6 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
+    add_export_parser(commands)
     return parser
 
 
@@ -503,6 +505,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "implement": cmd_implement,
         "runs": cmd_runs,
         "serve": cmd_serve,
+        "export": cmd_export,
     }
     try:
         return handlers[args.command](args)
