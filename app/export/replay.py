@@ -31,7 +31,7 @@ RECORDING = "replay.viser"
 MAX_FRAMES = 250
 """Frames per life at most (longer lives are subsampled): keeps the recording a few MB."""
 CLIENT_BUILD = Path(viser.__file__).parent / "client" / "build"
-_PLAY_RECORDING = (
+PLAY_RECORDING = (
     "<script>if(!new URLSearchParams(location.search).has('playbackPath'))"
     "history.replaceState(null,'',location.pathname+'?playbackPath=" + RECORDING + "');</script>"
 )
@@ -118,7 +118,7 @@ class ReplayScene:
         self.caption = server.scene.add_label(
             "/replay/caption",
             "",
-            position=(float(xmin), float(ymax + 0.02 * width), 0.0),
+            position=(float(xmin), float(ymax + 0.03 * width), 0.0),
             anchor="bottom-left",
         )
         bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.06 * width
@@ -240,7 +240,7 @@ def write_replay(reader: RunReader, folder: Path) -> Path:
     index = folder / "index.html"
     html = index.read_text(encoding="utf-8")
     head = html.index("<head>") + len("<head>")
-    index.write_text(html[:head] + _PLAY_RECORDING + html[head:], encoding="utf-8")
+    index.write_text(html[:head] + PLAY_RECORDING + html[head:], encoding="utf-8")
     (folder / "README.txt").write_text(
         f"Replay of run {reader.path.stem} (GNP Lab). Serve this folder with any static web "
         "server, e.g.\n\n    python -m http.server --bind 127.0.0.1 8000\n\nand open "

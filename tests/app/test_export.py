@@ -18,6 +18,7 @@ from app.cli import main
 from app.config import ImplementationSettings
 from app.export import ExportError, export_run
 from app.export.graph import graph_dot, transition_counts, visit_sequence
+from app.export.replay import CLIENT_BUILD, PLAY_RECORDING
 from app.implementation import implement
 from app.store import RunReader
 
@@ -236,3 +237,41 @@ def test_an_existing_folder_is_never_overwritten(
     assert (empty / "controller.json").is_file()
     with pytest.raises(ExportError, match="not a folder"):
         export_run(runs_dir / "tiny.h5", out / "mine.txt")
+
+
+def _recording(path: Path) -> tuple[dict[str, object], bytes]:
+    """The metadata and msgpack payload of a .viser recording (zstd: inner size, then
+    msgpack length, msgpack, binary buffers)."""
+    import msgspec
+    import zstandard
+
+    data = path.read_bytes()
+    inner = zstandard.ZstdDecompressor().decompress(
+        data[8:], max_output_size=int.from_bytes(data[:8], "little")
+    )
+    length = int.from_bytes(inner[:8], "little")
+    payload = inner[8 : 8 + length]
+    return msgspec.msgpack.decode(payload), payload
+
+
+def test_the_replay_folder_holds_the_client_and_a_recording_of_both_lives(
+    runs_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "replay"
+    argv = ["export", "tiny", "--replay", "--out", str(out), "--runs-dir", str(runs_dir)]
+    assert main(argv) == 0
+    assert capsys.readouterr().out == f"{out}: README.txt, index.html, replay.viser\n"
+    index = (out / "index.html").read_text()
+    client = (CLIENT_BUILD / "index.html").read_text()
+    assert index.replace(PLAY_RECORDING, "") == client  # viser's own client, told what to play
+    assert "playbackPath=replay.viser" in PLAY_RECORDING
+    assert (out / "replay.viser").stat().st_size < 5_000_000
+    meta, payload = _recording(out / "replay.viser")
+    with RunReader(runs_dir / "tiny.h5") as reader:
+        period = reader.config.training.control_period
+    # The elite's 60 steps, then the implementation trial's 120, at the recorded pace.
+    assert meta["durationSeconds"] == pytest.approx((60 + 120) * period)
+    assert b"run tiny: final elite (generation 2)" in payload
+    assert b"step 60/60" in payload and b"step 120/120" in payload
+    assert b"implementation fault, trial 0" in payload
+    assert b"sensors 2,3 broken (dead) since step 60" in payload
