@@ -48,9 +48,9 @@ def check_out(out: Path) -> None:
     """Refuse an `out` that exists and is not an empty folder (nothing is overwritten)."""
     if out.is_dir():
         if any(out.iterdir()):
-            raise ExportError(f"{out} exists and is not empty; choose another --out")
+            raise ExportError(f"{out} exists and is not empty; nothing was written")
     elif out.exists():
-        raise ExportError(f"{out} exists and is not a folder; choose another --out")
+        raise ExportError(f"{out} exists and is not a folder; nothing was written")
 
 
 def _publish(out: Path, fill: Callable[[Path], object]) -> Path:

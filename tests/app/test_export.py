@@ -226,7 +226,7 @@ def test_an_existing_folder_is_never_overwritten(
     for extra in ([], ["--replay"]):
         assert main(["export", "tiny", "--out", str(out), "--runs-dir", str(runs_dir), *extra]) == 1
         err = capsys.readouterr().err
-        assert err == f"gnp-lab: error: {out} exists and is not empty; choose another --out\n"
+        assert err == f"gnp-lab: error: {out} exists and is not empty; nothing was written\n"
     assert [p.name for p in out.iterdir()] == ["mine.txt"] and (
         out / "mine.txt"
     ).read_text() == "keep"
