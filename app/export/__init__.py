@@ -7,8 +7,9 @@ existing non-empty folder is never touched and a failed export leaves nothing ha
 
 from __future__ import annotations
 
+import os
+import secrets
 import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -57,7 +58,8 @@ def _publish(out: Path, fill: Callable[[Path], object]) -> Path:
     """Fill a fresh folder next to `out`, then move it to `out` (which must be absent or empty)."""
     check_out(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    staging = out.parent / f".{out.name}.export-{os.getpid()}-{secrets.token_hex(4)}"
+    staging.mkdir()  # with the umask's permissions, as `out` would have
     try:
         fill(staging)
         check_out(out)  # still absent or empty

@@ -50,6 +50,27 @@ def _parse(text: str) -> tuple[dict[int, str], dict[tuple[int, int], str]]:
     return nodes, edges
 
 
+DOT_LINES = (
+    r"// .*",
+    r"digraph gnp \{",
+    r'  label="[^"]*"; labelloc=t; rankdir=LR; newrank=true;',
+    r"  (node|edge) \[.*\];",
+    r'  subgraph cluster_\d+ \{ label="[^"]+"; style=rounded; color=gray60;',
+    r'    n\d+ \[label="[^"]*", fillcolor=\w+\];',
+    r"  n\d+ -> n\d+ \[weight=\d+, .*\];",
+    r"  \}",
+    r"\}",
+)
+
+
+def _assert_dot_shape(text: str) -> None:
+    """Every line is one of the forms graph.dot uses, and the braces balance (a DOT check that
+    needs no GraphViz)."""
+    for line in text.splitlines():
+        assert any(re.fullmatch(form, line) for form in DOT_LINES), line
+    assert text.count("{") == text.count("}")
+
+
 def _weight(attrs: str) -> int:
     match = re.search(r"weight=(\d+)", attrs)
     assert match is not None
@@ -100,6 +121,7 @@ def test_an_earlier_generation_exports_its_best_with_zero_weights(
     _, loaded, _ = gnp.load_controller(out / "controller.json")
     assert np.array_equal(_commands(cfg, loaded), _commands(cfg, best))
     text = (out / "graph.dot").read_text()
+    _assert_dot_shape(text)
     assert "no recorded life" in text
     _, edges = _parse(text)
     assert edges and all(_weight(attrs) == 0 for attrs in edges.values())
@@ -149,6 +171,7 @@ def test_a_tiny_graph_counted_by_hand() -> None:
     assert {e: _weight(a) for e, a in edges.items()} == dict(taken)
     assert "penwidth=5.00" in edges[(1, 2)] and "penwidth=3.00" in edges[(3, 1)]
     text = graph_dot(cfg, pop, taken, "tiny")
+    _assert_dot_shape(text)
     # Clusters as the dashboard's columns: start, sensor s2, wheels P0 and P1.
     assert re.findall(r'subgraph cluster_\d+ \{ label="([^"]+)"', text) == [
         "start",
