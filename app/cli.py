@@ -28,6 +28,7 @@ from app.config import (
     to_toml,
 )
 from app.experiments import cli as experiment_cli
+from app.export.cli import add_export_parser, cmd_export
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 
 if TYPE_CHECKING:
@@ -188,6 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
     experiment_cli.add_parser(commands)
+    add_export_parser(commands)
     return parser
 
 
@@ -506,6 +508,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "runs": cmd_runs,
         "serve": cmd_serve,
         "experiment": experiment_cli.main,
+        "export": cmd_export,
     }
     try:
         return handlers[args.command](args)

@@ -1,5 +1,5 @@
-"""The Runs tab: the runs dir's runs, loading one, replaying a generation's best, and running
-its implementation phase (in a child process, nothing written)."""
+"""The Runs tab: the runs dir's runs, loading one, replaying a generation's best, exporting it
+(docs/export.md), and running its implementation phase (in a child process, nothing written)."""
 
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ from app.dashboard.implementation_job import ImplementationJob, ImplementationRe
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
+from app.export import ExportError, check_run, export_replay, export_run
 
 SCHEDULES = ("fixed", "changing")
 
@@ -48,6 +49,7 @@ class RunsTab:
     schedule: viser.GuiDropdownHandle[str]
     loaded: store.RunReader | None = None
     implementation: ImplementationJob | None = None
+    last_export: Path | None = None
 
     def list_runs(self, runs: Sequence[store.RunSummary]) -> None:
         """Offer `runs` to load and describe them in a table."""
@@ -112,6 +114,29 @@ class RunsTab:
         )
         self.status.set(f"replaying the best of generation {shown} of {robot.label}")
 
+    def export(self, replay: bool = False) -> None:
+        """Export the loaded run's best of the chosen generation into `<runs dir>/exports/
+        <run>-g<G>/`, or the replay of its final elite (the recorded life) into `<run>-replay/`;
+        the status line names the folder (also kept in `last_export`)."""
+        if self.loaded is None:
+            raise DashboardInputError("load a run first")
+        run = self.loaded.path
+        try:
+            if replay:
+                out = export_replay(run, self.exports_dir / f"{run.stem}-replay")
+            else:
+                generation = whole(self.generation.value, "generation", -(10**6), 10**6)
+                chosen = check_run(self.loaded, generation)
+                out = export_run(run, self.exports_dir / f"{run.stem}-g{chosen}", chosen)
+        except ExportError as error:
+            raise DashboardInputError(str(error)) from None
+        self.last_export = out
+        self.status.set(f"exported {'the replay of ' if replay else ''}{run.stem} to {out}")
+
+    @property
+    def exports_dir(self) -> Path:
+        return self.runs_dir / "exports"
+
     def start_implementation(self) -> None:
         if self.loaded is None:
             raise DashboardInputError("load a run first")
@@ -173,6 +198,7 @@ def populate_runs_tab(
     arena = gui.add_dropdown("Replay in", sim.ARENA_NAMES, initial_value="training")
     generation = gui.add_number("Generation (−1 = last)", -1, step=1)
     replay = gui.add_button("Replay best individual", icon=viser.Icon.PLAYER_PLAY)
+    exports = gui.add_button_group("Export", ("Export", "Export replay"))
     gui.add_markdown("**Implementation phase** (implementation arena, online Sarsa)")
     tab = RunsTab(
         stage=stage,
@@ -196,6 +222,11 @@ def populate_runs_tab(
     actions = {"Refresh list": refresh, "Load": lambda: tab.load(tab.run.value)}
     buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
     replay.on_click(status.guard(tab.replay))
+    exports.on_click(
+        lambda event: status.guarded(
+            event.client, lambda: tab.export(replay=exports.value == "Export replay")
+        )
+    )
     run_implementation.on_click(status.guard(tab.start_implementation))
     return tab
 

@@ -1,0 +1,53 @@
+"""`gnp-lab export`: the subcommand's arguments and handler (registered in app/cli.py)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from app.store import resolve_run
+
+EXIT_ERROR = 1
+
+
+def add_export_parser(commands: Any) -> argparse.ArgumentParser:
+    """Add `export` to the subcommands of `gnp-lab`."""
+    export = commands.add_parser(
+        "export",
+        help="export a run's controller, graph and tables, or a replay folder",
+        description="Write the best individual of a generation (default: the final elite) of a "
+        "finished run into a new folder: controller.json, graph.dot, fitness.csv and "
+        "implementation-<name>.csv; with --replay instead a static folder that plays the "
+        "recorded life in a browser (see docs/export.md).",
+    )
+    export.add_argument("run", metavar="RUN", help="run name in --runs-dir")
+    export.add_argument(
+        "--generation", type=int, metavar="G", help="export the best of this generation"
+    )
+    export.add_argument("--out", required=True, metavar="DIR", help="new (or empty) folder")
+    export.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    export.add_argument(
+        "--replay", action="store_true", help="write a static replay folder (viser) instead"
+    )
+    return export
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """Run `gnp-lab export`; a refused export is one `gnp-lab: error:` line."""
+    from app.export import ExportError, export_replay, export_run
+
+    path = resolve_run(args.runs_dir, args.run)
+    out = Path(args.out)
+    try:
+        if args.replay:
+            export_replay(path, out, args.generation)
+        else:
+            export_run(path, out, args.generation)
+    except ExportError as error:
+        sys.stderr.write(f"gnp-lab: error: {error}\n")
+        return EXIT_ERROR
+    written = sorted(p.name for p in out.iterdir())
+    print(f"{out}: {', '.join(written)}")
+    return 0

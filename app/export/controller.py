@@ -1,0 +1,38 @@
+"""`controller.json`: one generation's best individual as a gnp-lab controller file.
+
+The document is `gnp.save_controller`'s (docs/controller-format.md); its `settings` say what
+the lab ran the controller with, so someone can run it in their own code without the run file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gnp
+from app.store import RunReader
+
+
+def controller_settings(reader: RunReader, generation: int) -> dict[str, Any]:
+    """What the controller ran with in `generation`: control period, ε/α, method, seed, run."""
+    training = reader.config.training
+    history = reader.history()
+    return {
+        "run": reader.path.stem,
+        "generation": generation,
+        "method": reader.config.controller.method,
+        "fuzzy": reader.config.controller.fuzzy,
+        "seed": reader.seed,
+        "control_period": training.control_period,
+        "epsilon": float(history.epsilon[generation]),
+        "alpha": float(history.alpha[generation]),
+        "schedule": training.schedule,
+        "fitness": float(history.best_fitness[generation]),
+        "gnp_lab_version": reader.package_version,
+    }
+
+
+def write_controller(reader: RunReader, generation: int, path: Path) -> Path:
+    """Write the best individual of `generation` (Q tables included) as `path`."""
+    cfg, individual = reader.best_genome(generation)
+    return gnp.save_controller(path, cfg, individual, controller_settings(reader, generation))

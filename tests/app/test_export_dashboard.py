@@ -1,0 +1,57 @@
+"""The Runs tab's Export and Export replay buttons, through the tab's plain methods."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+import gnp
+from app.dashboard.controls import DashboardInputError
+from app.dashboard.status import set_value
+
+
+def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path) -> None:
+    import viser
+
+    from app.dashboard.app import Dashboard
+
+    shutil.copy(finished_run, tmp_path / "tiny.h5")
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path, "tiny")
+    try:
+        tab = dashboard.runs
+        with dashboard.lock:
+            set_value(tab.generation, 1)
+            tab.export()
+        out = tab.last_export
+        assert out is not None and out == tmp_path / "exports" / "tiny-g1"
+        assert sorted(p.name for p in out.iterdir()) == [
+            "controller.json",
+            "fitness.csv",
+            "graph.dot",
+        ]
+        assert dashboard.status.text == f"exported tiny to {out}"
+        assert gnp.load_controller(out / "controller.json")[2]["generation"] == 1
+        with dashboard.lock:
+            set_value(tab.generation, -1)
+            tab.export()
+            assert tab.last_export == tmp_path / "exports" / "tiny-g2"
+            tab.export(replay=True)
+        replay = tab.last_export
+        assert replay is not None and replay == tmp_path / "exports" / "tiny-replay"
+        assert {"index.html", "replay.viser"} <= {p.name for p in replay.iterdir()}
+        assert dashboard.status.text == f"exported the replay of tiny to {replay}"
+        # Again: the folder is there; refused on the status line, nothing overwritten.
+        before = sorted(p.stat().st_mtime_ns for p in out.iterdir())
+        set_value(tab.generation, 1)
+        dashboard.status.guarded(None, tab.export)
+        assert dashboard.status.text == f"⚠ {out} exists and is not empty; nothing was written"
+        assert sorted(p.stat().st_mtime_ns for p in out.iterdir()) == before
+        with pytest.raises(DashboardInputError, match="has no generation 7"):
+            set_value(tab.generation, 7)
+            tab.export()
+    finally:
+        dashboard.stop()
+        server.stop()
