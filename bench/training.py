@@ -5,6 +5,9 @@
 
 Measures, alternating in rounds so that the machine's drifts hit every figure alike:
 - the bare world: `sim` alone, 300 robots, fresh random commands, observe + step, one process;
+- the bare world replaying the commands that generation-0 controllers of the same config gave
+  in the lab's loop: the same physics (contacts included) without the controllers, the reward
+  and the loop, so its ratio to the loop in one process is what the loop adds to the world;
 - the full training loop: the thesis-ch3 config (BS, σ = 0, 300 individuals × 1000 steps), one
   generation = evaluate + evolve + write, through `app.training.train` on 1 and 2 workers
   (worker start-up and the first generation excluded);
@@ -26,6 +29,8 @@ import numpy as np
 import sim
 from app.config import build_config, load_preset
 from app.implementation import run_implementation
+from app.rollout import Batch
+from app.seeds import life_seeds
 from app.training import GenerationSummary, initial_population, train
 
 
@@ -35,6 +40,34 @@ def bare_world(robots: int, steps: int) -> float:
     world = sim.World(arena, n=robots, seed=0)
     world.reset(np.resize(arena.start_poses, (robots, 3)))
     commands = np.random.default_rng(0).uniform(-10, 10, (steps, robots, 2))
+    world.observe()
+    began = time.perf_counter()
+    for command in commands:
+        world.observe()
+        world.step(command)
+    return time.perf_counter() - began
+
+
+def loop_commands(steps: int) -> tuple[sim.World, np.ndarray, np.ndarray, np.ndarray]:
+    """A world as the loop evaluates generation 0 of thesis-ch3 in, its start poses and
+    robot seeds, and the (steps, 300, 2) commands the controllers gave there."""
+    config = load_preset("thesis-ch3")
+    cfg = config.controller.gnp_config()
+    seeds = life_seeds(config.seed, 0, np.arange(300), 1, 10)
+    arena = sim.load_arena("training")
+    world = sim.World(arena, n=300, seed=config.seed, noise_sigma=config.training.noise_sigma)
+    poses = arena.start_poses[seeds.starts[:, 0]]
+    world.reset(poses, seeds=seeds.world)
+    batch = Batch(world, cfg, initial_population(config), seeds.engine)
+    commands = np.array([batch.step(0.1, 0.1).commands for _ in range(steps)])
+    return world, poses, seeds.world, commands
+
+
+def bare_world_replay(
+    world: sim.World, poses: np.ndarray, seeds: np.ndarray, commands: np.ndarray
+) -> float:
+    """Seconds for the bare world to observe and step through the loop's own commands."""
+    world.reset(poses, seeds=seeds)
     world.observe()
     began = time.perf_counter()
     for command in commands:
@@ -93,8 +126,10 @@ def main() -> None:
     args = parser.parse_args()
     life = args.population * args.steps
     trial_steps = (args.trials // 10 * 10) * args.impl_steps
+    replay = loop_commands(args.steps)
     cases = {
         "bare world, 1 process": (lambda: bare_world(300, args.steps), 300 * args.steps),
+        "bare world, loop's commands": (lambda: bare_world_replay(*replay), 300 * args.steps),
         "training loop, 1 worker": (
             lambda: training_loop(args.population, args.steps, args.generations, 1),
             life,
@@ -125,7 +160,7 @@ def main() -> None:
     )
     for name, (_, work) in cases.items():
         rate = work / best[name]
-        print(f"  {name:27} {rate:12,.0f}   {rate / bare:5.2f} × bare world")
+        print(f"  {name:28} {rate:12,.0f}   {rate / bare:5.2f} × bare world")
 
 
 if __name__ == "__main__":
