@@ -42,7 +42,14 @@ from gnp.population import CACHE_LINE, Population, record_dtype
 from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
-_BS, _CS = 1, 2
+_RL, _BS, _CS = 0, 1, 2
+_BS_GREEDY = 3
+"""The kernel's method code of BS with its second stage off: the greedy branch connection,
+no Q_BS learning."""
+_FIRST_STAGE_ONLY = {"RL": _RL, "BS": _BS_GREEDY, "CS": _RL}
+"""The kernel's method code with the second stage off (`step(..., second_stage=False)`): CS
+without its credit branch walks exactly as RL does (sub node selection, Q_SS only, Q_CS
+untouched); BS keeps its branch connections but takes the greedy one."""
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
 
@@ -242,6 +249,8 @@ def step(
     alpha: float | np.ndarray,
     learn: bool = ...,
     trace: Literal[False] = ...,
+    *,
+    second_stage: bool = ...,
 ) -> np.ndarray: ...
 
 
@@ -256,6 +265,8 @@ def step(
     alpha: float | np.ndarray,
     learn: bool,
     trace: Literal[True],
+    *,
+    second_stage: bool = ...,
 ) -> tuple[np.ndarray, StepTrace]: ...
 
 
@@ -271,6 +282,7 @@ def step(
     learn: bool = ...,
     *,
     trace: Literal[True],
+    second_stage: bool = ...,
 ) -> tuple[np.ndarray, StepTrace]: ...
 
 
@@ -285,6 +297,8 @@ def step(
     alpha: float | np.ndarray,
     learn: bool = ...,
     trace: bool = ...,
+    *,
+    second_stage: bool = ...,
 ) -> np.ndarray | tuple[np.ndarray, StepTrace]: ...
 
 
@@ -298,6 +312,8 @@ def step(
     alpha: float | np.ndarray,
     learn: bool = True,
     trace: bool = False,
+    *,
+    second_stage: bool = True,
 ) -> np.ndarray | tuple[np.ndarray, StepTrace]:
     """Advance N controllers by one world step.
 
@@ -311,6 +327,10 @@ def step(
         alpha: learning rate α, scalar or (N,).
         learn: apply Sarsa updates.
         trace: also return a StepTrace.
+        second_stage: the method's second stage on (default). Off, a BS controller takes the
+            greedy branch connection (argmax of Q_BS, ties to the lowest u, no exploration)
+            and leaves Q_BS alone; a CS controller never takes its credit branch and leaves
+            Q_CS alone; RL has none (no effect). Q_SS learns either way.
 
     Returns:
         Wheel commands (N, 2) as (left, right) in −10..10, and the StepTrace if `trace`.
@@ -329,7 +349,7 @@ def step(
     else:
         visits, count = _NO_TRACE, _NO_COUNT
     _step_kernel(
-        METHOD_CODE[cfg.method],
+        METHOD_CODE[cfg.method] if second_stage else _FIRST_STAGE_ONLY[cfg.method],
         cfg.fuzzy,
         cfg.gamma,
         cfg.n_nodes,
@@ -437,6 +457,19 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
     return s, k - 1  # unreachable
 
 
+@njit(cache=True, inline="always")
+def _argmax(q: np.ndarray, start: int, k: int) -> int:  # pragma: no cover - compiled
+    """The greedy action over q[start : start + k], ties to the lowest index; no draw."""
+    best = q[_ix(start)]
+    pick = 0
+    for a in range(1, k):
+        value = q[_ix(start + a)]
+        if value > best:
+            best = value
+            pick = a
+    return pick
+
+
 # Positions in the `run` tuple the kernel hands its helpers.
 _METHOD, _N_NODES, _WORDS32, _LAYOUT, _WALK, _COUNT = 0, 3, 7, 10, 11, 19
 
@@ -527,6 +560,8 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         u = 0
         if method == _BS:
             s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
+        elif method == _BS_GREEDY:
+            u = _argmax(words32, q + bs + (2 * p + branch) * n_conn, n_conn)
         nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
     _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
