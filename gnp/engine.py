@@ -558,10 +558,11 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
             wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
-        if method == _BS:
-            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
-        elif method == _BS_GREEDY:
-            u = _argmax(words32, q + bs + (2 * p + branch) * n_conn, n_conn)
+        if method & _BS:  # BS (1) or BS with its second stage off (3): one test for RL and CS
+            if method == _BS:
+                s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
+            else:
+                u = _argmax(words32, q + bs + (2 * p + branch) * n_conn, n_conn)
         nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
     _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
