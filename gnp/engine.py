@@ -43,13 +43,6 @@ from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
 _RL, _BS, _CS = 0, 1, 2
-_BS_GREEDY = 3
-"""The kernel's method code of BS with its second stage off: the greedy branch connection,
-no Q_BS learning."""
-_FIRST_STAGE_ONLY = {"RL": _RL, "BS": _BS_GREEDY, "CS": _RL}
-"""The kernel's method code with the second stage off (`step(..., second_stage=False)`): CS
-without its credit branch walks exactly as RL does (sub node selection, Q_SS only, Q_CS
-untouched); BS keeps its branch connections but takes the greedy one."""
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
 
@@ -343,13 +336,15 @@ def step(
     obs = _floats(observations, (n, 8), "observations")
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
+    if not second_stage and cfg.method != "RL":
+        return _first_stage_only(cfg, pop, state, obs, rew, rates, learn, trace)
     if trace:
         visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
         count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
     _step_kernel(
-        METHOD_CODE[cfg.method] if second_stage else _FIRST_STAGE_ONLY[cfg.method],
+        METHOD_CODE[cfg.method],
         cfg.fuzzy,
         cfg.gamma,
         cfg.n_nodes,
@@ -372,6 +367,76 @@ def step(
     commands = state.wheels.copy()
     if trace:
         node, sub, branch, u, skipped = visits
+        return commands, StepTrace(node, sub, branch, u, skipped, count)
+    return commands
+
+
+def _first_stage_only(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    obs: np.ndarray,
+    rew: np.ndarray,
+    rates: np.ndarray,
+    learn: bool,
+    trace: bool,
+) -> np.ndarray | tuple[np.ndarray, StepTrace]:
+    """`step` with the second stage off, for BS and CS, on the unchanged kernel.
+
+    Both run as RL (sub node selection and Q_SS only: no credit choice, no Q_BS or Q_CS
+    update, no draw for either). CS then is RL on its genome. For BS the kernel, which follows
+    branch connection 0 in RL mode, finds in that slot, for the call, the greedy connection
+    (argmax of Q_BS, ties to the lowest u; Q_BS cannot change during the call); afterwards the
+    trace and the pending visits get the u they took, so that Q_BS updates resume correctly
+    once the second stage is back on.
+    """
+    n = state.walk.shape[0]
+    visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
+    count = np.zeros(n, TRACE_DTYPE)
+    bs = cfg.method == "BS"
+    conn = pop.conn  # a view into the records the kernel reads
+    if bs:
+        greedy = np.argmax(pop.q_bs, axis=-1)  # (N, V, m, 2): the first maximum
+        greedy[:, 0] = 0  # the start node follows connection 0
+        first = conn[..., 0].copy()
+        conn[..., 0] = np.take_along_axis(conn, greedy[..., None], axis=-1)[..., 0]
+    try:
+        _step_kernel(
+            _RL,
+            cfg.fuzzy,
+            cfg.gamma,
+            cfg.n_nodes,
+            cfg.n_judgment,
+            cfg.n_sub,
+            cfg.n_conn_branches,
+            pop.record_bytes,
+            _layout(cfg.n_sub, cfg.n_conn_branches),
+            state.walk,
+            state.wheels,
+            state.rng,
+            obs,
+            rew,
+            rates,
+            learn,
+            visits,
+            count,
+        )
+    finally:
+        if bs:
+            conn[..., 0] = first
+    node, sub, branch, u, skipped = visits
+    if bs:
+        c, k = np.nonzero(node > 0)
+        u[c, k] = greedy[c, node[c, k], sub[c, k], branch[c, k]]
+        # The last visit is always this step's; the one before it when the step made two.
+        walk = state.walk
+        rows = np.arange(n)
+        last = walk[:, 1] > 0
+        walk[last, 4] = greedy[rows[last], walk[last, 1], walk[last, 2], walk[last, 3]]
+        before = (walk[:, 6] > 0) & (np.count_nonzero(node > 0, axis=1) >= 2)
+        walk[before, 9] = greedy[rows[before], walk[before, 6], walk[before, 7], walk[before, 8]]
+    commands = state.wheels.copy()
+    if trace:
         return commands, StepTrace(node, sub, branch, u, skipped, count)
     return commands
 
@@ -455,19 +520,6 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
                 return s, a
             pick -= 1
     return s, k - 1  # unreachable
-
-
-@njit(cache=True, inline="always")
-def _argmax(q: np.ndarray, start: int, k: int) -> int:  # pragma: no cover - compiled
-    """The greedy action over q[start : start + k], ties to the lowest index; no draw."""
-    best = q[_ix(start)]
-    pick = 0
-    for a in range(1, k):
-        value = q[_ix(start + a)]
-        if value > best:
-            best = value
-            pick = a
-    return pick
 
 
 # Positions in the `run` tuple the kernel hands its helpers.
@@ -558,11 +610,8 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
             wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
-        if method & _BS:  # BS (1) or BS with its second stage off (3): one test for RL and CS
-            if method == _BS:
-                s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
-            else:
-                u = _argmax(words32, q + bs + (2 * p + branch) * n_conn, n_conn)
+        if method == _BS:
+            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
         nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
     _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
