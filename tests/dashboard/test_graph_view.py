@@ -194,3 +194,31 @@ def test_second_stage_off_a_bs_robot_takes_the_greedy_branch(dashboard: object) 
     np.testing.assert_array_equal(population.q_bs, q_bs)
     # The switch holds for the next show (a new life) too.
     assert show_random(dashboard, "BS").learning.second_stage is False
+
+
+@pytest.mark.parametrize("method", ["BS", "CS"])
+def test_rollout_carries_the_second_stage_switch(method: str) -> None:
+    """`rollout(..., second_stage=False)` steps the batch as `gnp.step` does with it off."""
+    from app.rollout import Batch, rollout
+
+    cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
+    arena = sim.load_arena("training")
+    results = []
+    for off_in_rollout in (True, False):
+        population = gnp.init_population(cfg, 3, np.random.default_rng(2))
+        world = sim.World(arena, n=3, seed=5)
+        world.reset(arena.start_poses[:3])
+        batch = Batch(world, cfg, population, np.arange(3))
+        if off_in_rollout:
+            rollout(batch, 60, 0.2, 0.1, second_stage=False)
+        else:  # the same, step by step through gnp.step
+            for _ in range(60):
+                batch.step(0.2, 0.1, second_stage=False)
+        results.append((world.poses.copy(), population.q_ss.copy(), population.q_bs.copy()))
+        # Off: the second stage's Q table never moves; Q_SS learns.
+        fresh = gnp.init_population(cfg, 3, np.random.default_rng(2))
+        np.testing.assert_array_equal(population.q_bs, fresh.q_bs)
+        np.testing.assert_array_equal(population.q_cs, fresh.q_cs)
+        assert not np.array_equal(population.q_ss, fresh.q_ss)
+    for a, b in zip(*results, strict=True):
+        np.testing.assert_array_equal(a, b)
