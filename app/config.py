@@ -147,6 +147,7 @@ class LearningSettings:
     alpha: float = 0.1
     after_fault: tuple[gnp.Schedule, gnp.Schedule] | None = None
     horizon: int = 2500
+    second_stage: bool = True  # off: live ablation of BS's branch / CS's credit (gnp.step)
 
     def __post_init__(self) -> None:
         for name, value in (("ε", self.epsilon), ("α", self.alpha)):

@@ -83,6 +83,8 @@ class RobotSnapshot:
     epsilon: float
     alpha: float
     mean_reward: float  # over the reward history
+    node_visits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    # (n_nodes,) visits to each node in this life (the simplified graph hides the others)
 
 
 @dataclass
@@ -96,7 +98,7 @@ class LiveRobot:
     seed: int
     trajectory_capacity: int = 600
     history_capacity: int = 1000
-    visit_capacity: int = 64
+    visit_capacity: int = 256
     _batch: Batch = field(init=False)
     _seen: np.ndarray = field(init=False)
     _fault_steps: list[int] = field(init=False, default_factory=list)
@@ -115,6 +117,7 @@ class LiveRobot:
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(0.0)
         self._current_node = 0
+        self._node_visits = np.zeros(self.cfg.n_nodes, np.int64)
 
     @property
     def t(self) -> int:
@@ -125,7 +128,13 @@ class LiveRobot:
         fault_step = self._fault_steps[-1] if self._fault_steps else None
         epsilon, alpha = learning.rates(self.t, fault_step)
         self._rates = (epsilon, alpha)
-        record = self._batch.step(epsilon, alpha, learn=learning.online, trace=True)
+        record = self._batch.step(
+            epsilon,
+            alpha,
+            learn=learning.online,
+            trace=True,
+            second_stage=learning.second_stage,
+        )
         assert record.trace is not None
         reward = float(record.reward[0])
         self._seen = record.observations
@@ -143,6 +152,7 @@ class LiveRobot:
             self._visits.append([int(column[0, k]) for column in columns])
         if count:
             self._current_node = int(trace.node[0, count - 1])
+            np.add.at(self._node_visits, trace.node[0, :count], 1)
 
     def break_sensors(self, sensors: Sequence[int], mode: FaultMode) -> None:
         self.world.break_sensors(list(sensors), mode=mode)
@@ -178,6 +188,7 @@ class LiveRobot:
             epsilon=self._rates[0],
             alpha=self._rates[1],
             mean_reward=float(rewards.mean()) if len(rewards) else 0.0,
+            node_visits=self._node_visits.copy(),
         )
 
 

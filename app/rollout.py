@@ -71,9 +71,16 @@ class Batch:
         self.reward = np.zeros(self.size)
 
     def step(
-        self, epsilon: float, alpha: float, *, learn: bool = True, trace: bool = False
+        self,
+        epsilon: float,
+        alpha: float,
+        *,
+        learn: bool = True,
+        trace: bool = False,
+        second_stage: bool = True,
     ) -> StepRecord:
-        """One control step of every robot."""
+        """One control step of every robot; `second_stage` off is the live ablation of
+        `gnp.step` (BS: greedy branch connection, CS: no credit branch)."""
         seen = self.world.observe()
         step_trace = None
         if trace:
@@ -87,10 +94,19 @@ class Batch:
                 alpha,
                 learn,
                 trace=True,
+                second_stage=second_stage,
             )
         else:
             commands = gnp.step(
-                self.cfg, self.population, self.state, seen, self.reward, epsilon, alpha, learn
+                self.cfg,
+                self.population,
+                self.state,
+                seen,
+                self.reward,
+                epsilon,
+                alpha,
+                learn,
+                second_stage=second_stage,
             )
         self.world.step(commands)
         readings = self.world.sense()
@@ -123,6 +139,7 @@ def rollout(
     recorder: TrajectoryRecorder | None = None,
     episode_starts: np.ndarray | None = None,
     redraw_every: int = 0,
+    second_stage: bool = True,
 ) -> Rollout:
     """Advance `batch` by `steps` control steps.
 
@@ -135,6 +152,7 @@ def rollout(
         episode_starts: (N, S) start poses of each robot's episodes, with `redraw_every` > 0:
             every `redraw_every` steps the robots move to their next start pose.
         redraw_every: episode length in steps (0: one episode).
+        second_stage: the method's second stage on (see `gnp.step`).
     """
     eps, alp = rates(epsilon, steps), rates(alpha, steps)
     sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
@@ -145,7 +163,9 @@ def rollout(
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
             assert episode_starts is not None
             batch.new_episode(poses[episode_starts[:, t // redraw_every]])
-        record = batch.step(float(eps[t]), float(alp[t]), learn=learn, trace=trace)
+        record = batch.step(
+            float(eps[t]), float(alp[t]), learn=learn, trace=trace, second_stage=second_stage
+        )
         sums += record.term_table
         per_step[t] = record.reward.sum()
         if recorder is not None:

@@ -76,9 +76,19 @@ class ReferenceController:
         return maxima[min(int(self.uniform() * len(maxima)), len(maxima) - 1)]
 
     def step(
-        self, sensors: list[float], reward: float, epsilon: float, alpha: float, learn: bool = True
+        self,
+        sensors: list[float],
+        reward: float,
+        epsilon: float,
+        alpha: float,
+        learn: bool = True,
+        second_stage: bool = True,
     ) -> tuple[tuple[float, float], list[Visit]]:
-        """One world step: returns ((left, right), the visits made in this step)."""
+        """One world step: returns ((left, right), the visits made in this step).
+
+        With `second_stage` off, BS takes the greedy branch connection (ties to the lowest u, no
+        draw) and CS never its credit branch (no draw); neither updates its second-stage Q.
+        """
         cfg, g = self.cfg, self.genes
         if self.visits and not self.visits[-1].credit:
             self.visits[-1].reward = reward  # the previous step's last visit earns its reward
@@ -93,10 +103,10 @@ class ReferenceController:
                 continue
             sub = self.epsilon_greedy(list(self.q_ss[node]), epsilon)
             credit = False
-            if cfg.method == "CS":
+            if cfg.method == "CS" and second_stage:
                 credit = self.epsilon_greedy(list(self.q_cs[node, sub]), epsilon) == 1
             if learn:
-                self.learn(node, sub, credit, alpha)
+                self.learn(node, sub, credit, alpha, second_stage)
             if credit:
                 used += SKIP_COST
                 visit = Visit(node, sub, -1, -1, True)
@@ -115,8 +125,11 @@ class ReferenceController:
                         self.left = speed
                     branch = 0
                 u = 0
-                if cfg.method == "BS":
+                if cfg.method == "BS" and second_stage:
                     u = self.epsilon_greedy(list(self.q_bs[node, sub, branch]), epsilon)
+                elif cfg.method == "BS":
+                    values = list(self.q_bs[node, sub, branch])
+                    u = values.index(max(values))  # the first maximum: ties to the lowest u
                 visit = Visit(node, sub, branch, u, False)
                 self.node = int(g["conn"][node, sub, branch, u])
             made.append(visit)
@@ -135,8 +148,11 @@ class ReferenceController:
             mu = (x - beta) / (alpha - beta)
         return 0 if self.uniform() < mu else 1
 
-    def learn(self, node: int, sub: int, credit: bool, alpha: float) -> None:
-        """Sarsa updates once the new visit (node, sub, credit) has chosen its actions."""
+    def learn(
+        self, node: int, sub: int, credit: bool, alpha: float, second_stage: bool = True
+    ) -> None:
+        """Sarsa updates once the new visit (node, sub, credit) has chosen its actions; with
+        the second stage off only Q_SS."""
         if not self.visits:
             return
         gamma = self.cfg.gamma
@@ -149,11 +165,11 @@ class ReferenceController:
 
         # Eq. 2.3 / 3.1 / 5.1: Q_SS(i, ip) += α(r_t + γ Q_SS(j, jp') − Q_SS(i, ip)).
         update(self.q_ss, (last.node, last.sub), r + gamma * float(self.q_ss[node, sub]))
-        if self.cfg.method == "CS":
+        if self.cfg.method == "CS" and second_stage:
             # Eq. 5.2 / 5.3 (a credit skip earned r = 0): bootstrap on the chosen CS action.
             target = r + gamma * float(self.q_cs[node, sub, int(credit)])
             update(self.q_cs, (last.node, last.sub, int(last.credit)), target)
-        if self.cfg.method == "BS" and len(self.visits) >= 2:
+        if self.cfg.method == "BS" and second_stage and len(self.visits) >= 2:
             # Eq. 3.2: the branch connection chosen at t led to the last visit, whose reward
             # is r_{t+1}; bootstrap on the branch connection the last visit chose.
             before = self.visits[-2]

@@ -15,6 +15,14 @@ import sim
 from app.dashboard import geometry as geo
 from app.dashboard.genome import GenomeView
 from app.dashboard.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
+from app.dashboard.graph_view import (
+    FULL,
+    GRAPH_MODES,
+    SIMPLIFIED,
+    WINDOW,
+    edge_shades,
+    graph_counts,
+)
 from app.live import RobotSnapshot
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
@@ -185,11 +193,29 @@ def _padded(values: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([pad, values])
 
 
+@dataclass(frozen=True)
+class GraphDrawn:
+    """What the graph draws now (read from its handles): node discs, edges (genome connections
+    in the full view, transitions taken in the simplified one), and all its line segments."""
+
+    mode: str
+    nodes: int
+    edges: int
+    segments: int
+
+
+TAKEN_COLOR = (20, 60, 150)
+"""Transitions taken in the simplified view, darker the more often."""
+NODE_COLORS = np.array([[50, 50, 50], [40, 100, 170], [30, 140, 60]], np.uint8)
+
+
 class GraphView:
     """The node-transition graph of the robot on show, beside the arena.
 
-    Static: nodes (colour by kind), every connection of the genome (faint), column captions.
-    Live: the last transitions as arrows coloured by kind (fading with age), the current node
+    Full view (static): nodes (colour by kind), every connection of the genome (faint), column
+    captions. Simplified view: only the nodes visited in the current life, and the transitions
+    taken over the last `WINDOW` visits as arrows shaded by how often each was taken. Both,
+    live: the last transitions as arrows coloured by kind (fading with age), the current node
     ringed, the inspected node ringed.
     """
 
@@ -236,6 +262,9 @@ class GraphView:
         self._selected = server.scene.add_line_segments(
             f"{root}/selected", blank, (130, 40, 200), thickness=2.5, thickness_units="screen"
         )
+        self._taken = server.scene.add_line_segments(
+            f"{root}/taken", blank, black, thickness=3.0, thickness_units="screen", visible=False
+        )
         self._captions: list[viser.LabelHandle] = []
         self._title = server.scene.add_label(
             f"{root}/title",
@@ -246,6 +275,11 @@ class GraphView:
         self.layout: GraphLayout | None = None
         self.genome: GenomeView | None = None
         self.selected: int | None = None
+        self.mode = FULL
+        self._shown_nodes = np.zeros(0, np.int64)  # the nodes whose discs are drawn
+        self._colors = np.zeros((0, 3), np.uint8)  # and their colours
+        self._n_taken = 0
+        self._last: RobotSnapshot | None = None
 
     @property
     def nodes_handle(self) -> viser.BatchedMeshHandle:
@@ -253,13 +287,62 @@ class GraphView:
         return self._nodes
 
     def node_at(self, point: np.ndarray) -> int | None:
-        """The node nearest to a scene point (x, y), if within reach of its disc."""
-        if self.layout is None:
+        """The drawn node nearest to a scene point (x, y), if within reach of its disc."""
+        if self.layout is None or not len(self._shown_nodes):
             return None
-        positions = self._origin + self.layout.positions
+        positions = self._origin + self.layout.positions[self._shown_nodes]
         distances = np.linalg.norm(positions - np.asarray(point)[:2], axis=1)
         nearest = int(np.argmin(distances))
-        return nearest if distances[nearest] < 0.04 * self._size else None
+        return int(self._shown_nodes[nearest]) if distances[nearest] < 0.04 * self._size else None
+
+    def set_mode(self, mode: str) -> None:
+        """Full or simplified view; redraws at once with the latest snapshot."""
+        if mode not in GRAPH_MODES:
+            raise ValueError(f"graph view must be one of {', '.join(GRAPH_MODES)}, got {mode!r}")
+        if mode == self.mode:
+            return
+        self.mode = mode
+        with self._server.atomic():
+            self._edges.visible = mode == FULL
+            self._taken.visible = mode == SIMPLIFIED
+            if mode == FULL and self.layout is not None:
+                self._show_nodes(np.arange(len(self.layout.positions)))
+            if self._last is not None:
+                self.update(self._last)
+
+    def drawn(self) -> GraphDrawn:
+        """Counts of what is drawn now, from the handles (the benchmark's and tests' view)."""
+        if self.mode == FULL:
+            edges = len(self.genome.edges) if self.genome is not None else 0
+        else:
+            edges = self._n_taken
+        handles = [self._recent, self._current, self._edges if self.mode == FULL else self._taken]
+        if self._selected.visible:
+            handles.append(self._selected)
+        segments = sum(len(h.points) for h in handles)
+        return GraphDrawn(self.mode, len(self._shown_nodes), edges, segments)
+
+    def _show_nodes(self, nodes: np.ndarray, lately: np.ndarray | None = None) -> None:
+        """Draw the discs of `nodes` only (every node in the full view); with `lately`, a
+        (V,) mask, the nodes outside it pale."""
+        assert self.layout is not None and self.genome is not None
+        nodes = np.asarray(nodes, np.int64)
+        if not len(nodes):  # a batched mesh needs an instance: one at the start node
+            nodes = np.zeros(1, np.int64)
+        colors = NODE_COLORS[self.genome.kinds[nodes]]
+        if lately is not None:
+            pale = ~lately[nodes]
+            colors[pale] = np.round(0.35 * colors[pale] + 0.65 * 255).astype(np.uint8)
+        if np.array_equal(nodes, self._shown_nodes) and np.array_equal(colors, self._colors):
+            return
+        if not np.array_equal(nodes, self._shown_nodes):
+            positions = self._origin + self.layout.positions[nodes]
+            self._nodes.batched_positions = geo.flat_to_3d(positions[None])[0].astype(np.float32)
+            self._nodes.batched_wxyzs = np.tile(
+                np.array([1.0, 0, 0, 0], np.float32), (len(nodes), 1)
+            )
+        self._nodes.batched_colors = colors
+        self._shown_nodes, self._colors = nodes, colors
 
     def set_genome(self, genome: GenomeView) -> None:
         """Lay out and draw the static graph of an individual."""
@@ -276,12 +359,13 @@ class GraphView:
         self._edges.colors = np.broadcast_to(
             np.array([215, 215, 222], np.uint8), points.shape
         ).copy()
-        node_colors = np.array([[50, 50, 50], [40, 100, 170], [30, 140, 60]], np.uint8)
-        n_nodes = len(positions)
+        self._last = None
+        self._shown_nodes = np.zeros(0, np.int64)
         with self._server.atomic():
-            self._nodes.batched_positions = geo.flat_to_3d(positions[None])[0].astype(np.float32)
-            self._nodes.batched_wxyzs = np.tile(np.array([1.0, 0, 0, 0], np.float32), (n_nodes, 1))
-            self._nodes.batched_colors = node_colors[genome.kinds]
+            # A new individual (or life): the simplified view starts from its start node.
+            self._show_nodes(np.arange(len(positions)) if self.mode == FULL else np.zeros(1))
+            if self.mode == SIMPLIFIED:
+                self._draw_taken(np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
         if not self._captions:
             self._captions = [
                 self._server.scene.add_label(
@@ -310,10 +394,14 @@ class GraphView:
         self._selected.visible = True
 
     def update(self, robot: RobotSnapshot) -> None:
-        """Draw the robot's latest transitions and ring its current node."""
+        """Draw the robot's latest transitions and ring its current node (and, simplified, the
+        nodes it visited this life and the transitions it took lately)."""
         if self.layout is None:
             return
+        self._last = robot
         positions = self._origin + self.layout.positions
+        if self.mode == SIMPLIFIED:
+            self._update_simplified(robot)
         visits = robot.visits[-(self.RECENT + 1) :]
         n_arrows = max(0, len(visits) - 1)
         arrows = np.zeros((3 * self.RECENT, 2, 3))
@@ -347,6 +435,39 @@ class GraphView:
             text = describe_visit(last, int(self.genome.kinds[last[0]]))
         if text != self._current_label.text:
             self._current_label.text = text
+
+    def _update_simplified(self, robot: RobotSnapshot) -> None:
+        assert self.layout is not None
+        n_nodes = len(self.layout.positions)
+        counts = graph_counts(robot.visits, n_nodes, WINDOW)
+        if len(robot.node_visits) == n_nodes:
+            visited = robot.node_visits > 0
+        else:  # a snapshot without the life's counts: the window's
+            visited = counts.node_visits > 0
+        visited[robot.current_node] = True
+        # Visited this life but not lately: drawn pale.
+        self._show_nodes(np.flatnonzero(visited), lately=counts.node_visits > 0)
+        self._draw_taken(counts.edges, counts.edge_counts)
+
+    def _draw_taken(self, edges: np.ndarray, counts: np.ndarray) -> None:
+        """Transitions taken, as arrows shaded by how often (the simplified view's edges)."""
+        assert self.layout is not None
+        positions = self._origin + self.layout.positions
+        self._n_taken = len(edges)
+        if len(edges):
+            points = geo.arrow_segments(
+                positions[edges[:, 0]],
+                positions[edges[:, 1]],
+                head=0.022 * self._size,
+                shorten=0.02 * self._size,
+            )
+            shades = np.repeat(edge_shades(counts, TAKEN_COLOR), 3, axis=0)
+            colors = np.repeat(shades[:, None, :], 2, axis=1)
+        else:  # nothing taken yet: one invisible segment at the start node
+            points = geo.flat_to_3d(positions[[0]][None].repeat(2, axis=1))
+            colors = np.full((1, 2, 3), 255, np.uint8)
+        self._taken.points = points.astype(np.float32)
+        self._taken.colors = colors
 
 
 def describe_visit(visit: np.ndarray, kind: int) -> str:

@@ -1,4 +1,5 @@
-"""The Faults tab: live noise, breaking and repairing sensors, online learning's ε and α."""
+"""The Faults tab: live noise, breaking and repairing sensors, online learning's ε and α, and
+the second stage's switch (live ablation of BS's branch connections / CS's credit branch)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from app.live import LearningSettings
 FIXED = "fixed"
 SCHEDULED = "scheduled from the fault (Eq. 4.3–4.4)"
 MAX_LIVE_NOISE = 300  # the slider's end; the training field goes up to sim.IR_MAX
+SECOND_STAGE = "Second stage (BS branch / CS credit)"
 
 
 @dataclass
@@ -30,6 +32,7 @@ class FaultsTab:
     sensors: viser.GuiTextHandle
     mode: viser.GuiDropdownHandle[sim.FaultMode]
     learn: viser.GuiCheckboxHandle
+    second_stage: viser.GuiCheckboxHandle
     schedule: viser.GuiDropdownHandle[str]
     eps_fixed: viser.GuiNumberHandle[float]
     alpha_fixed: viser.GuiNumberHandle[float]
@@ -81,9 +84,28 @@ class FaultsTab:
             alpha=alpha,
             after_fault=after_fault,
             horizon=whole(self.horizon.value, "T − t'", 1, 10**6),
+            second_stage=bool(self.second_stage.value),
         )
         self.stage.set_learning(learning)
-        self.status.set(f"online learning {'on' if learning.online else 'off'}, {mode}")
+        self.status.set(
+            f"online learning {'on' if learning.online else 'off'}, {mode}; "
+            f"{second_stage_words(self.stage, learning.second_stage)}"
+        )
+
+
+def second_stage_words(stage: Stage, on: bool) -> str:
+    """What the second-stage switch means for the robots on show, in words."""
+    if on:
+        return "second stage on"
+    methods = {r.cfg.method for r in stage.show.robots} if stage.show is not None else set()
+    parts = []
+    if "BS" in methods:
+        parts.append("BS takes its greedy branch connection, Q_BS frozen")
+    if "CS" in methods:
+        parts.append("CS never takes its credit branch, Q_CS frozen")
+    if "RL" in methods:
+        parts.append("RL has none")
+    return "second stage off" + (f" ({'; '.join(parts)})" if parts else "")
 
 
 def populate_faults_tab(
@@ -99,6 +121,13 @@ def populate_faults_tab(
     buttons = gui.add_button_group("Faults", ("Break now", "Repair all"))
     gui.add_markdown("**Online learning** (Sarsa while on show)")
     learn = gui.add_checkbox("Learn online", initial_value=stage.learning.online)
+    second_stage = gui.add_checkbox(
+        SECOND_STAGE,
+        initial_value=stage.learning.second_stage,
+        hint="Live ablation. Off: a BS robot takes the greedy branch connection and stops "
+        "learning Q_BS; a CS robot never skips through its credit branch and stops learning "
+        "Q_CS; sub node selection (Q_SS) goes on. RL has no second stage.",
+    )
     eps_fixed = gui.add_number("ε (fixed)", 0.1, min=0.0, max=1.0, step=0.005)
     alpha_fixed = gui.add_number("α (fixed)", 0.1, min=0.0, max=1.0, step=0.005)
     schedule = gui.add_dropdown("After a fault", (FIXED, SCHEDULED))
@@ -117,6 +146,7 @@ def populate_faults_tab(
         sensors=sensors,
         mode=mode,
         learn=learn,
+        second_stage=second_stage,
         schedule=schedule,
         eps_fixed=eps_fixed,
         alpha_fixed=alpha_fixed,
@@ -132,5 +162,6 @@ def populate_faults_tab(
     actions = {"Break now": tab.break_now, "Repair all": tab.repair}
     buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
     tab.learn.on_update(status.guard(tab.apply_learning))
+    tab.second_stage.on_update(status.guard(tab.apply_learning))
     apply.on_click(status.guard(tab.apply_learning))
     return tab

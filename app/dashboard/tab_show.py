@@ -1,4 +1,4 @@
-"""The Show tab: arena, start pose, speed, new lives, and the node inspector."""
+"""The Show tab: arena, start pose, speed, new lives, the graph's view, and the node inspector."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import viser
 import sim
 from app.dashboard.controls import DashboardInputError, finite
 from app.dashboard.genome import genome_view, node_label, node_markdown
+from app.dashboard.graph_view import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
 from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, GraphView
 from app.dashboard.stage import Show, Stage
 from app.dashboard.status import Status, hex_color, set_value
@@ -28,6 +29,8 @@ class ShowTab:
     speed: viser.GuiSliderHandle[int]
     playing: viser.GuiCheckboxHandle
     new_lives: viser.GuiCheckboxHandle
+    graph_mode: viser.GuiDropdownHandle[str]
+    graph_info: viser.GuiMarkdownHandle
     node: viser.GuiDropdownHandle[str]
     inspector: viser.GuiMarkdownHandle
 
@@ -59,6 +62,30 @@ class ShowTab:
         self.refresh()
         set_value(self.node, self.node.options[node])
 
+    def set_graph_mode(self, mode: str) -> None:
+        """The graph in full (every connection) or simplified (what the robot runs)."""
+        if mode not in GRAPH_MODES:
+            raise DashboardInputError(f"graph view must be one of {', '.join(GRAPH_MODES)}")
+        self.graph.set_mode(mode)
+        set_value(self.graph_mode, mode)
+        self.describe_graph()
+
+    def describe_graph(self) -> None:
+        """What the graph draws now, in words (also what the browser test reads)."""
+        drawn = self.graph.drawn()
+        genome = self.graph.genome
+        total = len(genome.kinds) if genome is not None else 0
+        if drawn.mode == FULL:
+            text = f"graph: full · {drawn.nodes} nodes · {drawn.edges} connections"
+        else:
+            text = (
+                f"graph: simplified · {drawn.nodes} of {total} nodes (visited this life) · "
+                f"{drawn.edges} transitions taken in the last {WINDOW} visits"
+            )
+        text += f" · {drawn.segments} line segments"
+        if text != self.graph_info.content:
+            self.graph_info.content = text
+
     def echo_new_lives(self) -> None:
         """Show the stage's new-lives setting (breaking a sensor turns it off)."""
         set_value(self.new_lives, self.stage.new_lives)
@@ -72,6 +99,7 @@ class ShowTab:
         with session.lock:
             text = node_markdown(robot.cfg, robot.population, node)
         self.inspector.content = text + "\n\n<small>live: Q values update as it learns</small>"
+        self.describe_graph()
 
 
 def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: GraphView) -> ShowTab:
@@ -95,6 +123,14 @@ def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: Gr
             initial_value=stage.new_lives,
             hint="As in training: after the run's life time T, start again from the next pose",
         ),
+        graph_mode=gui.add_dropdown(
+            "Graph",
+            GRAPH_MODES,
+            initial_value=graph.mode,
+            hint="full: every connection of the genome; simplified: only the nodes visited in "
+            "this life and the transitions taken lately, darker the more often",
+        ),
+        graph_info=gui.add_markdown("graph: full"),
         node=gui.add_dropdown("Inspect node", ("0 · start",)),
         inspector=gui.add_markdown("Click a node of the graph, or pick one above."),
     )
@@ -106,6 +142,7 @@ def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: Gr
     tab.speed.on_update(status.guard(lambda: tab.set_speed(tab.speed.value)))
     restart.on_click(status.guard(stage.restage))
     tab.node.on_update(status.guard(lambda: tab.inspect(int(tab.node.value.split()[0]))))
+    tab.graph_mode.on_update(status.guard(lambda: tab.set_graph_mode(tab.graph_mode.value)))
 
     @tab.playing.on_update
     def _(_: viser.GuiEvent[viser.GuiCheckboxHandle]) -> None:
@@ -142,7 +179,9 @@ def legend() -> str:
     )
     return (
         f"<small>Graph: {transitions} · <span style='color:#f01e1e'>○</span> current node · "
-        "<span style='color:#8228c8'>○</span> inspected node. Arena: rays grey→orange with "
+        "<span style='color:#8228c8'>○</span> inspected node; simplified: "
+        f"<span style='color:#143c96'>→</span> transitions taken, darker the more often"
+        f" ({SIMPLIFIED} shows only nodes visited this life). Arena: rays grey→orange with "
         "the reading, <span style='color:#e61414'>red ✕</span> a broken sensor; trail "
         "red→green with reward.</small>"
     )

@@ -61,6 +61,93 @@ def test_engine_matches_reference(method: str, fuzzy: bool) -> None:
         assert state.node[i] == ref.node
 
 
+SECOND_STAGE_PATTERNS = {
+    "off": lambda t: False,
+    "toggled": lambda t: (t // 23) % 2 == 1,  # off and on in turns, mid-episode
+}
+
+
+@pytest.mark.parametrize("pattern", sorted(SECOND_STAGE_PATTERNS))
+@pytest.mark.parametrize("fuzzy", [True, False], ids=["fuzzy", "crisp"])
+@pytest.mark.parametrize("method", ["RL", "BS", "CS"])
+def test_second_stage_off_matches_reference(method: str, fuzzy: bool, pattern: str) -> None:
+    """Live ablation (`second_stage=False`): the kernel and the reference agree bit for bit.
+
+    Off, BS takes the greedy branch connection and leaves Q_BS alone, CS never skips and
+    leaves Q_CS alone; RL is unaffected.
+    """
+    cfg = gnp.GnpConfig(
+        method=method,  # type: ignore[arg-type]
+        fuzzy=fuzzy,
+        n_judgment=12,
+        n_processing=6,
+        n_sub=3,
+    )
+    rng = np.random.default_rng(11)
+    n, steps = 16, 320
+    pop = random_learning_population(cfg, n, rng)
+    q_bs0, q_cs0 = pop.q_bs.copy(), pop.q_cs.copy()
+    seeds = rng.integers(0, 2**63, size=n)
+    refs = [ReferenceController(cfg, pop, i, int(seeds[i])) for i in range(n)]
+    state = gnp.init_state(cfg, n, seeds)
+    epsilon = rng.uniform(0.1, 0.5, size=n)
+    reward = np.zeros(n)
+    transitions = off_transitions = 0
+    on_at = SECOND_STAGE_PATTERNS[pattern]
+    for t in range(steps):
+        obs = rng.integers(0, 1024, size=(n, 8)).astype(np.float64)
+        alpha = 0.1 if t % 3 else 0.5
+        on = on_at(t)
+        q_bs, q_cs = pop.q_bs.copy(), pop.q_cs.copy()
+        commands, trace = gnp.step(
+            cfg, pop, state, obs, reward, epsilon, alpha, trace=True, second_stage=on
+        )
+        for i, ref in enumerate(refs):
+            (left, right), visits = ref.step(
+                list(obs[i]), reward[i], epsilon[i], alpha, second_stage=on
+            )
+            assert (commands[i, 0], commands[i, 1]) == (left, right)
+            k = int(trace.count[i])
+            columns = (trace.node, trace.sub, trace.branch, trace.u, trace.skipped)
+            got = [tuple(int(col[i, j]) for col in columns) for j in range(k)]
+            want = [(v.node, v.sub, v.branch, v.u, int(v.credit)) for v in visits]
+            assert got == want, f"controller {i} step {t}"
+            transitions += k
+            if not on:
+                off_transitions += k
+        if not on:
+            # Off: no credit skip, the greedy u, and no second-stage learning.
+            assert not np.any(trace.skipped == 1)
+            np.testing.assert_array_equal(pop.q_bs, q_bs)
+            np.testing.assert_array_equal(pop.q_cs, q_cs)
+            if method == "BS":
+                for i in range(n):
+                    for j in range(int(trace.count[i])):
+                        node, sub, branch, u = (
+                            int(trace.node[i, j]),
+                            int(trace.sub[i, j]),
+                            int(trace.branch[i, j]),
+                            int(trace.u[i, j]),
+                        )
+                        if node > 0:
+                            assert u == int(np.argmax(pop.q_bs[i, node, sub, branch]))
+        reward = rng.uniform(0.0, 1.0, size=n).round(3)
+        if t % 97 == 96:
+            gnp.reset_episode(state)
+            for ref in refs:
+                ref.reset_episode()
+    assert transitions >= 10_000
+    assert off_transitions >= (10_000 if pattern == "off" else 4_000)
+    for i, ref in enumerate(refs):
+        np.testing.assert_array_equal(pop.q_ss[i], ref.q_ss)
+        np.testing.assert_array_equal(pop.q_bs[i], ref.q_bs)
+        np.testing.assert_array_equal(pop.q_cs[i], ref.q_cs)
+        assert state.node[i] == ref.node
+    if pattern == "off":
+        np.testing.assert_array_equal(pop.q_bs, q_bs0)
+        np.testing.assert_array_equal(pop.q_cs, q_cs0)
+
+
 def test_split_batch_is_identical() -> None:
     """A controller's behaviour does not depend on its batch: two halves equal the whole."""
     cfg = gnp.GnpConfig(method="BS", n_judgment=8, n_processing=4)
