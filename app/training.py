@@ -16,6 +16,7 @@ import math
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -295,13 +296,21 @@ class GenerationSummary:
 ProgressCallback = Callable[[GenerationSummary], None]
 
 
+_stop_requested = threading.Event()  # set by SIGTERM; a run stops at the next chance
+
+
 @contextmanager
 def _stop_on_sigterm() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt (as Ctrl-C) while training, in the main thread."""
+    """Turn SIGTERM into KeyboardInterrupt (as Ctrl-C) while training, in the main thread.
+
+    The request is also remembered: a KeyboardInterrupt raised while numba compiles can be
+    swallowed inside llvmlite, and the loop then stops at the next generation all the same.
+    """
     try:
         previous = signal.getsignal(signal.SIGTERM)
 
         def handler(signum: int, frame: Any) -> None:
+            _stop_requested.set()
             raise KeyboardInterrupt
 
         signal.signal(signal.SIGTERM, handler)
@@ -340,6 +349,8 @@ def _train_from(
     try:
         with _stop_on_sigterm():  # nested in train/resume's: also when called on its own
             for generation in range(start, training.generations):
+                if _stop_requested.is_set():
+                    raise KeyboardInterrupt
                 began = time.perf_counter()
                 epsilon, alpha = generation_epsilon_alpha(training, generation)
                 seeds = life_seeds(
@@ -452,6 +463,7 @@ def train(
         TrainingError: a worker process died.
     """
     sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
+    _stop_requested.clear()
     # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
     # the file leaves no file (KeyboardInterrupt), after it a resumable one (Interrupted).
     with _stop_on_sigterm():
@@ -475,6 +487,7 @@ def resume(path: str | Path, *, workers: int = 1, progress: ProgressCallback | N
     Raises:
         RunFileError: not a resumable run.
     """
+    _stop_requested.clear()
     with _stop_on_sigterm():
         writer, generation, arrays = RunWriter.resume(path)
         try:
