@@ -42,7 +42,7 @@ from gnp.population import CACHE_LINE, Population, record_dtype
 from gnp.rng import next_uniform, seed_states
 
 METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
-_RL, _BS, _CS = 0, 1, 2
+_BS, _CS = 1, 2
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
 
@@ -337,14 +337,37 @@ def step(
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
     if not second_stage and cfg.method != "RL":
-        return _first_stage_only(cfg, pop, state, obs, rew, rates, learn, trace)
+        from gnp.first_stage import first_stage_only  # the live ablation: off the hot path
+
+        return first_stage_only(cfg, pop, state, obs, rew, rates, learn, trace)
     if trace:
         visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
         count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
+    run_kernel(METHOD_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
+    commands = state.wheels.copy()
+    if trace:
+        node, sub, branch, u, skipped = visits
+        return commands, StepTrace(node, sub, branch, u, skipped, count)
+    return commands
+
+
+def run_kernel(
+    method_code: int,
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    obs: np.ndarray,
+    rew: np.ndarray,
+    rates: np.ndarray,
+    learn: bool,
+    visits: np.ndarray,
+    count: np.ndarray,
+) -> None:
+    """One call of the compiled kernel on checked arguments (see `step`)."""
     _step_kernel(
-        METHOD_CODE[cfg.method],
+        method_code,
         cfg.fuzzy,
         cfg.gamma,
         cfg.n_nodes,
@@ -364,81 +387,6 @@ def step(
         visits,
         count,
     )
-    commands = state.wheels.copy()
-    if trace:
-        node, sub, branch, u, skipped = visits
-        return commands, StepTrace(node, sub, branch, u, skipped, count)
-    return commands
-
-
-def _first_stage_only(
-    cfg: GnpConfig,
-    pop: Population,
-    state: EngineState,
-    obs: np.ndarray,
-    rew: np.ndarray,
-    rates: np.ndarray,
-    learn: bool,
-    trace: bool,
-) -> np.ndarray | tuple[np.ndarray, StepTrace]:
-    """`step` with the second stage off, for BS and CS, on the unchanged kernel.
-
-    Both run as RL (sub node selection and Q_SS only: no credit choice, no Q_BS or Q_CS
-    update, no draw for either). CS then is RL on its genome. For BS the kernel, which follows
-    branch connection 0 in RL mode, finds in that slot, for the call, the greedy connection
-    (argmax of Q_BS, ties to the lowest u; Q_BS cannot change during the call); afterwards the
-    trace and the pending visits get the u they took, so that Q_BS updates resume correctly
-    once the second stage is back on.
-    """
-    n = state.walk.shape[0]
-    visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
-    count = np.zeros(n, TRACE_DTYPE)
-    bs = cfg.method == "BS"
-    conn = pop.conn  # a view into the records the kernel reads
-    if bs:
-        greedy = np.argmax(pop.q_bs, axis=-1)  # (N, V, m, 2): the first maximum
-        greedy[:, 0] = 0  # the start node follows connection 0
-        first = conn[..., 0].copy()
-        conn[..., 0] = np.take_along_axis(conn, greedy[..., None], axis=-1)[..., 0]
-    try:
-        _step_kernel(
-            _RL,
-            cfg.fuzzy,
-            cfg.gamma,
-            cfg.n_nodes,
-            cfg.n_judgment,
-            cfg.n_sub,
-            cfg.n_conn_branches,
-            pop.record_bytes,
-            _layout(cfg.n_sub, cfg.n_conn_branches),
-            state.walk,
-            state.wheels,
-            state.rng,
-            obs,
-            rew,
-            rates,
-            learn,
-            visits,
-            count,
-        )
-    finally:
-        if bs:
-            conn[..., 0] = first
-    node, sub, branch, u, skipped = visits
-    if bs:
-        c, k = np.nonzero(node > 0)
-        u[c, k] = greedy[c, node[c, k], sub[c, k], branch[c, k]]
-        # The last visit is always this step's; the one before it when the step made two.
-        walk = state.walk
-        rows = np.arange(n)
-        last = walk[:, 1] > 0
-        walk[last, 4] = greedy[rows[last], walk[last, 1], walk[last, 2], walk[last, 3]]
-        before = (walk[:, 6] > 0) & (np.count_nonzero(node > 0, axis=1) >= 2)
-        walk[before, 9] = greedy[rows[before], walk[before, 6], walk[before, 7], walk[before, 8]]
-    commands = state.wheels.copy()
-    if trace:
-        return commands, StepTrace(node, sub, branch, u, skipped, count)
-    return commands
 
 
 def _prefetch_typer(typingctx, array, index):
