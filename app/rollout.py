@@ -82,32 +82,19 @@ class Batch:
         """One control step of every robot; `second_stage` off is the live ablation of
         `gnp.step` (BS: greedy branch connection, CS: no credit branch)."""
         seen = self.world.observe()
-        step_trace = None
-        if trace:
-            commands, step_trace = gnp.step(
-                self.cfg,
-                self.population,
-                self.state,
-                seen,
-                self.reward,
-                epsilon,
-                alpha,
-                learn,
-                trace=True,
-                second_stage=second_stage,
-            )
-        else:
-            commands = gnp.step(
-                self.cfg,
-                self.population,
-                self.state,
-                seen,
-                self.reward,
-                epsilon,
-                alpha,
-                learn,
-                second_stage=second_stage,
-            )
+        result = gnp.step(
+            self.cfg,
+            self.population,
+            self.state,
+            seen,
+            self.reward,
+            epsilon,
+            alpha,
+            learn,
+            trace=trace,
+            second_stage=second_stage,
+        )
+        commands, step_trace = result if isinstance(result, tuple) else (result, None)
         self.world.step(commands)
         readings = self.world.sense()
         table = sim.reward_table(readings, commands)
@@ -123,10 +110,9 @@ class Rollout:
     step_reward_sums: np.ndarray  # (T,) reward of each step summed over the batch
 
 
-def rates(value: float | np.ndarray, steps: int) -> np.ndarray:
-    """ε or α per step: a constant, or an array of one value per step."""
-    per_step = np.broadcast_to(np.asarray(value, dtype=np.float64), (steps,))
-    return per_step
+def per_step(value: float | np.ndarray, steps: int) -> np.ndarray:
+    """ε or α of each of `steps` steps, from a constant or an array of one value per step."""
+    return np.broadcast_to(np.asarray(value, dtype=np.float64), (steps,))
 
 
 def rollout(
@@ -154,9 +140,9 @@ def rollout(
         redraw_every: episode length in steps (0: one episode).
         second_stage: the method's second stage on (see `gnp.step`).
     """
-    eps, alp = rates(epsilon, steps), rates(alpha, steps)
+    eps, alp = per_step(epsilon, steps), per_step(alpha, steps)
     sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
-    per_step = np.zeros(steps)
+    step_sums = np.zeros(steps)
     trace = recorder is not None
     poses = batch.world.arena.start_poses
     for t in range(steps):
@@ -167,7 +153,7 @@ def rollout(
             float(eps[t]), float(alp[t]), learn=learn, trace=trace, second_stage=second_stage
         )
         sums += record.term_table
-        per_step[t] = record.reward.sum()
+        step_sums[t] = record.reward.sum()
         if recorder is not None:
             assert record.trace is not None
             recorder.record(
@@ -178,4 +164,4 @@ def rollout(
                 record.term_table,
                 record.trace,
             )
-    return Rollout(term_sums=sums, step_reward_sums=per_step)
+    return Rollout(term_sums=sums, step_reward_sums=step_sums)
