@@ -44,7 +44,7 @@ def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) ->
 
     runs = tmp_path_factory.mktemp("reference")
     with Client(
-        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
+        processes=False, n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None
     ) as client:
         run_experiment(spec, SCALE, runs, client=client, quiet=True, echo=lambda line: None)
     return runs
@@ -149,7 +149,13 @@ def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: P
     lines: list[str] = []
     with (
         blocked.with_name(f".{blocked.name}.lock").open("a") as lock,
-        Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c,
+        Client(
+            processes=False,
+            n_workers=1,
+            threads_per_worker=1,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as c,
     ):
         fcntl.flock(lock, fcntl.LOCK_EX)  # as if another gnp-lab process were writing it
         with pytest.raises(
@@ -342,3 +348,23 @@ def test_external_cluster_gives_identical_results(
     out = capsys.readouterr().out
     assert out.count("final best fitness") == 4 and "summary:" in out
     assert_same_experiment(spec, tmp_path, reference)
+
+
+def test_the_cluster_it_starts_listens_on_loopback_only() -> None:
+    """Safe by default: the LocalCluster `run` starts binds every server to 127.0.0.1."""
+    import psutil
+
+    from app.experiments.runner import connect
+
+    with connect(workers=1) as client:
+        workers = set(client.run(os.getpid).values())
+        nannies = {psutil.Process(pid).ppid() for pid in workers} - {os.getpid()}
+        listening = [
+            conn.laddr
+            for pid in {os.getpid(), *workers, *nannies}
+            for conn in psutil.Process(pid).net_connections(kind="inet")
+            if conn.status == psutil.CONN_LISTEN
+        ]
+        assert listening, "the cluster listens somewhere"
+        assert all(addr.ip == "127.0.0.1" for addr in listening), listening
+        assert client.scheduler.address.startswith("tcp://127.0.0.1:")
