@@ -44,7 +44,7 @@ def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) ->
 
     runs = tmp_path_factory.mktemp("reference")
     with Client(
-        processes=False, n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None
+        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
     ) as client:
         run_experiment(spec, SCALE, runs, client=client, quiet=True, echo=lambda line: None)
     return runs
@@ -153,7 +153,6 @@ def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: P
             processes=False,
             n_workers=1,
             threads_per_worker=1,
-            host="127.0.0.1",
             dashboard_address=None,
         ) as c,
     ):

@@ -212,7 +212,7 @@ def client() -> Iterator[Any]:
     from distributed import Client
 
     with Client(
-        processes=False, n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None
+        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
     ) as client:
         yield client
 
