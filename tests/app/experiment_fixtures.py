@@ -85,7 +85,7 @@ seeds = 2
 [scales.small.config.training]
 population = 12
 generations = 14
-steps = 60
+steps = 1000  # long enough generations for a test to catch a run mid-training
 shard_size = 5
 [scales.small.config.implementation]
 steps = 100
