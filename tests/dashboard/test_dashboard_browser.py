@@ -9,30 +9,16 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from page_helpers import HIDE_WEBGL_NOTICE, RECORD_SENT, TIMEOUT_MS, sent
 
 # One server and one page per module, used in order (pytest-xdist: run with --dist loadgroup).
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
-TIMEOUT_MS = 120_000
-"""How long any state may take to show (generous: the page renders WebGL in software)."""
-
-RECORD_SENT = """
-window.gnpLabSent = [];
-const postMessage = Worker.prototype.postMessage;
-Worker.prototype.postMessage = function (data, ...rest) {
-  if (data && data.type === "send") window.gnpLabSent.push(data.message);
-  return postMessage.call(this, data, ...rest);
-};
-"""
-"""Records what the page sends the server (viser's client hands it to its websocket worker)."""
-
-SENT_SINCE = """([count, values]) => window.gnpLabSent.slice(count).some(
-  (m) => m.type === "GuiUpdateMessage" && values.includes(String(m.updates.value)))"""
 
 READOUT_MATCH = """([pattern, atLeast]) => {
   const readout = [...document.querySelectorAll("p")].find(
@@ -41,7 +27,6 @@ READOUT_MATCH = """([pattern, atLeast]) => {
   return match && (atLeast === null || Number(match[1]) >= atLeast) ? match[0] : null;
 }"""
 
-HIDE_WEBGL_NOTICE = "#webgl-software-rendering { display: none !important; }"
 """viser's notice that WebGL runs in software (always, headless): cosmetic, kept off the
 screenshots."""
 
@@ -109,19 +94,6 @@ def field(page: Any, label: str) -> Any:
     """The input on the row of a GUI control's label (viser does not always link the two)."""
     row = "ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
     return page.locator(f'xpath=//label[normalize-space(text())="{label}"]/{row}//input').first
-
-
-def sent(page: Any, action: Callable[[], None], *values: str) -> None:
-    """Do `action`, then wait until the page has sent the server a GUI update to one of `values`.
-
-    viser's client sends GUI updates through one 50 ms throttle shared by every control and
-    keeps only the newest pending message: of three changes within 50 ms (a slow page catching
-    up on a loaded machine) the middle one never reaches the server. So each change is seen to
-    leave the page before the next is made.
-    """
-    count = page.evaluate("window.gnpLabSent.length")
-    action()
-    page.wait_for_function(SENT_SINCE, arg=[count, list(values)], polling=50)
 
 
 def choose(page: Any, label: str, option: str) -> None:

@@ -17,21 +17,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from page_helpers import HIDE_WEBGL_NOTICE, RECORD_SENT, TIMEOUT_MS, sent
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
-TIMEOUT_MS = 120_000
-RECORD_SENT = """
-window.gnpLabSent = [];
-const postMessage = Worker.prototype.postMessage;
-Worker.prototype.postMessage = function (data, ...rest) {
-  if (data && data.type === "send") window.gnpLabSent.push(data.message);
-  return postMessage.call(this, data, ...rest);
-};
-"""
-SENT_SINCE = """([count, values]) => window.gnpLabSent.slice(count).some(
-  (m) => m.type === "GuiUpdateMessage" && values.includes(String(m.updates.value)))"""
-HIDE_WEBGL_NOTICE = "#webgl-software-rendering { display: none !important; }"
 DEMO = Path(__file__).resolve().parents[2] / "saved_runs" / "demo.h5"
 
 
@@ -39,13 +28,6 @@ def field(page: Any, label: str) -> Any:
     """The input on the row of a GUI control's label (viser breaks long labels with <wbr>)."""
     row = "ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
     return page.locator(f'xpath=//label[normalize-space(.)="{label}"]/{row}//input').first
-
-
-def sent(page: Any, action: Callable[[], None], *values: str) -> None:
-    """Do `action`, then wait until the page sent the server an update to one of `values`."""
-    count = page.evaluate("window.gnpLabSent.length")
-    action()
-    page.wait_for_function(SENT_SINCE, arg=[count, list(values)], polling=50)
 
 
 def until(condition: Callable[[], bool], seconds: float = 120.0) -> None:
