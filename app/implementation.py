@@ -181,18 +181,6 @@ def _count(done: int) -> None:
         _progress_counter.value += done
 
 
-def _worker_live_trials(
-    cfg: gnp.GnpConfig,
-    individual: gnp.Population,
-    settings: ImplementationSettings,
-    seed: int,
-    control_period: float,
-    part: slice,
-    record: bool,
-) -> _Part:
-    return _live_trials(cfg, individual, settings, seed, control_period, part, record, _count)
-
-
 def _live_all(
     cfg: gnp.GnpConfig,
     individual: gnp.Population,
@@ -228,7 +216,7 @@ def _live_all(
     ) as pool:
         futures = [
             pool.submit(
-                _worker_live_trials,
+                _live_trials,
                 cfg,
                 individual,
                 settings,
@@ -236,6 +224,7 @@ def _live_all(
                 control_period,
                 part,
                 part.start == 0 and recorded > 0,
+                _count,  # a module function: each worker adds to the shared counter
             )
             for part in parts
         ]
