@@ -82,6 +82,14 @@ def add_parser(commands: Any) -> None:
     common(status)
     listing = verbs.add_parser("list", help="the shipped experiments and their cost per scale")
     listing.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    page = verbs.add_parser(
+        "reproduced",
+        help="rewrite the tables of the 'thesis, reproduced' page from the committed reports",
+        description="Reads DOCS/NAME-SCALE/report.json (copied there with `experiment report "
+        "--format json`) and rewrites the tables of DOCS/README.md between its marker lines; "
+        "the text around them is kept.",
+    )
+    page.add_argument("--docs", default="docs/experiments", help="folder of the reports")
 
 
 def _spec(args: argparse.Namespace) -> ExperimentSpec:
@@ -101,6 +109,11 @@ def main(args: argparse.Namespace) -> int:
     """Run `gnp-lab experiment VERB`."""
     if args.verb == "list":
         return cmd_list(args)
+    if args.verb == "reproduced":
+        from app.experiments.reproduced import write_page
+
+        print(f"wrote {write_page(args.docs)}")
+        return 0
     spec = _spec(args)
     spec.scale(args.scale)
     handlers = {"run": cmd_run, "report": cmd_report, "status": cmd_status}
@@ -200,15 +213,9 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     return 0
 
 
-def _count(n: float) -> str:
-    for unit, size in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
-        if n >= size:
-            return f"{n / size:.3g}{unit}"
-    return f"{n:g}"
-
-
 def cmd_list(args: argparse.Namespace) -> int:
     from app.experiments import runner
+    from app.experiments.reproduced import short_count
 
     for name in shipped_names():
         spec = load_shipped(name)
@@ -217,14 +224,12 @@ def cmd_list(args: argparse.Namespace) -> int:
         arms = ", ".join(f"{a.name} ({a.label})" for a in spec.arms)
         print(f"  arms: {arms}; conditions: {', '.join(c.name for c in spec.conditions)}")
         for scale, sizes in spec.scales.items():
-            tasks = runner.plan(spec, scale, args.runs_dir)
-            t = tasks[0].config.training
-            steps = sum(task.config.training.generations * task.generation_cost for task in tasks)
-            trial_steps = sum(len(task.conditions) * task.condition_cost for task in tasks)
+            cost = runner.work(spec, scale)
+            t = spec.run_config(spec.arms[0].name, scale, 0).training
             print(
-                f"  {scale:6} {len(tasks)} runs × {t.generations} generations × {t.population} "
-                f"individuals × {t.steps} steps = {_count(steps)} robot-steps; "
-                f"{len(spec.conditions)} conditions per run: {_count(trial_steps)} trial-steps"
-                + (f"; measured: {sizes.measured}" if sizes.measured else "")
+                f"  {scale:6} {cost.runs} runs × {t.generations} generations × {t.population} "
+                f"individuals × {t.steps} steps = {short_count(cost.robot_steps)} robot-steps; "
+                f"{len(spec.conditions)} conditions per run: {short_count(cost.trial_steps)} "
+                "trial-steps" + (f"; measured: {sizes.measured}" if sizes.measured else "")
             )
     return 0

@@ -105,6 +105,32 @@ def plan(
     return tasks
 
 
+@dataclass(frozen=True)
+class Work:
+    """What an experiment costs at one scale, in simulated steps."""
+
+    runs: int
+    robot_steps: int  # training: generations × population × life time, summed over the runs
+    trial_steps: int  # implementation: conditions × trials × steps, summed over the runs
+
+
+def work(spec: ExperimentSpec, scale: str) -> Work:
+    """The simulated work of `spec` at `scale` (its default seeds; a seed changes no size)."""
+    seeds = len(spec.seed_list(scale))  # type: ignore[arg-type]
+    robot_steps = trial_steps = 0
+    starts: dict[str, int] = {}  # arena -> its start poses (loading validates: 12 ms each)
+    for arm in spec.arms:
+        config = spec.run_config(arm.name, scale, 0)
+        t = config.training
+        robot_steps += seeds * t.generations * t.population * t.steps
+        for condition in spec.conditions:
+            s = spec.condition_settings(condition, config, scale)
+            if s.arena not in starts:
+                starts[s.arena] = len(sim.load_arena(s.arena).start_poses)
+            trial_steps += seeds * starts[s.arena] * s.repeats * s.steps
+    return Work(runs=seeds * len(spec.arms), robot_steps=robot_steps, trial_steps=trial_steps)
+
+
 @dataclass
 class RunState:
     """What a run file holds of its task."""

@@ -1,0 +1,109 @@
+"""The 'thesis, reproduced' page: written from the committed reports, hand-written text kept."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from app.experiments import runner
+from app.experiments.reproduced import BEGIN, END, load_reports, tables, write_page
+from app.experiments.spec import ExperimentError, load_shipped, shipped_names
+
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
+REPORT = DOCS / "ch3-bs-rl-small" / "report.json"
+
+
+def test_the_committed_page_agrees_with_the_committed_reports() -> None:
+    page = (DOCS / "README.md").read_text()
+    written = page.split(BEGIN)[1].split(END)[0]
+    assert written == "\n" + tables(DOCS), "run: gnp-lab experiment reproduced"
+
+
+def test_every_committed_report_folder_has_its_per_run_values() -> None:
+    for folder in {p.parent for p in DOCS.glob("*/report.json")}:
+        header = (folder / "values.csv").read_text().splitlines()[0]
+        assert header == "arm,seed,condition,metric,value"
+
+
+def _copy_report(folder: Path, edit: dict[str, object] | None = None) -> dict[str, object]:
+    report = json.loads(REPORT.read_text())
+    report.update(edit or {})
+    (folder / "ch3-bs-rl-small").mkdir(parents=True)
+    (folder / "ch3-bs-rl-small" / "report.json").write_text(json.dumps(report))
+    return report
+
+
+def test_rewriting_keeps_the_hand_written_text_and_lists_each_claim(tmp_path: Path) -> None:
+    report = _copy_report(tmp_path)
+    (tmp_path / "README.md").write_text(f"# Title\n\nintro\n{BEGIN}\nold tables\n{END}\n\nwhy\n")
+    page = write_page(tmp_path).read_text()
+    assert page.startswith("# Title\n\nintro\n" + BEGIN)
+    assert page.endswith(END + "\n\nwhy\n")
+    assert "old tables" not in page
+    comparisons = report["comparisons"]
+    assert isinstance(comparisons, list)
+    for comparison in comparisons:  # a row per claim, our means as the report has them
+        claim = f"| {comparison['claim']} |"
+        row = next(line for line in page.splitlines() if line.startswith(claim))
+        assert f"{comparison['a']['mean']:.3f} vs {comparison['b']['mean']:.3f}" in row
+        assert f"**{comparison['verdict']}**" in row
+    assert "Not run yet" in page  # the experiments without a report are named, not dropped
+
+
+def test_a_reversed_claim_shows_the_p_value_of_the_other_direction(tmp_path: Path) -> None:
+    report = json.loads(REPORT.read_text())
+    first = report["comparisons"][0]
+    first.update(verdict="reversed", holm_p=1.0, holm_p_opposite=0.0123)
+    _copy_report(tmp_path, {"comparisons": [first]})
+    page = write_page(tmp_path).read_text()
+    assert "**reversed** (p(other way) = 0.0123)" in page
+
+
+def test_a_new_page_gets_a_title_and_the_markers(tmp_path: Path) -> None:
+    _copy_report(tmp_path)
+    page = write_page(tmp_path).read_text()
+    assert page.startswith("# The thesis, reproduced")
+    assert page.count(BEGIN) == 1 and page.count(END) == 1
+
+
+@pytest.mark.parametrize(
+    "setup, message",
+    [
+        (lambda d: (d / "x").mkdir() or (d / "x" / "report.json").write_text("{"), "not an"),
+        (lambda d: _rename(d), "rename its folder"),
+        (lambda d: (d / "README.md").write_text(f"{END}\n{BEGIN}\n"), "marker lines"),
+    ],
+)
+def test_bad_pages_and_reports_are_named_and_nothing_is_written(
+    tmp_path: Path, setup: object, message: str
+) -> None:
+    assert callable(setup)
+    setup(tmp_path)
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    with pytest.raises(ExperimentError, match=message):
+        write_page(tmp_path)
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def _rename(folder: Path) -> None:
+    _copy_report(folder)
+    shutil.move(folder / "ch3-bs-rl-small", folder / "ch3-bs-rl-thesis")
+
+
+def test_reports_are_keyed_by_experiment_and_scale() -> None:
+    assert ("ch3-bs-rl", "small") in load_reports(DOCS)
+
+
+@pytest.mark.parametrize("name", shipped_names())
+def test_the_stated_work_is_what_the_planned_runs_step(name: str, tmp_path: Path) -> None:
+    spec = load_shipped(name)
+    for scale in spec.scales:
+        tasks = runner.plan(spec, scale, tmp_path)
+        cost = runner.work(spec, scale)
+        assert cost.runs == len(tasks)
+        trained = sum(t.config.training.generations * t.generation_cost for t in tasks)
+        assert cost.robot_steps == trained
+        assert cost.trial_steps == sum(len(t.conditions) * t.condition_cost for t in tasks)
