@@ -7,6 +7,7 @@ no command overwrites or damages an existing run file.
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 import sys
 import tomllib
@@ -36,6 +37,7 @@ if TYPE_CHECKING:
 
 PROG = "gnp-lab"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a command a closed pipe stopped
 
 
 class UsageError(Exception):
@@ -511,10 +513,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         "export": cmd_export,
     }
     try:
-        return handlers[args.command](args)
+        status = handlers[args.command](args)
+        sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
+        return status
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted; nothing was written\n")
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `gnp-lab runs | head`: the reader has what it wanted
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
+        return EXIT_BROKEN_PIPE
     except UsageError as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_USAGE

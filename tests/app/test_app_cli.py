@@ -147,3 +147,18 @@ def test_serve_passes_its_options_to_the_dashboard(
     monkeypatch.setattr(app.dashboard, "serve", lambda **kwargs: calls.append(kwargs))
     assert main(["serve", "--runs-dir", str(runs_dir), "--run", "tiny", "--port", "8123"]) == 0
     assert calls == [{"host": "127.0.0.1", "port": 8123, "runs_dir": str(runs_dir), "run": "tiny"}]
+
+
+def test_a_reader_that_stops_early_gets_no_error_line() -> None:
+    """`gnp-lab experiment list | head -1`: the closed pipe ends the command quietly."""
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "app.cli", "experiment", "list"]
+    with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE) as child:
+        assert child.stdout is not None and child.stderr is not None
+        child.stdout.close()  # what `head` does once it has its lines: every write fails
+        errors = child.stderr.read().decode()
+        status = child.wait(timeout=120)
+    assert status == 141
+    assert errors == ""
