@@ -20,7 +20,6 @@ from app.config import (
     load_preset,
     to_toml,
 )
-from app.store import RunReader
 
 
 def test_defaults_are_the_thesis_table_2_4() -> None:
@@ -169,7 +168,3 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
     legacy = stored_config(json.dumps(old))
     assert legacy.training.schedule_progress == "g-over-G"
     assert legacy.evolution.judgment_pair == "independent"
-    # The bundled demo run was written before both settings existed.
-    with RunReader(Path(__file__).parents[2] / "saved_runs" / "demo.h5") as run:
-        assert run.config.training.schedule_progress == "g-over-G"
-        assert run.config.evolution.judgment_pair == "independent"

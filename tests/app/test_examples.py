@@ -58,10 +58,12 @@ def test_train_implement_and_read_a_run_as_the_examples_do(tmp_path: Path) -> No
     assert _number(read, "generations done") == 3
     assert _number(read, "best fitness") == pytest.approx(history.best_fitness.max(), abs=1e-6)
     assert _number(read, "mean reward") == pytest.approx(result.mean_reward, abs=1e-6)
-    _check_wall_following(_run("wall_following.py", str(run), "200"))
+    plot = tmp_path / "paths.png"
+    walls = _run("wall_following.py", str(run), "--steps", "200", "--plot", str(plot))
+    _check_wall_following(walls, plot)
 
 
-def _check_wall_following(text: str) -> None:
+def _check_wall_following(text: str, plot: Path) -> None:
     """Both arenas are measured; reward = speed × straightness × C ≤ C, step by step, so the
     mean reward can never exceed the share of steps with C = 1."""
     for arena in ("training", "implementation"):
@@ -70,3 +72,4 @@ def _check_wall_following(text: str) -> None:
         reward = _number(line, "reward per step")
         near_wall = _number(line, r"\(C = 1\)")
         assert 0.0 <= reward <= near_wall <= 1.0, line
+    assert plot.read_bytes().startswith(b"\x89PNG")

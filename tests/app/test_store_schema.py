@@ -186,3 +186,22 @@ def _implementations(run: RunReader) -> list[Placed]:
             path = f"implementation/{name}/{spec.path}"
             placed.append(Placed(path, spec.shape, spec.dtype, spec.row))
     return placed
+
+
+def test_a_run_file_written_before_a_setting_existed_loads_with_its_old_behaviour(
+    finished_run: Path, tmp_path: Path
+) -> None:
+    """A file whose stored config does not name `schedule_progress` and `judgment_pair` ran
+    with the behaviour of its time (`LEGACY_DEFAULTS`), not today's defaults."""
+    old = tmp_path / "old.h5"
+    shutil.copyfile(finished_run, old)
+    with h5py.File(old, "r+") as handle:
+        config = json.loads(handle.attrs["config"])
+        del config["training"]["schedule_progress"], config["evolution"]["judgment_pair"]
+        handle.attrs["config"] = json.dumps(config)
+    with RunReader(old) as run:
+        assert run.config.training.schedule_progress == "g-over-G"
+        assert run.config.evolution.judgment_pair == "independent"
+    with RunReader(finished_run) as run:  # a file of today names both
+        assert run.config.training.schedule_progress == "last-generation-min"
+        assert run.config.evolution.judgment_pair == "joint"
