@@ -119,6 +119,10 @@ class ExperimentJob:
     def join(self, timeout: float | None = None) -> None:
         self._thread.join(timeout)
 
+    def _echo(self, line: str) -> None:
+        if not self._stopping.is_set():  # not the runs cancelled by a stop
+            self._outcomes.append(line)
+
     def _watch(self, progress: Progress) -> None:
         self._progress = progress
         self._detail = "running on the Dask cluster"
@@ -144,7 +148,7 @@ class ExperimentJob:
                 self.runs_dir,
                 client=client,
                 quiet=True,
-                echo=self._outcomes.append,
+                echo=self._echo,
                 watch=self._watch,
             )
             self._phase, self._detail = "finished", "summary written"

@@ -161,15 +161,28 @@ def progress_line(name: str, scale: str, phase: str, counts: Counts | None) -> s
 
 
 @dataclass(frozen=True)
+class Chart:
+    """A chart's points: x, and per arm its mean over runs with its 95% band."""
+
+    x: np.ndarray
+    lines: tuple[MeanBand, ...]
+    caption: str = ""
+
+
+NO_CHART = Chart(np.zeros(0), ())
+
+
+@dataclass(frozen=True)
 class ExperimentView:
-    """One experiment at one scale, as the tab shows it."""
+    """One experiment at one scale, as the tab shows it (every chart computed already)."""
 
     name: str
     scale: str
     about: str  # markdown: what it compares
     count: ScaleCount | None
     problems: tuple[str, ...]  # why some run files cannot be used
-    results: ExperimentResults | None  # for the curves (from the summary, or the run files)
+    fitness: Chart
+    rewards: dict[str, Chart]  # by condition name, in the experiment's order
     verdicts: str  # markdown
     runs: tuple[str, ...]  # run files of this scale, e.g. "BS-seed0"
 
@@ -181,10 +194,13 @@ def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> 
     summary = runner.summary_path(runs_dir, name, scale)
     problems: tuple[str, ...] = ()
     results: ExperimentResults | None = None
+    count: ScaleCount | None
     verdicts = "No summary at this scale yet: start the experiment."
-    if spec is not None and scale in spec.scales and folder.is_dir():
+    if live:  # the job's progress counts the runs; reading every file twice is too slow
+        count = None
+    elif spec is not None and scale in spec.scales and folder.is_dir():
         status = runner.scale_status(spec, scale, runs_dir)
-        count: ScaleCount | None = ScaleCount(status.done, len(status.tasks), len(status.problems))
+        count = ScaleCount(status.done, len(status.tasks), len(status.problems))
         problems = tuple(status.problems.values())
     else:
         count = scale_count(entry, scale, runs_dir)
@@ -198,8 +214,12 @@ def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> 
     except ExperimentError as error:
         problems += (str(error),)
     runs = tuple(sorted(p.stem for p in folder.glob("*" + SUFFIX))) if folder.is_dir() else ()
+    fitness, rewards = NO_CHART, {}
+    if results is not None:
+        fitness = fitness_chart(results)
+        rewards = {c.name: reward_chart(results, c.name) for c in results.conditions}
     return ExperimentView(
-        name, scale, about(entry, results), count, problems, results, verdicts, runs
+        name, scale, about(entry, results), count, problems, fitness, rewards, verdicts, runs
     )
 
 
@@ -294,31 +314,25 @@ def _trimmed(x: np.ndarray, lines: list[MeanBand]) -> tuple[np.ndarray, list[Mea
     return x[keep], [MeanBand(ln.label, ln.color, cut(ln.mean), cut(ln.half_width)) for ln in lines]
 
 
-def fitness_lines(results: ExperimentResults) -> tuple[np.ndarray, list[MeanBand]]:
+def fitness_chart(results: ExperimentResults) -> Chart:
     """Best fitness per generation: per arm the mean over seeds and its 95% t-band."""
     length, lines = _lines(results, FITNESS, "")
-    return _trimmed(np.arange(1, length + 1, dtype=np.float64), lines)
+    x, kept = _trimmed(np.arange(1, length + 1, dtype=np.float64), lines)
+    return Chart(x, tuple(kept))
 
 
-def reward_lines(
-    results: ExperimentResults, condition: str
-) -> tuple[np.ndarray, list[MeanBand], str]:
-    """A condition's reward per step (moving average, as in the report) per arm, and a caption.
-
-    Raises:
-        DashboardInputError: the experiment has no such condition.
-    """
+def reward_chart(results: ExperimentResults, condition: str) -> Chart:
+    """A condition's reward per step (moving average, as in the report) per arm, captioned."""
     from app.experiments.figures import smoothing_window
 
-    chosen = next((c for c in results.conditions if c.name == condition), None)
-    if chosen is None:
-        raise DashboardInputError(f"{results.name} has no condition {condition!r}")
+    chosen = next(c for c in results.conditions if c.name == condition)
     window = smoothing_window(chosen.steps)
     length, lines = _lines(results, REWARD, condition, window)
     x = np.arange(length, dtype=np.float64) + (window - 1) / 2  # centre of each window
     fault = f" · sensors break at t' = {chosen.fault_step}" if chosen.fault_step is not None else ""
     caption = f"{chosen.label}: reward per step, moving average over {window} steps{fault}"
-    return (*_trimmed(x, lines), caption)
+    x, kept = _trimmed(x, lines)
+    return Chart(x, tuple(kept), caption)
 
 
 # --- runs -----------------------------------------------------------------------------------

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import viser
 from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
 
@@ -30,7 +29,7 @@ from app.dashboard.tab_runs import set_options
 from app.experiments.spec import SCALES, ExperimentSpec
 
 STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the command line
-LIVE_SECONDS = 3.0  # how often the curves are re-read from the run files while it runs
+LIVE_SECONDS = 5.0  # how often the curves are re-read from the run files while it runs
 NO_CONDITIONS = "(none)"
 
 
@@ -66,14 +65,16 @@ class ExperimentsTab:
     _wanted: tuple[str, str] | None = None  # the (experiment, scale) the page asks for
     _again: bool = False  # the wanted view is to be read (again)
     _live_at: float = 0.0
+    _closed: bool = False
     _shown: str = ""  # the progress text on the page
 
     # -- what the callbacks do (quick: they only start background work) --
 
     def refresh(self) -> None:
         """Re-read the experiments and their status, and the one chosen (in the background)."""
-        if self._catalogue is None or self._catalogue.done():
+        if not self._closed and (self._catalogue is None or self._catalogue.done()):
             self._catalogue = self._pool.submit(self._read_catalogue)
+            self._catalogue.add_done_callback(self._landed)
         self.select()
 
     def select(self) -> None:
@@ -84,7 +85,7 @@ class ExperimentsTab:
 
     def _submit(self) -> None:
         """Read the wanted view, once the view being read (if any) is done."""
-        if not self._again or (self._pending is not None and not self._pending.done()):
+        if self._closed or not self._again or (self._pending and not self._pending.done()):
             return
         self._again = False
         name, scale = self._wanted or ("", "")
@@ -92,6 +93,7 @@ class ExperimentsTab:
         if entry is not None:
             live = self._live(name, scale)
             self._pending = self._pool.submit(ev.build_view, entry, scale, self.runs_dir, live)
+            self._pending.add_done_callback(self._landed)
 
     def start(self) -> None:
         """Start the chosen experiment at the chosen scale, unless one is running."""
@@ -126,14 +128,16 @@ class ExperimentsTab:
 
     def show_condition(self) -> None:
         """Draw the chosen condition's reward curves (from results already in memory)."""
-        view = self.view
-        if view is None or view.results is None or self.condition.value == NO_CONDITIONS:
-            plots.set_mean_bands(self.reward, np.zeros(0), [])
+        view, condition = self.view, self.condition.value
+        if view is None or not view.rewards or condition == NO_CONDITIONS:
+            plots.set_mean_bands(self.reward, ev.NO_CHART.x, ())
             self.reward_caption.content = "Implementation: no curves yet."
             return
-        x, lines, caption = ev.reward_lines(view.results, self.condition.value)
-        plots.set_mean_bands(self.reward, x, lines)
-        self.reward_caption.content = caption
+        if condition not in view.rewards:
+            raise DashboardInputError(f"{view.name} has no condition {condition!r}")
+        chart = view.rewards[condition]
+        plots.set_mean_bands(self.reward, chart.x, chart.lines)
+        self.reward_caption.content = chart.caption
 
     def load_run(self) -> None:
         """Put the chosen run's best individual on the stage."""
@@ -144,22 +148,7 @@ class ExperimentsTab:
 
     def follow(self) -> None:
         """Put finished background work on the page, and the running experiment's progress."""
-        if self._catalogue is not None and self._catalogue.done():
-            catalogue, self._catalogue = self._catalogue, None
-            try:
-                self._apply_catalogue(catalogue.result())
-            except Exception as error:  # e.g. a runs dir that went away
-                self.table.content = f"⚠ could not list the experiments: {error}"
-        if self._pending is not None and self._pending.done():
-            pending, self._pending = self._pending, None
-            try:
-                view = pending.result()
-            except Exception as error:  # an unreadable folder must not stop the page's loop
-                self.about.content = f"⚠ could not read the experiment: {error}"
-            else:
-                if self._wanted == (view.name, view.scale):
-                    self._apply_view(view)
-        self._submit()
+        self._put_read()
         job = self.job
         if job is None:
             return
@@ -180,8 +169,34 @@ class ExperimentsTab:
             self._live_at = time.monotonic()
             self.select()  # the curves so far, from the run files
 
+    def _landed(self, future: Future[Any]) -> None:
+        """A background read is done: on the page with it at once (not at the loop's next turn)."""
+        if not future.cancelled():
+            with self.status.lock:
+                self._put_read()
+
+    def _put_read(self) -> None:
+        """Put the catalogue and the view read in the background on the page, once read."""
+        if self._catalogue is not None and self._catalogue.done():
+            catalogue, self._catalogue = self._catalogue, None
+            try:
+                self._apply_catalogue(catalogue.result())
+            except Exception as error:  # e.g. a runs dir that went away
+                self.table.content = f"⚠ could not list the experiments: {error}"
+        if self._pending is not None and self._pending.done():
+            pending, self._pending = self._pending, None
+            try:
+                view = pending.result()
+            except Exception as error:  # an unreadable folder must not stop the page's loop
+                self.about.content = f"⚠ could not read the experiment: {error}"
+            else:
+                if self._wanted == (view.name, view.scale):
+                    self._apply_view(view)
+        self._submit()
+
     def close(self) -> None:
         """Stop the experiment and close the cluster (the page is shutting down)."""
+        self._closed = True
         if self.job is not None:
             self.job.stop()
         self.cluster.close()
@@ -196,6 +211,8 @@ class ExperimentsTab:
     def _read_catalogue(self) -> ev.Catalogue:
         if self._shipped is None:
             self._shipped = ev.shipped_specs()
+            # Import matplotlib and scipy now, off the page, not with the first chart.
+            import app.experiments.report  # noqa: F401
         return ev.catalogue(self.runs_dir, self._shipped)
 
     def _apply_catalogue(self, rows: ev.Catalogue) -> None:
@@ -211,14 +228,8 @@ class ExperimentsTab:
             lines.append(f"{view.scale}: {view.count} runs done")
         lines += [f"⚠ {problem}" for problem in view.problems]
         self.about.content = "  \n".join(lines)
-        if view.results is not None:
-            x, fitness = ev.fitness_lines(view.results)
-            plots.set_mean_bands(self.fitness, x, fitness)
-            conditions = [c.name for c in view.results.conditions]
-        else:
-            plots.set_mean_bands(self.fitness, np.zeros(0), [])
-            conditions = []
-        set_options(self.condition, conditions, NO_CONDITIONS)
+        plots.set_mean_bands(self.fitness, view.fitness.x, view.fitness.lines)
+        set_options(self.condition, list(view.rewards), NO_CONDITIONS)
         self.show_condition()
         self.verdicts.content = view.verdicts
         set_options(self.run, view.runs, ev.NO_RUNS)
@@ -264,7 +275,7 @@ def populate_experiments_tab(
         reward_caption=gui.add_markdown(""),
         reward=plots.band_plot(gui, "Implementation: reward per step", "step"),
         verdicts=gui.add_markdown(""),
-        run=gui.add_dropdown("Experiment's run", (ev.NO_RUNS,)),
+        run=gui.add_dropdown("Run (arm-seed)", (ev.NO_RUNS,)),
     )
     load = gui.add_button("Load run on stage")
 
