@@ -27,6 +27,7 @@ from app.dashboard.scene import ArenaView, GraphView
 from app.dashboard.stage import Show, Stage, random_show
 from app.dashboard.status import Status
 from app.dashboard.tab_compare import populate_compare_tab
+from app.dashboard.tab_experiments import populate_experiments_tab
 from app.dashboard.tab_faults import populate_faults_tab
 from app.dashboard.tab_plots import populate_plots_tab
 from app.dashboard.tab_runs import populate_runs_tab
@@ -63,12 +64,13 @@ class Dashboard:
         gui.main_panel.set_width(370)
         self.status = Status(gui, self.lock)
         tabs = gui.add_tab_group()
-        show, train, faults, runs, compare = (
+        show, train, faults, runs, compare, experiments = (
             tabs.add_tab("Show", viser.Icon.EYE),
             tabs.add_tab("Train", viser.Icon.SCHOOL),
             tabs.add_tab("Faults", viser.Icon.BOLT),
             tabs.add_tab("Runs", viser.Icon.DATABASE),
             tabs.add_tab("Compare", viser.Icon.ARROWS_LEFT_RIGHT),
+            tabs.add_tab("Experiments", viser.Icon.FLASK),
         )
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
@@ -87,6 +89,10 @@ class Dashboard:
             )
         with compare:
             self.compare = populate_compare_tab(gui, self.stage, self.status, self.runs_dir)
+        with experiments:
+            self.experiments = populate_experiments_tab(
+                gui, self.status, self.runs_dir, self._show_run_file
+            )
 
         self.stage.on_staged(self._staged)
         self.refresh_runs()
@@ -131,6 +137,11 @@ class Dashboard:
         self.arena_view.set_arena(session.arena)
         self.show.staged(show)
         self.plots.staged(show)
+
+    def _show_run_file(self, path: Path) -> None:
+        """Load a run file inside the runs dir (an experiment's run) and replay its best."""
+        self.runs.load_file(path)
+        self.runs.replay()
 
     def refresh_runs(self) -> None:
         """Re-read the runs dir into every list of runs on the page."""
@@ -177,6 +188,7 @@ class Dashboard:
                         next_follow = frame_start + FOLLOW_SECONDS
                         self.train.follow()
                         self.runs.follow_implementation()
+                        self.experiments.follow()
                         self.show.refresh()
             except Exception:  # keep the page alive; say what went wrong
                 self.status.set(
@@ -195,12 +207,13 @@ class Dashboard:
                 self.plots.draw(robots, self.stage.noise_sigma)
 
     def stop(self) -> None:
-        """Stop the loop, any training or implementation job, and close files."""
+        """Stop the loop, any training, implementation or experiment, and close files."""
         self._stop.set()
         self._thread.join(timeout=5)
         with self.lock:
             self.train.close()
             self.runs.close()
+            self.experiments.close()
 
 
 def _raise_interrupt(signum: int, frame: object) -> None:

@@ -7,6 +7,7 @@ is block-averaged to at most `MAX_POINTS`), so a long session never grows a char
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -151,3 +152,49 @@ def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
 def set_implementation(plot: viser.GuiUplotHandle, reward: np.ndarray, fault_step: int) -> None:
     x, y = block_mean(reward, MAX_POINTS)
     plot.data = (x, y, (x >= fault_step).astype(np.float64))
+
+
+@dataclass(frozen=True)
+class MeanBand:
+    """One line of a mean-and-band chart: a mean over runs and its 95% half-width."""
+
+    label: str
+    color: tuple[int, int, int]
+    mean: np.ndarray
+    half_width: np.ndarray  # NaN where undefined (fewer than 2 runs): no band there
+
+
+def band_plot(gui: viser.GuiApi, title: str, x_label: str) -> viser.GuiUplotHandle:
+    """An empty chart for `set_mean_bands`."""
+    return gui.add_uplot(
+        data=_empty(2),
+        series=({"label": x_label}, {"label": "(nothing yet)"}),
+        title=title,
+        scales=X_NOT_TIME,
+        aspect=1.6,
+    )
+
+
+def set_mean_bands(plot: viser.GuiUplotHandle, x: np.ndarray, lines: Sequence[MeanBand]) -> None:
+    """One bold mean per line with its band filled between faint upper and lower bounds."""
+    x_label = plot.series[0].get("label", "x")
+    series: list[dict[str, Any]] = [{"label": x_label}]
+    data: list[np.ndarray] = [np.asarray(x, np.float64)]
+    bands: list[dict[str, Any]] = []
+    for line in lines:
+        mean = np.asarray(line.mean, np.float64)
+        half = np.nan_to_num(np.asarray(line.half_width, np.float64))  # no band: zero width
+        faint = {"stroke": _rgb(line.color, 0.35), "width": 1.0}
+        series += [
+            {"label": line.label, "stroke": _rgb(line.color), "width": 2.0},
+            {"label": "+95%", **faint},
+            {"label": "−95%", **faint},
+        ]
+        data += [mean, mean + half, mean - half]
+        bands.append({"series": (len(series) - 2, len(series) - 1), "fill": _rgb(line.color, 0.15)})
+    if not lines:
+        series.append({"label": "(nothing yet)"})
+        data = [np.zeros(1), np.zeros(1)]
+    plot.data = tuple(data)
+    plot.series = tuple(series)  # type: ignore[assignment]
+    plot.bands = tuple(bands)  # type: ignore[arg-type]

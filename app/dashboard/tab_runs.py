@@ -57,8 +57,15 @@ class RunsTab:
         self.table.content = runs_table(runs, self.runs_dir)
 
     def load(self, name: str) -> None:
-        """Load a run: its summary, fitness history, stored implementation, fault settings."""
-        reader = open_run(self.runs_dir, name)
+        """Load a run of the runs dir: its summary, fitness history, stored implementation,
+        fault settings."""
+        self._load(open_run(self.runs_dir, name), name)
+
+    def load_file(self, path: Path) -> None:
+        """Load a run file another tab found inside the runs dir (an experiment's run)."""
+        self._load(store.RunReader(path), str(path.relative_to(self.runs_dir).with_suffix("")))
+
+    def _load(self, reader: store.RunReader, name: str) -> None:
         if self.loaded is not None:
             self.loaded.close()
         self.loaded = reader
@@ -231,10 +238,12 @@ def populate_runs_tab(
     return tab
 
 
-def set_options(dropdown: viser.GuiDropdownHandle[str], names: Sequence[str]) -> None:
-    """Offer `names` (or the no-runs placeholder), keeping the choice if it is still there."""
+def set_options(
+    dropdown: viser.GuiDropdownHandle[str], names: Sequence[str], empty: str = NO_RUNS
+) -> None:
+    """Offer `names` (or the `empty` placeholder), keeping the choice if it is still there."""
     current = dropdown.value
-    options = tuple(names) or (NO_RUNS,)
+    options = tuple(names) or (empty,)
     dropdown.options = options
     if current in options:
         set_value(dropdown, current)

@@ -181,19 +181,12 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     from app.experiments import runner
 
-    tasks = runner.plan(spec, args.scale, args.runs_dir, args.seeds)
-    states, problems = [], {}
-    for task in tasks:
-        try:
-            states.append(runner.inspect(task))
-        except ExperimentError as error:  # a foreign file, or one being replaced right now
-            states.append(runner.RunState(generations=task.config.training.generations))
-            problems[task.key] = str(error)
-    done = sum(s.complete(t) for s, t in zip(states, tasks, strict=True))
+    status = runner.scale_status(spec, args.scale, args.runs_dir, args.seeds)
+    tasks, states, problems = status.tasks, status.states, status.problems
     generations = sum(s.generations_done for s in states), sum(s.generations for s in states)
     conditions = sum(len(s.conditions) for s in states), sum(len(t.conditions) for t in tasks)
     print(
-        f"{spec.name} at scale {args.scale}: {done}/{len(tasks)} runs done, "
+        f"{spec.name} at scale {args.scale}: {status.done}/{len(tasks)} runs done, "
         f"{generations[0]}/{generations[1]} generations, "
         f"{conditions[0]}/{conditions[1]} conditions"
     )

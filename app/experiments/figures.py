@@ -75,7 +75,8 @@ def _new_figure(width: float = 7.0, height: float = 4.0) -> Figure:
     return figure
 
 
-def _arm_colours(results: ExperimentResults) -> dict[str, str]:
+def arm_colours(results: ExperimentResults) -> dict[str, str]:
+    """Each arm's matplotlib colour ("C0", "C1", ...), in the order of the arms."""
     return {arm.name: f"C{i % 10}" for i, arm in enumerate(results.arms)}
 
 
@@ -95,7 +96,7 @@ def _plot_mean_band(axes: Axes, x: np.ndarray, curves: np.ndarray, colour: str, 
 def fitness_figure(results: ExperimentResults) -> Figure | None:
     """Best fitness per generation, mean over runs with its 95% band, one line per arm."""
     metric = METRICS["best_fitness_curve"]
-    colours = _arm_colours(results)
+    colours = arm_colours(results)
     figure = _new_figure()
     axes = figure.add_subplot()
     drawn = False
@@ -118,7 +119,7 @@ def fitness_figure(results: ExperimentResults) -> Figure | None:
 def reward_figure(results: ExperimentResults, condition: Condition) -> Figure | None:
     """Smoothed reward per step over one condition's implementation, one line per arm."""
     metric = METRICS["reward_per_step"]
-    colours = _arm_colours(results)
+    colours = arm_colours(results)
     figure = _new_figure()
     axes = figure.add_subplot()
     window = smoothing_window(condition.steps)
@@ -173,7 +174,7 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
     conditions = fault_conditions(results)
     if not conditions:
         return None
-    colours = _arm_colours(results)
+    colours = arm_colours(results)
     noise_levels = sorted({c.noise_sigma for c in conditions})
     figure = _new_figure()
     axes = figure.add_subplot()
@@ -216,7 +217,7 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
 def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | None:
     """Each run's value of a comparison's metric for its two arms, with the mean and 95% t-CI."""
     metric = METRICS[comparison.metric]
-    colours = _arm_colours(results)
+    colours = arm_colours(results)
     figure = _new_figure(4.0, 3.2)
     axes = figure.add_subplot()
     drawn = False

@@ -16,6 +16,20 @@ if TYPE_CHECKING:
 TOPIC = "gnp-lab-progress"
 
 
+@dataclass(frozen=True)
+class Counts:
+    """How far an experiment is: runs complete, generations and conditions done, and the
+    runs under way as (run name, generations done, generations)."""
+
+    runs_done: int
+    runs: int
+    generations_done: int
+    generations: int
+    conditions_done: int
+    conditions: int
+    under_way: tuple[tuple[str, int, int], ...]
+
+
 @dataclass
 class Progress:
     """One bar over the whole experiment, in work units (robot-steps of training generations
@@ -55,13 +69,36 @@ class Progress:
             for t in self.tasks
         )
 
+    def _counts(self) -> Counts:
+        done, under_way = 0, []
+        for task in self.tasks:
+            generations = self._generations[task.key]
+            total = task.config.training.generations
+            conditions = len(self._conditions[task.key])
+            if generations >= total and conditions == len(task.conditions):
+                done += 1
+            elif generations or conditions:
+                under_way.append((task.name, generations, total))
+        return Counts(
+            runs_done=done,
+            runs=len(self.tasks),
+            generations_done=sum(self._generations.values()),
+            generations=sum(t.config.training.generations for t in self.tasks),
+            conditions_done=sum(len(c) for c in self._conditions.values()),
+            conditions=sum(len(t.conditions) for t in self.tasks),
+            under_way=tuple(under_way),
+        )
+
+    def counts(self) -> Counts:
+        """How far the experiment is now (safe to call from any thread)."""
+        with self._lock:
+            return self._counts()
+
     def _refresh(self) -> None:
-        generations = sum(self._generations.values())
-        total = sum(t.config.training.generations for t in self.tasks)
-        conditions = sum(len(c) for c in self._conditions.values())
-        total_conditions = sum(len(t.conditions) for t in self.tasks)
+        c = self._counts()
         self._bar.set_postfix_str(
-            f"gen {generations}/{total} cond {conditions}/{total_conditions}", refresh=False
+            f"gen {c.generations_done}/{c.generations} cond {c.conditions_done}/{c.conditions}",
+            refresh=False,
         )
         self._bar.update(self._done() - self._bar.n)
 

@@ -30,6 +30,7 @@ from app.experiments.summary import write_summary
 from app.store import RunFileError, RunReader
 
 Echo = Callable[[str], None]
+Watch = Callable[[Progress], None]
 
 
 # --- the folder -----------------------------------------------------------------------------
@@ -178,6 +179,35 @@ def inspect(task: Task) -> RunState:
     return state
 
 
+@dataclass(frozen=True)
+class ScaleStatus:
+    """What an experiment's folder holds at one scale, run by run."""
+
+    tasks: tuple[Task, ...]
+    states: tuple[RunState, ...]  # empty for a run whose file cannot be used
+    problems: dict[str, str]  # task key → why its file cannot be used
+
+    @property
+    def done(self) -> int:
+        """Runs trained with every condition implemented."""
+        return sum(s.complete(t) for s, t in zip(self.states, self.tasks, strict=True))
+
+
+def scale_status(
+    spec: ExperimentSpec, scale: str, runs_dir: str | Path, seeds: int | None = None
+) -> ScaleStatus:
+    """Every run's state at `scale`; a foreign or half-replaced file is a problem, not an error."""
+    tasks = plan(spec, scale, runs_dir, seeds)
+    states, problems = [], {}
+    for task in tasks:
+        try:
+            states.append(inspect(task))
+        except ExperimentError as error:  # a foreign file, or one being replaced right now
+            states.append(RunState(generations=task.config.training.generations))
+            problems[task.key] = str(error)
+    return ScaleStatus(tuple(tasks), tuple(states), problems)
+
+
 # --- one task (runs inside a Dask worker, or in-process) -------------------------------------
 
 
@@ -311,9 +341,16 @@ def _ignoring_ctrl_c() -> Iterator[None]:
 
 
 def execute(
-    tasks: list[Task], client: Any, quiet: bool = False, echo: Echo | None = None
+    tasks: list[Task],
+    client: Any,
+    quiet: bool = False,
+    echo: Echo | None = None,
+    watch: Watch | None = None,
 ) -> list[str]:
-    """Run the unfinished tasks on `client`; returns the errors of the tasks that failed."""
+    """Run the unfinished tasks on `client`; returns the errors of the tasks that failed.
+
+    `watch` is given the live `Progress` once the tasks are submitted (to read its counts).
+    """
     import sys
 
     from distributed import as_completed
@@ -331,6 +368,8 @@ def execute(
     errors = []
     try:
         futures = {client.submit(run_task, t, key=t.key, pure=False, retries=2): t for t in todo}
+        if watch is not None:
+            watch(progress)
         for future in as_completed(futures):
             task = futures[future]
             try:
@@ -412,11 +451,13 @@ def run_experiment(
     workers: int | None = None,
     quiet: bool = False,
     echo: Echo | None = None,
+    watch: Watch | None = None,
 ) -> ExperimentResults:
     """Run (or finish) an experiment, then write and return its summary.
 
     `client` (an existing Dask client) wins over `scheduler`; with neither, a LocalCluster is
-    started for the run and closed after it.
+    started for the run and closed after it. `echo` gets each run's outcome line, `watch` the
+    live `Progress` (see `execute`).
 
     Raises:
         ExperimentError: a run file holds another config, or some runs failed (the summary
@@ -428,10 +469,10 @@ def run_experiment(
     if all(state.complete(task) for state, task in zip(states, tasks, strict=True)):
         errors: list[str] = []
     elif client is not None:
-        errors = execute(tasks, client, quiet, echo)
+        errors = execute(tasks, client, quiet, echo, watch)
     else:
         with connect(scheduler, workers) as own:
-            errors = execute(tasks, own, quiet, echo)
+            errors = execute(tasks, own, quiet, echo, watch)
     results = collect(spec, scale, runs_dir, seeds)
     write_summary(results, summary_path(runs_dir, spec.name, scale))
     if errors:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -35,3 +37,82 @@ def sent(page: Any, action: Callable[[], None], *values: str) -> None:
     count = page.evaluate("window.gnpLabSent.length")
     action()
     page.wait_for_function(SENT_SINCE, arg=[count, list(values)], polling=50)
+
+
+def viewport() -> dict[str, int]:
+    """1280x720 by default (software WebGL is slow); GNP_LAB_VIEWPORT=1600x900 for docs."""
+    width, height = os.environ.get("GNP_LAB_VIEWPORT", "1280x720").split("x")
+    return {"width": int(width), "height": int(height)}
+
+
+def open_page(browser: Any, url: str) -> Any:
+    """A new page on the dashboard at `url`, recording what it sends, once it shows its status."""
+    page = browser.new_page(viewport=viewport())
+    page.set_default_timeout(TIMEOUT_MS)
+    page.add_init_script(RECORD_SENT)
+    page.goto(url)
+    page.add_style_tag(content=HIDE_WEBGL_NOTICE)
+    page.get_by_text("Status:").first.wait_for()
+    return page
+
+
+def field(page: Any, label: str) -> Any:
+    """The input on the row of a GUI control's label (viser breaks long labels with <wbr> and
+    does not always link the two)."""
+    row = "ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
+    return page.locator(f'xpath=//label[normalize-space(.)="{label}"]/{row}//input').first
+
+
+def choose(page: Any, label: str, option: str) -> None:
+    """Pick `option` in the dropdown labelled `label`."""
+    box = field(page, label)
+    if box.input_value() == option:
+        return  # picking the chosen option again would unset it
+
+    def pick() -> None:
+        box.click()
+        page.get_by_role("option", name=option, exact=True).click()
+
+    sent(page, pick, option)
+
+
+def type_into(page: Any, label: str, value: str) -> None:
+    """Type `value` into the input labelled `label`."""
+    box = field(page, label)
+    if box.input_value() == value:
+        return  # nothing changes, nothing is sent
+
+    def type_value() -> None:
+        box.fill(value)
+        box.press("Enter")
+        box.blur()
+
+    sent(page, type_value, value)
+
+
+def press(page: Any, button: str) -> None:
+    """Click a button (alone it sends True, in a group its name)."""
+    sent(page, page.get_by_role("button", name=button).click, button, "true")
+
+
+LINE_MATCH = """([prefix, pattern]) => {
+  const line = [...document.querySelectorAll("p")].find((p) => p.innerText.startsWith(prefix));
+  const match = line && new RegExp(pattern).exec(line.innerText);
+  return match ? match[0] : null;
+}"""
+
+
+def wait_for_line(page: Any, prefix: str, pattern: str) -> re.Match[str]:
+    """Wait until the page's paragraph starting with `prefix` matches `pattern` (a JavaScript
+    RegExp, same syntax here); the match is the text as it was when it matched."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    try:
+        found = page.wait_for_function(LINE_MATCH, arg=[prefix, pattern], polling=100)
+    except PlaywrightTimeout:
+        line = page.get_by_text(re.compile("^" + re.escape(prefix))).first
+        text = line.inner_text() if line.count() else "(no such line)"
+        raise AssertionError(f"{prefix!r} never matched {pattern!r}; last: {text}") from None
+    match = re.search(pattern, found.json_value())
+    assert match is not None
+    return match

@@ -7,14 +7,13 @@ Each state is saved as a screenshot under test-output/dashboard/.
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from page_helpers import HIDE_WEBGL_NOTICE, RECORD_SENT, TIMEOUT_MS, sent
+from page_helpers import TIMEOUT_MS, choose, field, open_page, press, sent, type_into
 
 # One server and one page per module, used in order (pytest-xdist: run with --dist loadgroup).
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
@@ -26,25 +25,6 @@ READOUT_MATCH = """([pattern, atLeast]) => {
   const match = readout && new RegExp(pattern).exec(readout.innerText);
   return match && (atLeast === null || Number(match[1]) >= atLeast) ? match[0] : null;
 }"""
-
-"""viser's notice that WebGL runs in software (always, headless): cosmetic, kept off the
-screenshots."""
-
-
-def viewport() -> dict[str, int]:
-    """1280x720 by default (software WebGL is slow); GNP_LAB_VIEWPORT=1600x900 for docs."""
-    width, height = os.environ.get("GNP_LAB_VIEWPORT", "1280x720").split("x")
-    return {"width": int(width), "height": int(height)}
-
-
-def open_page(browser: Any, url: str) -> Any:
-    page = browser.new_page(viewport=viewport())
-    page.set_default_timeout(TIMEOUT_MS)
-    page.add_init_script(RECORD_SENT)
-    page.goto(url)
-    page.add_style_tag(content=HIDE_WEBGL_NOTICE)
-    page.get_by_text("Status:").first.wait_for()
-    return page
 
 
 def readout(page: Any) -> str:
@@ -88,42 +68,6 @@ def on_show(page: Any) -> Any:
 
 def status(page: Any) -> str:
     return str(page.get_by_text(re.compile("^Status:")).first.locator("..").inner_text())
-
-
-def field(page: Any, label: str) -> Any:
-    """The input on the row of a GUI control's label (viser does not always link the two)."""
-    row = "ancestor::div[contains(@class, 'mantine-Flex-root')][1]"
-    return page.locator(f'xpath=//label[normalize-space(text())="{label}"]/{row}//input').first
-
-
-def choose(page: Any, label: str, option: str) -> None:
-    box = field(page, label)
-    if box.input_value() == option:
-        return  # picking the chosen option again would unset it
-
-    def pick() -> None:
-        box.click()
-        page.get_by_role("option", name=option, exact=True).click()
-
-    sent(page, pick, option)
-
-
-def type_into(page: Any, label: str, value: str) -> None:
-    box = field(page, label)
-    if box.input_value() == value:
-        return  # nothing changes, nothing is sent
-
-    def type_value() -> None:
-        box.fill(value)
-        box.press("Enter")
-        box.blur()
-
-    sent(page, type_value, value)
-
-
-def press(page: Any, button: str) -> None:
-    """Click a button (alone it sends True, in a group its name)."""
-    sent(page, page.get_by_role("button", name=button).click, button, "true")
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,297 @@
+"""The Experiments tab: the shipped and saved experiments with their status, starting one at
+`smoke` or `small` scale on the dashboard's Dask cluster, its progress live, its fitness and
+implementation curves per arm with 95% bands, the comparison table with verdicts, and any of
+its runs on the stage.
+
+Callbacks only record choices and start threads: reading run files, statistics and curves are
+computed in one background thread (`experiment_view`), the experiment in another
+(`ExperimentJob`); `follow`, called by the page's loop, puts what they finished on the page.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import viser
+from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
+
+from app.dashboard import experiment_view as ev
+from app.dashboard import plots
+from app.dashboard.controls import DashboardInputError
+from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
+from app.dashboard.status import Status, set_value
+from app.dashboard.tab_runs import set_options
+from app.experiments.spec import SCALES, ExperimentSpec
+
+STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the command line
+LIVE_SECONDS = 5.0  # how often the curves are re-read from the run files while it runs
+NO_CONDITIONS = "(none)"
+
+
+@dataclass
+class ExperimentsTab:
+    """The Experiments tab's handles, what it shows, and the experiment it started."""
+
+    status: Status
+    runs_dir: Path
+    show_run: Callable[[Path], None]  # put a run file's best on the stage (the Runs tab's way)
+    table: viser.GuiMarkdownHandle
+    experiment: viser.GuiDropdownHandle[str]
+    scale: viser.GuiDropdownHandle[str]
+    progress: GuiProgressBarHandle
+    progress_text: viser.GuiMarkdownHandle
+    about: viser.GuiMarkdownHandle
+    fitness: viser.GuiUplotHandle
+    condition: viser.GuiDropdownHandle[str]
+    reward_caption: viser.GuiMarkdownHandle
+    reward: viser.GuiUplotHandle
+    verdicts: viser.GuiMarkdownHandle
+    run: viser.GuiDropdownHandle[str]
+    cluster: DaskCluster = field(default_factory=DaskCluster)
+    job: ExperimentJob | None = None
+    view: ev.ExperimentView | None = None
+    entries: dict[str, ev.Entry] = field(default_factory=dict)
+    _pool: ThreadPoolExecutor = field(
+        default_factory=lambda: ThreadPoolExecutor(1, thread_name_prefix="experiments-view")
+    )
+    _shipped: tuple[ExperimentSpec, ...] | None = None
+    _catalogue: Future[ev.Catalogue] | None = None
+    _pending: Future[ev.ExperimentView] | None = None
+    _wanted: tuple[str, str] | None = None  # the (experiment, scale) the page asks for
+    _again: bool = False  # the wanted view is to be read (again)
+    _live_at: float = 0.0
+    _closed: bool = False
+    _shown: str = ""  # the progress text on the page
+
+    # -- what the callbacks do (quick: they only start background work) --
+
+    def refresh(self) -> None:
+        """Re-read the experiments and their status, and the one chosen (in the background)."""
+        if not self._closed and (self._catalogue is None or self._catalogue.done()):
+            self._catalogue = self._pool.submit(self._read_catalogue)
+            self._catalogue.add_done_callback(self._landed)
+        self.select()
+
+    def select(self) -> None:
+        """Show the chosen experiment at the chosen scale (read in the background)."""
+        self._wanted = (self.experiment.value, self.scale.value)
+        self._again = True
+        self._submit()
+
+    def _submit(self) -> None:
+        """Read the wanted view, once the view being read (if any) is done."""
+        if self._closed or not self._again or (self._pending and not self._pending.done()):
+            return
+        self._again = False
+        name, scale = self._wanted or ("", "")
+        entry = self.entries.get(name)
+        if entry is not None:
+            live = self._live(name, scale)
+            self._pending = self._pool.submit(ev.build_view, entry, scale, self.runs_dir, live)
+            self._pending.add_done_callback(self._landed)
+
+    def start(self) -> None:
+        """Start the chosen experiment at the chosen scale, unless one is running."""
+        if self.job is not None and self.job.active:
+            running = f"{self.job.spec.name} at {self.job.scale}"
+            raise DashboardInputError(f"experiment {running} is running: one at a time")
+        name, scale = self.experiment.value, self.scale.value
+        entry = self.entries.get(name)
+        if entry is None:
+            raise DashboardInputError("choose an experiment first")
+        if entry.spec is None:
+            raise DashboardInputError(
+                f"{name} is a saved experiment without its file here: run it with "
+                f"`gnp-lab experiment run --file FILE --scale {scale}`"
+            )
+        if scale not in STARTABLE_SCALES:
+            raise DashboardInputError(
+                f"the dashboard starts experiments at {' or '.join(STARTABLE_SCALES)} scale; "
+                f"run {scale} with `gnp-lab experiment run {name} --scale {scale}`"
+            )
+        if scale not in entry.spec.scales:
+            raise DashboardInputError(f"{name} has no {scale} scale")
+        self.job = ExperimentJob(entry.spec, scale, self.runs_dir, self.cluster)
+        self._shown = ""
+        self.status.set(f"experiment {name} at {scale} started")
+
+    def stop(self) -> None:
+        if self.job is None or not self.job.active:
+            raise DashboardInputError("no experiment is running")
+        self.job.stop()
+        self.status.set(f"stopping experiment {self.job.spec.name}")
+
+    def show_condition(self) -> None:
+        """Draw the chosen condition's reward curves (from results already in memory)."""
+        view, condition = self.view, self.condition.value
+        if view is None or not view.rewards or condition == NO_CONDITIONS:
+            plots.set_mean_bands(self.reward, ev.NO_CHART.x, ())
+            self.reward_caption.content = "Implementation: no curves yet."
+            return
+        if condition not in view.rewards:
+            raise DashboardInputError(f"{view.name} has no condition {condition!r}")
+        chart = view.rewards[condition]
+        plots.set_mean_bands(self.reward, chart.x, chart.lines)
+        self.reward_caption.content = chart.caption
+
+    def load_run(self) -> None:
+        """Put the chosen run's best individual on the stage."""
+        path = ev.run_file(self.runs_dir, self.experiment.value, self.scale.value, self.run.value)
+        self.show_run(path)
+
+    # -- called by the page's loop, under its lock --
+
+    def follow(self) -> None:
+        """Put finished background work on the page, and the running experiment's progress."""
+        self._put_read()
+        job = self.job
+        if job is None:
+            return
+        snapshot = job.snapshot()
+        self._show_progress(job, snapshot)
+        if not job.active and not job.reported:
+            job.reported = True
+            self.refresh()
+            if snapshot.phase == "failed":
+                self.status.set(f"⚠ experiment {job.spec.name} failed: {snapshot.detail}")
+            else:
+                self.status.set(f"experiment {job.spec.name} at {job.scale} {snapshot.phase}")
+        elif (
+            self._wanted is not None
+            and self._live(*self._wanted)
+            and time.monotonic() - self._live_at > LIVE_SECONDS
+        ):
+            self._live_at = time.monotonic()
+            self.select()  # the curves so far, from the run files
+
+    def _landed(self, future: Future[Any]) -> None:
+        """A background read is done: on the page with it at once (not at the loop's next turn)."""
+        if not future.cancelled():
+            with self.status.lock:
+                self._put_read()
+
+    def _put_read(self) -> None:
+        """Put the catalogue and the view read in the background on the page, once read."""
+        if self._catalogue is not None and self._catalogue.done():
+            catalogue, self._catalogue = self._catalogue, None
+            try:
+                self._apply_catalogue(catalogue.result())
+            except Exception as error:  # e.g. a runs dir that went away
+                self.table.content = f"⚠ could not list the experiments: {error}"
+        if self._pending is not None and self._pending.done():
+            pending, self._pending = self._pending, None
+            try:
+                view = pending.result()
+            except Exception as error:  # an unreadable folder must not stop the page's loop
+                self.about.content = f"⚠ could not read the experiment: {error}"
+            else:
+                if self._wanted == (view.name, view.scale):
+                    self._apply_view(view)
+        self._submit()
+
+    def close(self) -> None:
+        """Stop the experiment and close the cluster (the page is shutting down)."""
+        self._closed = True
+        if self.job is not None:
+            self.job.stop()
+        self.cluster.close()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
+    # -- helpers --
+
+    def _live(self, name: str, scale: str) -> bool:
+        job = self.job
+        return job is not None and job.active and (job.spec.name, job.scale) == (name, scale)
+
+    def _read_catalogue(self) -> ev.Catalogue:
+        if self._shipped is None:
+            self._shipped = ev.shipped_specs()
+            # Import matplotlib and scipy now, off the page, not with the first chart.
+            import app.experiments.report  # noqa: F401
+        return ev.catalogue(self.runs_dir, self._shipped)
+
+    def _apply_catalogue(self, rows: ev.Catalogue) -> None:
+        self.entries = {entry.name: entry for entry, _ in rows}
+        self.table.content = ev.catalogue_table(rows)
+        set_options(self.experiment, list(self.entries), ev.NO_EXPERIMENTS)
+        self.select()
+
+    def _apply_view(self, view: ev.ExperimentView) -> None:
+        self.view = view
+        lines = [view.about]
+        if view.count is not None:
+            lines.append(f"{view.scale}: {view.count} runs done")
+        lines += [f"⚠ {problem}" for problem in view.problems]
+        self.about.content = "  \n".join(lines)
+        plots.set_mean_bands(self.fitness, view.fitness.x, view.fitness.lines)
+        set_options(self.condition, list(view.rewards), NO_CONDITIONS)
+        self.show_condition()
+        self.verdicts.content = view.verdicts
+        set_options(self.run, view.runs, ev.NO_RUNS)
+
+    def _show_progress(self, job: ExperimentJob, snapshot: JobSnapshot) -> None:
+        phase = snapshot.detail if job.active else f"{snapshot.phase}: {snapshot.detail}"
+        text = ev.progress_line(job.spec.name, job.scale, phase, snapshot.counts)
+        text += f"  \n{snapshot.seconds:.0f} s"
+        text += "".join(f"  \n{line}" for line in snapshot.outcomes)
+        if text == self._shown:
+            return
+        self._shown = text
+        self.progress_text.content = text
+        counts = snapshot.counts
+        if counts is not None and counts.generations:
+            done = counts.generations_done + counts.conditions_done
+            set_value(self.progress, 100.0 * done / (counts.generations + counts.conditions))
+
+
+def populate_experiments_tab(
+    gui: viser.GuiApi, status: Status, runs_dir: Path, show_run: Callable[[Path], None]
+) -> ExperimentsTab:
+    """Add the Experiments tab's controls (inside the current tab) and attach their callbacks.
+
+    `show_run(path)` puts a run file's best individual on the stage.
+    """
+    table = gui.add_markdown("Reading the experiments…")
+    experiment = gui.add_dropdown("Experiment", (ev.NO_EXPERIMENTS,))
+    scale = gui.add_dropdown("Scale", SCALES, initial_value=STARTABLE_SCALES[0])
+    buttons = gui.add_button_group("Experiment run", ("Start", "Stop", "Refresh"))
+    tab = ExperimentsTab(
+        status=status,
+        runs_dir=runs_dir,
+        show_run=show_run,
+        table=table,
+        experiment=experiment,
+        scale=scale,
+        progress=gui.add_progress_bar(0.0),
+        progress_text=gui.add_markdown("experiment: none started"),
+        about=gui.add_markdown(""),
+        fitness=plots.band_plot(gui, "Training: best fitness (mean, 95% band)", "generation"),
+        condition=gui.add_dropdown("Condition", (NO_CONDITIONS,)),
+        reward_caption=gui.add_markdown(""),
+        reward=plots.band_plot(gui, "Implementation: reward per step", "step"),
+        verdicts=gui.add_markdown(""),
+        run=gui.add_dropdown("Run (arm-seed)", (ev.NO_RUNS,)),
+    )
+    load = gui.add_button("Load run on stage")
+
+    actions: dict[str, Callable[[], None]] = {
+        "Start": tab.start,
+        "Stop": tab.stop,
+        "Refresh": tab.refresh,
+    }
+    buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
+
+    def guarded(action: Callable[[], None]) -> Callable[[Any], None]:
+        return lambda event: status.guarded(event.client, action)
+
+    experiment.on_update(guarded(tab.select))
+    scale.on_update(guarded(tab.select))
+    tab.condition.on_update(guarded(tab.show_condition))
+    load.on_click(guarded(tab.load_run))
+    tab.refresh()
+    return tab

@@ -1,0 +1,304 @@
+"""The Experiments tab without a browser: listing and status, the view of an experiment (curves,
+verdicts, runs), refused actions and their messages, and run paths that stay in the runs dir.
+
+The runs are ch3-bs-rl's at smoke scale, run in this process by the runner's own task function
+(no Dask: the tab reads folders, whoever wrote them); the browser test starts one on Dask.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import shutil
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app import store
+from app.dashboard import experiment_view as ev
+from app.dashboard.controls import DashboardInputError
+from app.dashboard.experiment_job import DaskCluster, ExperimentJob
+from app.dashboard.plots import MAX_POINTS
+from app.experiments import runner
+from app.experiments.figures import mean_and_ci
+from app.experiments.progress import Counts
+from app.experiments.report import REPORT_SEED, analyse, format_number
+from app.experiments.results import VERDICTS
+from app.experiments.spec import ExperimentSpec, load_shipped
+from app.experiments.summary import read_summary, write_summary
+
+NAME, SCALE = "ch3-bs-rl", "smoke"
+VERDICT = re.compile(r"\*\*(held|reversed|not shown)\*\* \|$", re.MULTILINE)
+
+
+@pytest.fixture(scope="module")
+def spec() -> ExperimentSpec:
+    return load_shipped(NAME)
+
+
+@pytest.fixture(scope="module")
+def finished(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A runs dir holding ch3-bs-rl at smoke scale, every run done, and its summary."""
+    runs = tmp_path_factory.mktemp("experiment-runs")
+    for task in runner.plan(spec, SCALE, runs):
+        runner.run_task(task)
+    write_summary(runner.collect(spec, SCALE, runs), runner.summary_path(runs, NAME, SCALE))
+    return runs
+
+
+@pytest.fixture
+def runs(finished: Path, tmp_path: Path) -> Path:
+    """A copy of the finished runs dir, to change."""
+    shutil.copytree(finished, tmp_path / "runs")
+    return tmp_path / "runs"
+
+
+def save_other(runs: Path, spec: ExperimentSpec, name: str = "mine") -> None:
+    """A saved experiment the dashboard has no file of: ch3's summary under another name,
+    with BS seed 1's runs unfinished."""
+    results = read_summary(runner.summary_path(runs, NAME, SCALE))
+    scalars = dict(results.scalars)
+    scalars[("final_best_fitness", "BS", "")] = np.array([0.5, np.nan])
+    other = dataclasses.replace(results, name=name, scalars=scalars)
+    write_summary(other, runner.summary_path(runs, name, SCALE))
+
+
+def test_the_catalogue_lists_shipped_and_saved_experiments_with_runs_done(
+    runs: Path, spec: ExperimentSpec
+) -> None:
+    save_other(runs, spec)
+    (runs / "experiments" / ".hidden").mkdir()  # not an experiment name: not offered
+    (runs / "experiments" / "notes.txt").write_text("not a folder")
+    rows = ev.catalogue(runs, ev.shipped_specs())
+    names = [entry.name for entry, _ in rows]
+    assert names[-1] == "mine" and NAME in names and ".hidden" not in names
+    table = ev.catalogue_table(rows)
+    assert "| ch3-bs-rl | 4/4 | 0/20 | 0/20 |" in table
+    assert "| ch2-fuzzy-crisp | 0/4 | 0/20 | 0/20 |" in table
+    assert "| mine (saved) | 3/4 | – | – |" in table
+    mine = dict((e.name, e) for e, _ in rows)["mine"]
+    assert mine.spec is None and mine.scales(runs) == (SCALE,)
+
+
+def test_a_foreign_run_file_is_reported_not_raised(
+    runs: Path, spec: ExperimentSpec, tmp_path: Path
+) -> None:
+    folder = runs / "experiments" / NAME / SCALE
+    shutil.copyfile(folder / "RL-seed0.h5", folder / "BS-seed0.h5")  # another arm's config
+    entry = ev.Entry(NAME, spec)
+    count = ev.scale_count(entry, SCALE, runs)
+    assert count is not None and (count.done, count.problems) == (3, 1) and str(count) == "3/4 ⚠"
+    view = ev.build_view(entry, SCALE, runs, live=True)
+    assert any("BS-seed0.h5 holds a run with another config" in p for p in view.problems)
+    job = ExperimentJob(spec, SCALE, runs, DaskCluster())
+    job.join(120)
+    snapshot = job.snapshot()
+    assert snapshot.phase == "failed" and "another config" in snapshot.detail
+    assert not job.cluster.started  # refused before any cluster was started
+
+
+def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec) -> None:
+    view = ev.build_view(ev.Entry(NAME, spec), SCALE, finished)
+    results = read_summary(runner.summary_path(finished, NAME, SCALE))
+    assert view.count == ev.ScaleCount(4, 4) and not view.problems
+    assert view.runs == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
+    # The verdict table holds the report's own numbers and verdicts.
+    report = analyse(results, np.random.default_rng(REPORT_SEED))
+    rows = [line for line in view.verdicts.splitlines() if line.startswith("| ")][1:]
+    assert len(rows) == len(spec.comparisons) == len(report.comparisons)
+    for row, comparison in zip(rows, report.comparisons, strict=True):
+        cells = [cell.strip() for cell in row.strip("|").split(" | ")]
+        assert cells[0].startswith(comparison.comparison.name)
+        assert cells[1] == f"BS {format_number(comparison.stats.a.mean)} ± " + format_number(
+            comparison.stats.a.sd
+        )
+        assert cells[-1] == f"**{comparison.claim.verdict}**"
+        assert comparison.claim.verdict in VERDICTS
+    # Fitness: per arm the mean over seeds per generation and its 95% half-width.
+    assert view.fitness.x.tolist() == [1.0, 2.0]
+    assert [line.label for line in view.fitness.lines] == ["BS (n = 2)", "RL (n = 2)"]
+    mean, half_width, _ = mean_and_ci(results.curve("best_fitness_curve", "RL"))
+    assert np.allclose(view.fitness.lines[1].mean, mean)
+    assert np.allclose(view.fitness.lines[1].half_width, half_width, equal_nan=True)
+    # Implementation: one chart per condition, centred moving averages of the 120 steps.
+    assert list(view.rewards) == [c.name for c in spec.conditions]
+    chart = view.rewards["break-2"]
+    assert "2 sensors break" in chart.caption and "t' = 40" in chart.caption
+    assert 0 < len(chart.x) <= MAX_POINTS and len(chart.lines) == 2
+    assert all(np.isfinite(line.mean).all() for line in chart.lines)
+
+
+def test_a_live_view_reads_the_run_files_and_waits_for_the_verdicts(
+    runs: Path, spec: ExperimentSpec
+) -> None:
+    (runs / "experiments" / NAME / SCALE / "RL-seed1.h5").unlink()  # one run not started
+    view = ev.build_view(ev.Entry(NAME, spec), SCALE, runs, live=True)
+    assert view.count is None  # while it runs, the job's progress counts the runs
+    assert view.runs == ("BS-seed0", "BS-seed1", "RL-seed0")
+    assert "when the experiment finishes" in view.verdicts
+    rl = view.fitness.lines[1]
+    assert rl.label == "RL (n = 1)" and np.isnan(rl.half_width).all()  # one run: no band
+
+
+def test_a_saved_experiment_is_shown_from_its_summary(runs: Path, spec: ExperimentSpec) -> None:
+    save_other(runs, spec)
+    view = ev.build_view(ev.Entry("mine", None), SCALE, runs)
+    assert view.count == ev.ScaleCount(3, 4)
+    assert "saved" in view.about and VERDICT.search(view.verdicts)
+    assert view.runs == ()  # its summary only: no run files
+    empty = ev.build_view(ev.Entry("mine", None), "small", runs)
+    assert empty.count is None and empty.fitness.lines == () and "No summary" in empty.verdicts
+
+
+def test_progress_lines_count_runs_generations_and_conditions() -> None:
+    counts = Counts(1, 4, 5, 8, 10, 20, (("BS-seed1", 1, 2), ("RL-seed0", 2, 2)))
+    line = ev.progress_line(NAME, SCALE, "running on the Dask cluster", counts)
+    assert line.startswith(
+        "experiment: ch3-bs-rl at smoke · running on the Dask cluster · 1/4 runs done · "
+        "generations 5/8 · conditions 10/20"
+    )
+    assert line.endswith("under way: BS-seed1 1/2, RL-seed0 2/2")
+    assert ev.progress_line(NAME, SCALE, "starting", None) == (
+        "experiment: ch3-bs-rl at smoke · starting"
+    )
+
+
+def test_an_experiments_run_resolves_inside_the_runs_dir(runs: Path, spec: ExperimentSpec) -> None:
+    path = ev.run_file(runs, NAME, SCALE, "BS-seed1")
+    assert path == Path(runner.plan(spec, SCALE, runs)[1].path)
+    assert path.resolve().is_relative_to(runs.resolve())
+
+
+@pytest.mark.parametrize(
+    ("name", "scale", "run", "error", "message"),
+    [
+        (NAME, SCALE, "../../../demo", store.RunFileError, "plain file name"),
+        (NAME, SCALE, "/etc/passwd", store.RunFileError, "plain file name"),
+        (NAME, SCALE, "..", store.RunFileError, "plain file name"),
+        (NAME, SCALE, "sub\\dir", store.RunFileError, "plain file name"),
+        (NAME, SCALE, "RL-seed7", store.RunFileError, "no run named"),
+        ("..", SCALE, "BS-seed0", DashboardInputError, "experiment name"),
+        ("../ch3-bs-rl", SCALE, "BS-seed0", DashboardInputError, "experiment name"),
+        ("/tmp", SCALE, "BS-seed0", DashboardInputError, "experiment name"),
+        (NAME, "../smoke", "BS-seed0", DashboardInputError, "scale must be one of"),
+        (NAME, SCALE, ev.NO_RUNS, DashboardInputError, "choose an experiment"),
+    ],
+)
+def test_run_paths_cannot_escape_the_runs_dir(
+    finished: Path, name: str, scale: str, run: str, error: type[Exception], message: str
+) -> None:
+    with pytest.raises(error, match=re.escape(message)):
+        ev.run_file(finished, name, scale, run)
+
+
+# --- the tab on a real (browserless) viser server --------------------------------------------
+
+
+@pytest.fixture
+def dashboard(runs: Path, spec: ExperimentSpec) -> Iterator[Any]:
+    import viser
+
+    from app.dashboard.app import Dashboard
+
+    save_other(runs, spec)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    board = Dashboard(server, runs)
+    yield board
+    board.stop()
+    server.stop()
+
+
+def until(board: Any, condition: Callable[[], bool], seconds: float = 120.0) -> None:
+    """Wait until `condition` holds, letting the tab put background work on the page."""
+    deadline = time.monotonic() + seconds
+    while True:
+        with board.lock:
+            board.experiments.follow()
+            if condition():
+                return
+        assert time.monotonic() < deadline, "the tab never reached the state"
+        time.sleep(0.05)
+
+
+def choose(board: Any, experiment: str, scale: str) -> None:
+    tab = board.experiments
+    with board.lock:
+        tab.experiment.value, tab.scale.value = experiment, scale
+        tab.select()
+
+
+def test_the_tab_shows_an_experiment_and_loads_its_run_on_the_stage(dashboard: Any) -> None:
+    tab = dashboard.experiments
+    until(dashboard, lambda: "| ch3-bs-rl | 4/4 |" in tab.table.content)
+    choose(dashboard, NAME, SCALE)
+    until(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)
+    assert tab.run.options == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
+    assert tab.condition.options == tuple(c.name for c in load_shipped(NAME).conditions)
+    assert [s["label"] for s in tab.fitness.series][1::3] == ["BS (n = 2)", "RL (n = 2)"]
+    assert len(tab.fitness.bands) == 2
+    with dashboard.lock:
+        tab.condition.value = "break-3"
+        tab.show_condition()
+    assert tab.reward_caption.content.startswith("3 sensors break")
+    with dashboard.lock:
+        tab.run.value = "RL-seed1"
+    dashboard.status.guarded(None, tab.load_run)
+    assert dashboard.status.text == "replaying the best of generation 1 of RL-seed1"
+    assert dashboard.stage.show.robots[0].label == "RL-seed1"
+    assert dashboard.runs.loaded.path == Path(ev.run_file(tab.runs_dir, NAME, SCALE, "RL-seed1"))
+    # The saved one: shown from its summary, with no runs to load.
+    choose(dashboard, "mine", SCALE)
+    until(dashboard, lambda: "**mine** (" in tab.about.content)
+    assert tab.run.options == (ev.NO_RUNS,)
+    dashboard.status.guarded(None, tab.load_run)
+    assert dashboard.status.text == "⚠ choose an experiment and one of its runs first"
+
+
+@pytest.mark.parametrize(
+    ("experiment", "scale", "message"),
+    [
+        (NAME, "thesis", "the dashboard starts experiments at smoke or small scale"),
+        ("mine", SCALE, "mine is a saved experiment without its file here"),
+        (ev.NO_EXPERIMENTS, SCALE, "choose an experiment first"),
+    ],
+)
+def test_refused_starts_say_why(dashboard: Any, experiment: str, scale: str, message: str) -> None:
+    tab = dashboard.experiments
+    until(dashboard, lambda: "mine" in tab.entries)
+    choose(dashboard, experiment, scale)
+    dashboard.status.guarded(None, tab.start)
+    assert dashboard.status.text.startswith(f"⚠ {message}")
+    assert tab.job is None
+
+
+def test_one_experiment_at_a_time(dashboard: Any) -> None:
+    tab = dashboard.experiments
+    until(dashboard, lambda: NAME in tab.entries)
+    running = SimpleNamespace(active=True, spec=SimpleNamespace(name="ch5-cs-bs-rl"), scale="small")
+    tab.job = running
+    choose(dashboard, NAME, SCALE)
+    dashboard.status.guarded(None, tab.start)
+    assert dashboard.status.text == "⚠ experiment ch5-cs-bs-rl at small is running: one at a time"
+    assert tab.job is running
+    tab.job = None
+
+
+def test_starting_a_finished_experiment_writes_its_summary_without_a_cluster(
+    dashboard: Any,
+) -> None:
+    tab = dashboard.experiments
+    summary = runner.summary_path(tab.runs_dir, NAME, SCALE)
+    summary.unlink()
+    until(dashboard, lambda: NAME in tab.entries)
+    choose(dashboard, NAME, SCALE)
+    dashboard.status.guarded(None, tab.start)
+    until(dashboard, lambda: tab.job.reported)
+    assert dashboard.status.text == "experiment ch3-bs-rl at smoke finished"
+    assert re.search(r"finished: summary written · 4/4 runs done", tab.progress_text.content)
+    assert summary.exists() and not tab.cluster.started
+    until(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)  # new summary
