@@ -83,13 +83,17 @@ def plan(
     """Every (arm, seed) task of the experiment at `scale`, arms outer, seeds inner."""
     folder = experiment_dir(runs_dir, spec.name) / scale
     tasks = []
+    starts: dict[str, int] = {}  # arena -> its start poses (loading validates: 12 ms each)
     for arm in spec.arms:
         for seed in spec.seed_list(scale, seeds):  # type: ignore[arg-type]
             config = spec.run_config(arm.name, scale, seed)
             settings = [
                 (c.name, spec.condition_settings(c, config, scale)) for c in spec.conditions
             ]
-            trials = [len(sim.load_arena(s.arena).start_poses) * s.repeats for _, s in settings]
+            for _, s in settings:
+                if s.arena not in starts:
+                    starts[s.arena] = len(sim.load_arena(s.arena).start_poses)
+            trials = [starts[s.arena] * s.repeats for _, s in settings]
             tasks.append(
                 Task(
                     arm=arm.name,
@@ -165,7 +169,9 @@ def inspect(task: Task) -> RunState:
                 )
             names = run.implementation_names()
             for name, settings_json in task.conditions:
-                stored = run.implementation(name).settings if name in names else None
+                stored = (
+                    run.implementation(name, recorded=False).settings if name in names else None
+                )
                 if stored is not None and stored.model_dump_json() != settings_json:
                     raise ExperimentError(
                         f"{path} holds an implementation {name!r} with other settings than "
@@ -254,10 +260,8 @@ def run_task(task: Task) -> dict[str, Any]:
         emit({"condition": name})
     with RunReader(path) as run:
         outcome["final_best_fitness"] = float(run.history().best_fitness[-1])
-        outcome["conditions"] = {
-            name: (run.implementation(name).mean_reward, run.implementation(name).mean_after_fault)
-            for name, _ in task.conditions
-        }
+        results = {name: run.implementation(name, recorded=False) for name, _ in task.conditions}
+    outcome["conditions"] = {n: (r.mean_reward, r.mean_after_fault) for n, r in results.items()}
     return outcome
 
 
@@ -421,7 +425,7 @@ def collect(
             if state.finished:
                 scalars[("final_best_fitness", task.arm, "")][row] = history.best_fitness[-1]
             for name in state.conditions:
-                result = run.implementation(name)
+                result = run.implementation(name, recorded=False)
                 scalars[("mean_reward", task.arm, name)][row] = result.mean_reward
                 scalars[("mean_reward_after_fault", task.arm, name)][row] = result.mean_after_fault
                 curves[("reward_per_step", task.arm, name)][row] = result.reward_per_step

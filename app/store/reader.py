@@ -254,18 +254,19 @@ class RunReader:
             return None
         return self._steady(lambda: self._trajectory("elite"))
 
-    def _trajectory(self, group: str) -> Trajectory:
-        terms = self._read(f"{group}/terms")
+    def _trajectory(self, group: str, recorded: bool = True) -> Trajectory:
+        def read(name: str) -> np.ndarray:  # without `recorded`: no trial, shapes kept
+            return self._read(name) if recorded else np.asarray(self._dataset(name)[:0])
+
+        terms = read(f"{group}/terms")
         return Trajectory(
-            poses=self._read(f"{group}/poses"),
-            readings=self._read(f"{group}/readings"),
-            observations=self._read(f"{group}/observations"),
-            commands=self._read(f"{group}/commands"),
+            poses=read(f"{group}/poses"),
+            readings=read(f"{group}/readings"),
+            observations=read(f"{group}/observations"),
+            commands=read(f"{group}/commands"),
             terms={t: terms[..., i] for i, t in enumerate(self.term_names)},
-            trace={
-                name: self._read(f"{group}/trace/{name}") for name in self._file[f"{group}/trace"]
-            },
-            start_index=self._read(f"{group}/start_index"),
+            trace={name: read(f"{group}/trace/{name}") for name in self._file[f"{group}/trace"]},
+            start_index=read(f"{group}/start_index"),
         )
 
     def implementation_names(self) -> list[str]:
@@ -273,13 +274,14 @@ class RunReader:
         group = self._file.get("implementation")
         return sorted(group) if group is not None else []
 
-    def implementation(self, name: str) -> Implementation:
-        """One stored implementation phase."""
+    def implementation(self, name: str, recorded: bool = True) -> Implementation:
+        """One stored implementation phase; with `recorded=False` without its recorded trials
+        (`trials` and `recorded` hold none: a tenth of the reading time, for summaries)."""
         if name not in self.implementation_names():
             raise RunFileError(f"{self.path.name} has no implementation named {name!r}")
-        return self._steady(lambda: self._implementation(name))
+        return self._steady(lambda: self._implementation(name, recorded))
 
-    def _implementation(self, name: str) -> Implementation:
+    def _implementation(self, name: str, recorded: bool) -> Implementation:
         base = f"implementation/{name}"
         attrs = self._file[base].attrs
         return Implementation(
@@ -292,6 +294,6 @@ class RunReader:
             start_index=self._read(f"{base}/start_index"),
             mean_reward=float(attrs["mean_reward"]),
             mean_after_fault=float(attrs["mean_after_fault"]),
-            trials=self._trajectory(f"{base}/trials"),
-            recorded=self._read(f"{base}/recorded"),
+            trials=self._trajectory(f"{base}/trials", recorded),
+            recorded=self._read(f"{base}/recorded")[: None if recorded else 0],
         )

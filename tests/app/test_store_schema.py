@@ -205,3 +205,21 @@ def test_a_run_file_written_before_a_setting_existed_loads_with_its_old_behaviou
     with RunReader(finished_run) as run:  # a file of today names both
         assert run.config.training.schedule_progress == "last-generation-min"
         assert run.config.evolution.judgment_pair == "joint"
+
+
+def test_an_implementation_read_without_its_recorded_trials_keeps_everything_else() -> None:
+    with RunReader(DEMO) as run:
+        for name in run.implementation_names():
+            full, light = run.implementation(name), run.implementation(name, recorded=False)
+            assert full.trials.poses.shape[0] > 0
+            for field in ("reward_per_step", "trial_mean_reward", "trial_mean_after_fault"):
+                np.testing.assert_array_equal(getattr(light, field), getattr(full, field))
+            assert (light.settings, light.generation) == (full.settings, full.generation)
+            assert (light.mean_reward, light.mean_after_fault) == (
+                full.mean_reward,
+                full.mean_after_fault,
+            )
+            assert light.recorded.shape == (0,)
+            assert light.trials.poses.shape == (0, *full.trials.poses.shape[1:])
+            for field, array in full.trials.trace.items():
+                assert light.trials.trace[field].shape == (0, *array.shape[1:])
