@@ -83,17 +83,14 @@ def plan(
     """Every (arm, seed) task of the experiment at `scale`, arms outer, seeds inner."""
     folder = experiment_dir(runs_dir, spec.name) / scale
     tasks = []
-    starts: dict[str, int] = {}  # arena -> its start poses (loading validates: 12 ms each)
+    starts: dict[str, int] = {}
     for arm in spec.arms:
         for seed in spec.seed_list(scale, seeds):  # type: ignore[arg-type]
             config = spec.run_config(arm.name, scale, seed)
             settings = [
                 (c.name, spec.condition_settings(c, config, scale)) for c in spec.conditions
             ]
-            for _, s in settings:
-                if s.arena not in starts:
-                    starts[s.arena] = len(sim.load_arena(s.arena).start_poses)
-            trials = [starts[s.arena] * s.repeats for _, s in settings]
+            trials = [_start_poses(s.arena, starts) * s.repeats for _, s in settings]
             tasks.append(
                 Task(
                     arm=arm.name,
@@ -110,6 +107,14 @@ def plan(
     return tasks
 
 
+def _start_poses(arena: str, known: dict[str, int]) -> int:
+    """How many start poses `arena` has, loading it once per `known` (a load validates the
+    geometry: 12 ms, too slow to repeat for every run and condition of an experiment)."""
+    if arena not in known:
+        known[arena] = len(sim.load_arena(arena).start_poses)
+    return known[arena]
+
+
 @dataclass(frozen=True)
 class Work:
     """What an experiment costs at one scale, in simulated steps."""
@@ -123,16 +128,14 @@ def work(spec: ExperimentSpec, scale: str) -> Work:
     """The simulated work of `spec` at `scale` (its default seeds; a seed changes no size)."""
     seeds = len(spec.seed_list(scale))  # type: ignore[arg-type]
     robot_steps = trial_steps = 0
-    starts: dict[str, int] = {}  # arena -> its start poses (loading validates: 12 ms each)
+    starts: dict[str, int] = {}
     for arm in spec.arms:
         config = spec.run_config(arm.name, scale, 0)
         t = config.training
         robot_steps += seeds * t.generations * t.population * t.steps
         for condition in spec.conditions:
             s = spec.condition_settings(condition, config, scale)
-            if s.arena not in starts:
-                starts[s.arena] = len(sim.load_arena(s.arena).start_poses)
-            trial_steps += seeds * starts[s.arena] * s.repeats * s.steps
+            trial_steps += seeds * _start_poses(s.arena, starts) * s.repeats * s.steps
     return Work(runs=seeds * len(spec.arms), robot_steps=robot_steps, trial_steps=trial_steps)
 
 
