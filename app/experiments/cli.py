@@ -85,9 +85,9 @@ def add_parser(commands: Any) -> None:
     page = verbs.add_parser(
         "reproduced",
         help="rewrite the tables of the 'thesis, reproduced' page from the committed reports",
-        description="Reads DOCS/NAME-SCALE/report.json (copied there with `experiment report "
-        "--format json`) and rewrites the tables of DOCS/README.md between its marker lines; "
-        "the text around them is kept.",
+        description="Reads DOCS/NAME-SCALE/report.json (written there by `experiment report "
+        "NAME --scale SCALE --out DOCS/NAME-SCALE`) and rewrites the tables of DOCS/README.md "
+        "between its marker lines; the text around them is kept.",
     )
     page.add_argument("--docs", default="docs/experiments", help="folder of the reports")
 

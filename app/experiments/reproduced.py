@@ -1,7 +1,7 @@
 """ "The thesis, reproduced": one page with a row per claim, the thesis beside us at every scale.
 
 The page is `docs/experiments/README.md`. Its tables are written from the committed reports
-(`docs/experiments/NAME-SCALE/report.json`, from `gnp-lab experiment report --format json`) and
+(`docs/experiments/NAME-SCALE/report.json`, from `gnp-lab experiment report --out`) and
 the shipped specs, between two marker lines; everything outside the markers (the discussion of
 each claim) is written by hand and kept as it is. `gnp-lab experiment reproduced` rewrites the
 tables; a test checks the committed page agrees with the committed reports.
