@@ -91,12 +91,16 @@ def claims_tables(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
             head += [f"ours, {scale}: a vs b, Δ [95% CI]", f"verdict, {scale}"]
         out.append("| " + " | ".join(head) + " |")
         out.append("|" + "---|" * len(head))
-        first = reports[name, scales[0]]["comparisons"]
-        for i, comparison in enumerate(first):
+        # a claim per row, matched by name: a report written before a claim was added lacks it
+        by_scale = [{c["name"]: c for c in reports[name, s]["comparisons"]} for s in scales]
+        claims = {c: None for found in by_scale for c in found}  # first seen first, no repeats
+        for claim in claims:
+            comparison = next(found[claim] for found in by_scale if claim in found)
             row = [comparison["claim"], _thesis(comparison)]
-            for scale in scales:
-                same = reports[name, scale]["comparisons"][i]
-                row += [_ours(same), _verdict(same)]
+            for found, scale in zip(by_scale, scales, strict=True):
+                same = found.get(claim)
+                missing = ["—", f"not in the {scale} report"]
+                row += [_ours(same), _verdict(same)] if same else missing
             out.append("| " + " | ".join(_cell(c) for c in row) + " |")
         out.append("")
     return "\n".join(out)

@@ -62,6 +62,14 @@ METRICS: dict[str, Metric] = {
             "reward per step averaged over a condition's trials, from the fault step on",
         ),
         Metric(
+            "mean_reward_before_fault",
+            "mean reward per step before the fault",
+            "scalar",
+            "condition",
+            "reward per step averaged over a condition's trials, before the fault step (the "
+            "whole trial when no sensor breaks)",
+        ),
+        Metric(
             "reward_per_step",
             "reward per step",
             "curve",

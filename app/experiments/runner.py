@@ -407,12 +407,13 @@ def collect(
     conditions = spec.conditions_info(scale)
     scalars: dict[tuple[str, str, str], np.ndarray] = {}
     curves: dict[tuple[str, str, str], np.ndarray] = {}
+    fault_steps = {c.name: c.steps if c.fault_step is None else c.fault_step for c in conditions}
     for arm in spec.arms:
         generations = spec.run_config(arm.name, scale, 0).training.generations
         scalars[("final_best_fitness", arm.name, "")] = np.full(n, np.nan)
         curves[("best_fitness_curve", arm.name, "")] = np.full((n, generations), np.nan)
         for c in conditions:
-            for metric in ("mean_reward", "mean_reward_after_fault"):
+            for metric in ("mean_reward", "mean_reward_before_fault", "mean_reward_after_fault"):
                 scalars[(metric, arm.name, c.name)] = np.full(n, np.nan)
             curves[("reward_per_step", arm.name, c.name)] = np.full((n, c.steps), np.nan)
     for task in tasks:
@@ -430,6 +431,10 @@ def collect(
             for name in state.conditions:
                 result = run.implementation(name, recorded=False)
                 scalars[("mean_reward", task.arm, name)][row] = result.mean_reward
+                before = result.reward_per_step[: fault_steps[name]]  # every trial is as long
+                scalars[("mean_reward_before_fault", task.arm, name)][row] = (
+                    before.mean() if len(before) else np.nan  # a fault at step 0: no before
+                )
                 scalars[("mean_reward_after_fault", task.arm, name)][row] = result.mean_after_fault
                 curves[("reward_per_step", task.arm, name)][row] = result.reward_per_step
     return ExperimentResults(

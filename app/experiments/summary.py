@@ -41,7 +41,9 @@ SCHEMA_VERSION = 1
 TRAINING = "-"  # the condition slot of training metrics
 UNITS = {
     "final_best_fitness, best_fitness_curve": "mean reward per step (Eq. 2.8), 0..1",
-    "mean_reward, mean_reward_after_fault, reward_per_step": "reward per step, 0..1",
+    "mean_reward, mean_reward_before_fault, mean_reward_after_fault, reward_per_step": (
+        "reward per step, 0..1"
+    ),
     "best_fitness_curve axis 1": "generation",
     "reward_per_step axis 1": "implementation step",
 }

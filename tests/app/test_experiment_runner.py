@@ -101,6 +101,15 @@ def test_results_are_the_run_files(spec: ExperimentSpec, reference: Path) -> Non
                     stored.reward_per_step,
                 )
                 assert np.isclose(stored.trial_mean_reward.mean(), means)
+                # before the fault, from the trials' sums: the whole minus the part after it
+                before = results.scalar("mean_reward_before_fault", task.arm, condition.name)[row]
+                steps, cut = condition.steps, condition.fault_step
+                if cut is None:  # no sensor breaks: every step is before a fault
+                    assert np.isclose(before, means)
+                else:
+                    whole = stored.trial_mean_reward * steps
+                    after_part = stored.trial_mean_after_fault * (steps - cut)
+                    assert np.isclose(before, ((whole - after_part) / cut).mean())
             assert run.implementation("break-1").settings.break_count == 1
             assert run.implementation("fixed-2-3").settings.broken_sensors == (2, 3)
     # the arms differ (else the comparison would be empty), the seeds too

@@ -62,6 +62,26 @@ def test_a_reversed_claim_shows_the_p_value_of_the_other_direction(tmp_path: Pat
     assert "**reversed** (p(other way) = 0.0123)" in page
 
 
+def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
+    small = _copy_report(tmp_path)
+    thesis = json.loads(REPORT.read_text())
+    comparisons = thesis["comparisons"]
+    extra = dict(comparisons[0], name="added-later", claim="A claim added after small ran")
+    thesis.update(scale="thesis", comparisons=[extra, *reversed(comparisons)])
+    (tmp_path / "ch3-bs-rl-thesis").mkdir()
+    (tmp_path / "ch3-bs-rl-thesis" / "report.json").write_text(json.dumps(thesis))
+    section = write_page(tmp_path).read_text().split("### ch3-bs-rl")[1].split("###")[0]
+    rows = [line.removesuffix(" |") for line in section.splitlines() if line.startswith("| ")]
+    claims = [row.split(" | ")[0].removeprefix("| ") for row in rows[1:]]
+    assert isinstance(small["comparisons"], list)
+    assert claims == [c["claim"] for c in small["comparisons"]] + [extra["claim"]]
+    for row in rows[1:-1]:  # the same claim at both scales: the same numbers twice
+        cells = row.split(" | ")
+        assert cells[2] == cells[4] and cells[3] == cells[5]
+    last, first = rows[-1].split(" | "), rows[1].split(" | ")
+    assert last[2:4] == ["—", "not in the small report"] and last[4:] == first[4:]
+
+
 def test_a_new_page_gets_a_title_and_the_markers(tmp_path: Path) -> None:
     _copy_report(tmp_path)
     page = write_page(tmp_path).read_text()

@@ -84,7 +84,7 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     assert field(page, "Experiment").input_value() == NAME
     verdicts = page.locator("table", has_text="Holm p").first
     expect(verdicts).to_contain_text(re.compile(r"held|reversed|not shown"), timeout=TIMEOUT_MS)
-    expect(verdicts.locator("tr")).to_have_count(1 + 6)  # header and ch3's six claims
+    expect(verdicts.locator("tr")).to_have_count(1 + 7)  # header and ch3's seven claims
     assert page.locator(".u-legend", has_text="BS (n = 2)").count() >= 1
     smoke_cell = catalogue.locator("tr", has_text=NAME).locator("td").nth(1)
     expect(smoke_cell).to_have_text("4/4", timeout=TIMEOUT_MS)  # the list is refreshed
