@@ -42,10 +42,13 @@ REWARD = "reward_per_step"
 
 @dataclass(frozen=True)
 class Entry:
-    """An experiment the tab offers: shipped (with its definition) or only saved."""
+    """An experiment the tab offers: shipped, or saved in the runs dir (with the file it ran
+    from when its folder keeps one)."""
 
     name: str
     spec: ExperimentSpec | None  # None: a folder in the runs dir the dashboard has no file of
+    shipped: bool = True
+    problem: str = ""  # why a kept file could not be read
 
     def scales(self, runs_dir: Path) -> tuple[str, ...]:
         """The scales it defines (shipped) or has a summary of (saved)."""
@@ -66,7 +69,10 @@ def find_experiments(runs_dir: Path, shipped: Sequence[ExperimentSpec]) -> tuple
     if folder.is_dir():
         for path in sorted(folder.iterdir()):
             if path.is_dir() and path.name not in known and _safe_name(path.name):
-                entries.append(Entry(path.name, None))
+                try:
+                    entries.append(Entry(path.name, runner.saved_spec(runs_dir, path.name), False))
+                except ExperimentError as error:
+                    entries.append(Entry(path.name, None, False, str(error)))
     return tuple(entries)
 
 
@@ -136,7 +142,7 @@ def catalogue_table(rows: Catalogue) -> str:
     """A markdown table: each experiment's runs done / total per scale."""
     lines = ["| experiment | " + " | ".join(SCALES) + " |", "|---" * (len(SCALES) + 1) + "|"]
     for entry, counts in rows:
-        name = entry.name if entry.spec is not None else f"{entry.name} (saved)"
+        name = entry.name if entry.shipped else f"{entry.name} (saved)"
         cells = [str(counts[scale]) if counts[scale] is not None else "–" for scale in SCALES]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -229,7 +235,9 @@ def about(entry: Entry, results: ExperimentResults | None) -> str:
         spec = entry.spec
         arms = ", ".join(f"{a.name} ({a.label})" for a in spec.arms)
         conditions = len(spec.conditions)
-        return f"**{spec.name}** ({spec.source}): {spec.description}  \narms: {arms}; " + (
+        saved = "" if entry.shipped else "; saved"
+        return (
+            f"**{spec.name}** ({spec.source}{saved}): {spec.description}  \narms: {arms}; "
             f"{conditions} implementation conditions"
         )
     if results is None:

@@ -26,6 +26,7 @@ from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
+from app.experiments.runner import DEFINITION
 from app.experiments.spec import SCALES, ExperimentSpec
 
 STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the command line
@@ -105,9 +106,10 @@ class ExperimentsTab:
         if entry is None:
             raise DashboardInputError("choose an experiment first")
         if entry.spec is None:
+            why = entry.problem or f"its folder keeps no {DEFINITION}"
             raise DashboardInputError(
-                f"{name} is a saved experiment without its file here: run it with "
-                f"`gnp-lab experiment run --file FILE --scale {scale}`"
+                f"{name} cannot be started here ({why}): run it once with "
+                f"`gnp-lab experiment run --file FILE --scale {scale}`, which keeps its file"
             )
         if scale not in STARTABLE_SCALES:
             raise DashboardInputError(

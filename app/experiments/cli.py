@@ -17,6 +17,7 @@ from app.experiments.spec import (
     SCALES,
     ExperimentError,
     ExperimentSpec,
+    check_name,
     load_file,
     load_shipped,
     shipped_names,
@@ -93,16 +94,39 @@ def add_parser(commands: Any) -> None:
 
 
 def _spec(args: argparse.Namespace) -> ExperimentSpec:
+    """The experiment asked for: --file, a shipped NAME, or a NAME whose file the runs dir keeps
+    (a `run --file` keeps it in the experiment's folder)."""
+    from app.experiments import runner
+
     if args.file:
         spec = load_file(args.file)
         if args.name and args.name != spec.name:
             raise ExperimentError(
                 f"{args.file} defines experiment {spec.name!r}, not {args.name!r}"
             )
+        if spec.name in shipped_names():
+            raise ExperimentError(
+                f"{args.file} names its experiment {spec.name!r}, as a shipped experiment is "
+                "named: its runs would share that one's folder; give it a name of its own"
+            )
         return spec
     if not args.name:
         raise ExperimentError("give an experiment NAME (see `gnp-lab experiment list`) or --file")
-    return load_shipped(args.name)
+    if args.name in shipped_names():
+        return load_shipped(args.name)
+    try:
+        check_name(args.name)
+    except ValueError:  # not a name a folder of the runs dir can have
+        saved = None
+    else:
+        saved = runner.saved_spec(args.runs_dir, args.name)
+    if saved is None:
+        raise ExperimentError(
+            f"no shipped experiment named {args.name!r}, and {args.runs_dir} keeps no file of "
+            f"one (a `run --file` keeps it); choose one of {', '.join(shipped_names())} "
+            "or give --file"
+        )
+    return saved
 
 
 def main(args: argparse.Namespace) -> int:
@@ -145,6 +169,7 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         workers=args.workers,
         quiet=args.quiet,
+        definition=Path(args.file).read_text(encoding="utf-8") if args.file else None,
     )
     folder = runner.experiment_dir(args.runs_dir, spec.name)
     print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")

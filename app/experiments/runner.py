@@ -25,9 +25,10 @@ import sim
 from app.config import ImplementationSettings, RunConfig, build_config
 from app.experiments.progress import TOPIC, Progress, outcome_line
 from app.experiments.results import ExperimentResults
-from app.experiments.spec import ExperimentError, ExperimentSpec, check_name
+from app.experiments.spec import ExperimentError, ExperimentSpec, check_name, load_file
 from app.experiments.summary import write_summary
 from app.store import RunFileError, RunReader
+from app.store.files import atomic_file
 
 Echo = Callable[[str], None]
 Watch = Callable[[Progress], None]
@@ -43,6 +44,39 @@ def experiment_dir(runs_dir: str | Path, name: str) -> Path:
     except ValueError as error:
         raise ExperimentError(str(error)) from None
     return Path(runs_dir) / "experiments" / name
+
+
+DEFINITION = "experiment.toml"  # a --file experiment's own file, kept in its folder
+
+
+def definition_path(runs_dir: str | Path, name: str) -> Path:
+    """`RUNS_DIR/experiments/NAME/experiment.toml`: the file a `--file` experiment ran from."""
+    return experiment_dir(runs_dir, name) / DEFINITION
+
+
+def saved_spec(runs_dir: str | Path, name: str) -> ExperimentSpec | None:
+    """The experiment a runs dir keeps the file of (None when its folder has none).
+
+    Raises:
+        ExperimentError: the kept file is not a valid experiment named `name`.
+    """
+    path = definition_path(runs_dir, name)
+    if not path.is_file():
+        return None
+    spec = load_file(path)
+    if spec.name != name:
+        raise ExperimentError(f"{path} defines experiment {spec.name!r}, not {name!r}")
+    return spec
+
+
+def keep_definition(runs_dir: str | Path, name: str, text: str) -> Path:
+    """Keep an experiment's file in its folder (replacing an older copy in one step), so that
+    `status`, `report` and the dashboard find it by name."""
+    path = definition_path(runs_dir, name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_file(path, overwrite=True) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return path
 
 
 def summary_path(runs_dir: str | Path, name: str, scale: str) -> Path:
@@ -464,12 +498,14 @@ def run_experiment(
     quiet: bool = False,
     echo: Echo | None = None,
     watch: Watch | None = None,
+    definition: str | None = None,
 ) -> ExperimentResults:
     """Run (or finish) an experiment, then write and return its summary.
 
     `client` (an existing Dask client) wins over `scheduler`; with neither, a LocalCluster is
     started for the run and closed after it. `echo` gets each run's outcome line, `watch` the
-    live `Progress` (see `execute`).
+    live `Progress` (see `execute`). `definition`, the text of the experiment's file, is kept
+    in its folder (`keep_definition`) once its run files are known to be its own.
 
     Raises:
         ExperimentError: a run file holds another config, or some runs failed (the summary
@@ -478,6 +514,8 @@ def run_experiment(
     spec.scale(scale)
     tasks = plan(spec, scale, runs_dir, seeds)
     states = [inspect(task) for task in tasks]  # refuse a foreign file before starting anything
+    if definition is not None:
+        keep_definition(runs_dir, spec.name, definition)
     if all(state.complete(task) for state, task in zip(states, tasks, strict=True)):
         errors: list[str] = []
     elif client is not None:

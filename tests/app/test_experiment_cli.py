@@ -89,6 +89,30 @@ def test_file_name_and_scale_must_match(tmp_path: Path, capsys: pytest.CaptureFi
     _one_error_line(capsys, "has no scale 'thesis'")
 
 
+def test_a_file_may_not_take_a_shipped_experiments_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write_tiny(tmp_path, TINY_TOML.replace('name = "tiny"', 'name = "ch3-bs-rl"', 1))
+    runs = tmp_path / "runs"
+    assert main(["experiment", "run", "--file", str(path), "--runs-dir", str(runs)]) == 1
+    _one_error_line(capsys, "'ch3-bs-rl', as a shipped experiment is named")
+    assert not runs.exists()
+
+
+def test_a_kept_file_that_is_not_an_experiment_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    kept = tmp_path / "experiments" / "mine" / "experiment.toml"
+    kept.parent.mkdir(parents=True)
+    kept.write_text(TINY_TOML)  # a valid experiment, but named "tiny"
+    argv = ["experiment", "status", "mine", "--runs-dir", str(tmp_path), "--scale", "smoke"]
+    assert main(argv) == 1
+    _one_error_line(capsys, str(kept), "defines experiment 'tiny', not 'mine'")
+    kept.write_text("name = ")
+    assert main(argv) == 1
+    _one_error_line(capsys, str(kept), "not valid TOML")
+
+
 def test_bad_experiment_name_in_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     data = tiny_data()
     data["name"] = "../escape"
@@ -158,6 +182,14 @@ def test_run_status_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     out = capsys.readouterr().out
     assert "4/4 runs done, 12/12 generations, 12/12 conditions" in out
     assert "RL-seed1" in out and f"summary: {summary}" in out
+    # The run kept its file: the experiment is now known by name in that runs dir.
+    kept = tmp_path / "runs/experiments/tiny/experiment.toml"
+    assert kept.read_text() == TINY_TOML
+    by_name = ["tiny", *common[2:]]
+    assert main(["experiment", "status", *by_name]) == 0
+    assert "tiny at scale smoke: 4/4 runs done" in capsys.readouterr().out
+    assert main(["experiment", "report", *by_name, "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["experiment"] == "tiny"
     stamp = summary.stat().st_mtime_ns
     for task in plan(load_file(spec_path), "smoke", tmp_path / "runs"):
         with RunReader(task.path) as run:

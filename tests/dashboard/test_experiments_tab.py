@@ -12,6 +12,7 @@ import re
 import shutil
 import time
 from collections.abc import Callable, Iterator
+from importlib import resources
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -29,7 +30,7 @@ from app.experiments.figures import mean_and_ci
 from app.experiments.progress import Counts
 from app.experiments.report import REPORT_SEED, analyse, format_number
 from app.experiments.results import VERDICTS
-from app.experiments.spec import ExperimentSpec, load_shipped
+from app.experiments.spec import SHIPPED_PACKAGE, ExperimentSpec, load_shipped
 from app.experiments.summary import read_summary, write_summary
 
 NAME, SCALE = "ch3-bs-rl", "smoke"
@@ -83,6 +84,23 @@ def test_the_catalogue_lists_shipped_and_saved_experiments_with_runs_done(
     assert "| mine (saved) | 3/4 | – | – |" in table
     mine = dict((e.name, e) for e, _ in rows)["mine"]
     assert mine.spec is None and mine.scales(runs) == (SCALE,)
+
+
+def test_a_saved_experiment_that_keeps_its_file_is_offered_with_it(
+    runs: Path, spec: ExperimentSpec
+) -> None:
+    text = resources.files(SHIPPED_PACKAGE).joinpath(f"{NAME}.toml").read_text()
+    runner.keep_definition(runs, "kept", text.replace(f'name = "{NAME}"', 'name = "kept"', 1))
+    (runs / "experiments" / "broken").mkdir()
+    (runs / "experiments" / "broken" / runner.DEFINITION).write_text("name = ")
+    rows = ev.catalogue(runs, ev.shipped_specs())
+    entries = {e.name: e for e, _ in rows}
+    kept, broken = entries["kept"], entries["broken"]
+    assert kept.spec is not None and not kept.shipped and not kept.problem
+    assert kept.spec.comparisons == spec.comparisons and kept.scales(runs) == tuple(spec.scales)
+    assert "| kept (saved) | 0/4 | 0/20 | 0/20 |" in ev.catalogue_table(rows)
+    assert "**kept** (" in ev.about(kept, None) and "saved)" in ev.about(kept, None)
+    assert broken.spec is None and "not valid TOML" in broken.problem
 
 
 def test_a_foreign_run_file_is_reported_not_raised(
@@ -206,6 +224,8 @@ def dashboard(runs: Path, spec: ExperimentSpec) -> Iterator[Any]:
     from app.dashboard.app import Dashboard
 
     save_other(runs, spec)
+    (runs / "experiments" / "broken").mkdir()  # keeps a file that is not an experiment
+    (runs / "experiments" / "broken" / runner.DEFINITION).write_text("name = ")
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     board = Dashboard(server, runs)
     yield board
@@ -263,7 +283,8 @@ def test_the_tab_shows_an_experiment_and_loads_its_run_on_the_stage(dashboard: A
     ("experiment", "scale", "message"),
     [
         (NAME, "thesis", "the dashboard starts experiments at smoke or small scale"),
-        ("mine", SCALE, "mine is a saved experiment without its file here"),
+        ("mine", SCALE, "mine cannot be started here (its folder keeps no experiment.toml)"),
+        ("broken", SCALE, "broken cannot be started here (experiment file "),
         (ev.NO_EXPERIMENTS, SCALE, "choose an experiment first"),
     ],
 )
