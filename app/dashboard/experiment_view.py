@@ -260,9 +260,12 @@ def verdict_table(results: ExperimentResults) -> str:
     rows = ["| claim | a | b | a − b [95% CI] | Holm p | verdict |", "|---|---|---|---|---|---|"]
     for c in report.comparisons:
         s = c.stats
+        names = [c.arm_a.name, c.arm_b.name]
+        if c.condition is not None and c.condition_b is not None:  # one arm, two conditions
+            names = [f"{names[0]} ({c.condition.name})", f"{names[1]} ({c.condition_b.name})"]
         arms = [
-            f"{arm.name} {format_number(summary.mean)} ± {format_number(summary.sd)}"
-            for arm, summary in ((c.arm_a, s.a), (c.arm_b, s.b))
+            f"{name} {format_number(summary.mean)} ± {format_number(summary.sd)}"
+            for name, summary in zip(names, (s.a, s.b), strict=True)
         ]
         difference = (
             f"{format_number(s.difference)} [{format_number(s.ci_low)}, {format_number(s.ci_high)}]"

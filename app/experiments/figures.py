@@ -215,18 +215,26 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
 
 
 def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | None:
-    """Each run's value of a comparison's metric for its two arms, with the mean and 95% t-CI."""
+    """Each run's value of a comparison's metric for its two arms (or, paired, its one arm in
+    two conditions, each run's two values joined), with the mean and 95% t-CI."""
     metric = METRICS[comparison.metric]
     colours = arm_colours(results)
     figure = _new_figure(4.0, 3.2)
     axes = figure.add_subplot()
     drawn = False
-    for position, name in enumerate((comparison.a, comparison.b)):
-        values = results.scalars.get((metric.name, name, comparison.condition or ""))
+    condition_b = comparison.condition_b or comparison.condition
+    sides = ((comparison.a, comparison.condition), (comparison.b, condition_b))
+    found = [results.scalars.get((metric.name, name, where or "")) for name, where in sides]
+    if comparison.paired and found[0] is not None and found[1] is not None:
+        both = np.isfinite(found[0]) & np.isfinite(found[1])
+        for a_value, b_value in zip(found[0][both], found[1][both], strict=True):
+            axes.plot([0, 1], [a_value, b_value], color="0.75", linewidth=0.8, zorder=2)
+    for position, ((name, _), values) in enumerate(zip(sides, found, strict=True)):
         if values is None:
             continue
         finite = values[np.isfinite(values)]
-        jitter = np.linspace(-0.12, 0.12, finite.size) if finite.size > 1 else 0.0
+        spread = finite.size > 1 and not comparison.paired  # paired: on the lines joining runs
+        jitter = np.linspace(-0.12, 0.12, finite.size) if spread else np.zeros(finite.size)
         axes.scatter(position + jitter, finite, color=colours[name], s=18, zorder=3)
         mean, half_width, _ = _scalar_mean_ci(values)
         axes.errorbar(
@@ -241,7 +249,10 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
         drawn = drawn or finite.size > 0
     if not drawn:
         return None
-    axes.set_xticks([0, 1], [comparison.a, comparison.b])
+    labels = [comparison.a, comparison.b]
+    if comparison.paired:
+        labels = [f"{comparison.a}\n{comparison.condition}", f"{comparison.b}\n{condition_b}"]
+    axes.set_xticks([0, 1], labels)
     axes.set_xlim(-0.5, 1.6)
     axes.set(ylabel=metric.label, title=comparison.name)
     axes.title.set_fontsize("medium")

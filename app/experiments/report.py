@@ -52,6 +52,7 @@ class ComparisonReport:
     comparison: Comparison
     metric: Metric
     condition: Condition | None
+    condition_b: Condition | None  # b's condition when it is not a's (one arm, two conditions)
     arm_a: Arm
     arm_b: Arm
     claim: ClaimStats
@@ -66,9 +67,14 @@ class ComparisonReport:
     def sentence(self) -> str:
         """The claim in words."""
         where = f" in {self.condition.label}" if self.condition else ""
+        higher = _DIRECTION_WORDS[self.comparison.direction]
+        if self.condition_b is not None:  # one arm in two conditions
+            return (
+                f"{self.arm_a.label} has a {higher} {self.metric.label}{where} than in "
+                f"{self.condition_b.label}"
+            )
         return (
-            f"{self.arm_a.label} has a {_DIRECTION_WORDS[self.comparison.direction]} "
-            f"{self.metric.label} than {self.arm_b.label}{where}"
+            f"{self.arm_a.label} has a {higher} {self.metric.label} than {self.arm_b.label}{where}"
         )
 
 
@@ -126,16 +132,19 @@ def analyse(
     missing = np.full(len(results.seeds), np.nan)
     pairs = []
     for c in results.comparisons:
-        if c.a not in arms or c.b not in arms or (c.condition and c.condition not in conditions):
+        named = [c.condition, c.condition_b]
+        if c.a not in arms or c.b not in arms or any(n and n not in conditions for n in named):
             raise ValueError(f"comparison {c.name!r} names an arm or condition not in the results")
+        condition_b = c.condition_b or c.condition
         pairs.append(
             compare(
                 results.scalars.get((c.metric, c.a, c.condition or ""), missing),
-                results.scalars.get((c.metric, c.b, c.condition or ""), missing),
+                results.scalars.get((c.metric, c.b, condition_b or ""), missing),
                 c.direction,
                 rng,
                 resamples,
-                names=(c.a, c.b),
+                names=(c.a, c.b) if not c.paired else (c.condition or "", condition_b or ""),
+                paired=c.paired,
             )
         )
     return ExperimentReport(
@@ -145,11 +154,12 @@ def analyse(
                 comparison=c,
                 metric=METRICS[c.metric],
                 condition=conditions[c.condition] if c.condition else None,
+                condition_b=conditions[c.condition_b] if c.condition_b else None,
                 arm_a=arms[c.a],
                 arm_b=arms[c.b],
                 claim=claim,
                 thesis_a=_thesis_value(results, c.a, c.metric, c.condition),
-                thesis_b=_thesis_value(results, c.b, c.metric, c.condition),
+                thesis_b=_thesis_value(results, c.b, c.metric, c.condition_b or c.condition),
             )
             for c, claim in zip(results.comparisons, judge_claims(pairs, alpha), strict=True)
         ),
@@ -193,18 +203,25 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
         "metric": report.metric.name,
         "metric_label": report.metric.label,
         "condition": report.comparison.condition,
+        "condition_b": report.comparison.condition_b,
         "direction": report.comparison.direction,
         "a": _arm_json(report.arm_a, s.a, report.thesis_a),
         "b": _arm_json(report.arm_b, s.b, report.thesis_b),
         "difference": json_number(s.difference),
         "ci": [json_number(s.ci_low), json_number(s.ci_high)],
-        "welch": {
-            "t": json_number(s.welch_t),
-            "df": json_number(s.welch_df),
-            "p": json_number(s.welch_p),
-            "p_opposite": json_number(s.welch_p_opposite),
+        "paired": s.paired,
+        "t_test": {
+            "test": s.tests[0],
+            "t": json_number(s.t),
+            "df": json_number(s.df),
+            "p": json_number(s.p),
+            "p_opposite": json_number(s.p_opposite),
         },
-        "mann_whitney": {"u": json_number(s.mann_whitney_u), "p": json_number(s.mann_whitney_p)},
+        "rank_test": {
+            "test": s.tests[1],
+            "statistic": json_number(s.rank_statistic),
+            "p": json_number(s.rank_p),
+        },
         "holm_p": json_number(claim.holm_p),
         "holm_p_opposite": json_number(claim.holm_p_opposite),
         "prob_improvement": json_number(s.prob_improvement),
@@ -304,9 +321,12 @@ def _row(*cells: str, header: bool = False) -> str:
 
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
     s, claim, c = report.stats, report.claim, report.comparison
+    sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
+    if report.condition_b is not None and report.condition is not None:  # one arm, 2 conditions
+        sides = [f"{sides[0]}, {report.condition.label}", f"{sides[1]}, {report.condition_b.label}"]
     arm_rows = "".join(
         "<tr>"
-        f"<td>{_e(_arm_name(arm))}</td>"
+        f"<td>{_e(side)}</td>"
         f'<td class="num">{summary.n}</td><td class="num">{summary.dropped}</td>'
         f'<td class="num">{_e(format_number(summary.mean))} ± {_e(format_number(summary.sd))}'
         "</td>"
@@ -316,20 +336,21 @@ def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str
             else "<td>–</td>"
         )
         + "</tr>"
-        for arm, summary, thesis in (
-            (report.arm_a, s.a, report.thesis_a),
-            (report.arm_b, s.b, report.thesis_b),
+        for side, summary, thesis in (
+            (sides[0], s.a, report.thesis_a),
+            (sides[1], s.b, report.thesis_b),
         )
     )
     ci = f"[{format_number(s.ci_low)}, {format_number(s.ci_high)}]"
+    t_test, rank_test = s.tests
     rows = [
         ("difference of means (a − b)", f"{format_number(s.difference)} {ci}"),
-        ("Welch t (df)", f"{format_number(s.welch_t)} ({format_number(s.welch_df)})"),
-        ("Welch p, one-tailed", format_number(s.welch_p)),
-        ("Mann–Whitney U (p, one-tailed)", f"{format_number(s.mann_whitney_u)} "
-         f"({format_number(s.mann_whitney_p)})"),
-        ("Holm-adjusted Welch p", format_number(claim.holm_p)),
-        ("Holm-adjusted Welch p, other direction", format_number(claim.holm_p_opposite)),
+        (f"{t_test} t (df)", f"{format_number(s.t)} ({format_number(s.df)})"),
+        (f"{t_test} p, one-tailed", format_number(s.p)),
+        (f"{rank_test} {'W+' if s.paired else 'U'} (p, one-tailed)",
+         f"{format_number(s.rank_statistic)} ({format_number(s.rank_p)})"),
+        (f"Holm-adjusted {t_test} p", format_number(claim.holm_p)),
+        (f"Holm-adjusted {t_test} p, other direction", format_number(claim.holm_p_opposite)),
         ("P(improvement)", format_number(s.prob_improvement)),
         ("Hedges' g", format_number(s.hedges_g)),
     ]  # fmt: skip
@@ -414,7 +435,10 @@ Welch's one-tailed t-test and a one-tailed Mann–Whitney U test in the claimed 
 P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> = X<sub>b</sub>)
 over all pairs of runs (rliable), oriented so that above 0.5 favours the claim; Hedges' g
 (pooled sd, exact small-sample correction), oriented so that above 0 favours the claim.
-Welch p-values are Holm-adjusted across this experiment's {len(report.comparisons)}
+One arm compared across two conditions has the same runs on both sides: its tests are paired
+by seed (the one-tailed paired t-test and Wilcoxon's signed-rank test on the runs'
+differences, the bootstrap resampling runs, P(improvement) the share of runs that improve).
+The t-tests' p-values are Holm-adjusted across this experiment's {len(report.comparisons)}
 comparison(s). Verdict: <i>held</i> if the adjusted p in the claimed direction is below
 {report.alpha:g}, <i>reversed</i> if the adjusted p in the other direction is, else
 <i>not shown</i>. Unfinished runs (NaN) are left out and counted.</p>

@@ -139,7 +139,8 @@ def tables(folder: Path) -> str:
         "## Every claim, the thesis beside us\n\n"
         "Each claim is one-sided (a is claimed better than b, or the reverse where the thesis "
         "says so); Δ = mean(a) − mean(b) over runs with its bootstrap 95% CI; p is Welch's "
-        "one-sided test, Holm-adjusted over the experiment's claims. `held`: significant in "
+        "one-sided test (paired by seed for one arm in two conditions), Holm-adjusted over the "
+        "experiment's claims. `held`: significant in "
         "the claimed direction; `reversed`: significant the other way; `not shown`: neither.\n\n"
         + claims_tables(reports)
         + "\n## What each experiment costs\n\n"

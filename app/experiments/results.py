@@ -100,7 +100,8 @@ class Condition:
 
 @dataclass(frozen=True)
 class Comparison:
-    """A claim: arm `a` is `direction` than arm `b` on `metric` (in `condition`, if any)."""
+    """A claim: arm `a` is `direction` than arm `b` on `metric` (in `condition`, if any);
+    or, with `condition_b`, one arm (a = b) in `condition` than in `condition_b`."""
 
     name: str
     a: str
@@ -109,6 +110,12 @@ class Comparison:
     condition: str | None  # required for condition metrics, None for training metrics
     direction: Direction
     source: str  # where the thesis claims it ("Fig. 3.9")
+    condition_b: str | None = None  # b's condition, when it is not a's (then b is a)
+
+    @property
+    def paired(self) -> bool:
+        """The same runs on both sides (one arm in two conditions): tests paired by seed."""
+        return self.condition_b is not None
 
 
 @dataclass(frozen=True)

@@ -91,6 +91,9 @@ class ComparisonSpec(_Frozen):
     b: str
     metric: str
     condition: str | None = None
+    condition_b: str | None = Field(
+        None, description="b's condition: one arm (a = b) compared across two conditions"
+    )
     direction: Literal["greater", "less"]
     source: str = Field(description="where the thesis claims it, e.g. 'Fig. 3.9'")
 
@@ -162,9 +165,21 @@ class ExperimentSpec(_Frozen):
             for arm in (comp.a, comp.b):
                 if arm not in arms:
                     raise ValueError(f"{where}: unknown arm {arm!r}")
-            if comp.a == comp.b:
-                raise ValueError(f"{where}: compares arm {comp.a!r} with itself")
             _check_metric(where, comp.metric, comp.condition, conditions)
+            if comp.condition_b is None and comp.a == comp.b:
+                raise ValueError(
+                    f"{where}: compares arm {comp.a!r} with itself; give condition_b to compare "
+                    "it across two conditions"
+                )
+            if comp.condition_b is not None:
+                if comp.a != comp.b:
+                    raise ValueError(
+                        f"{where}: condition_b compares one arm across two conditions; "
+                        f"a and b must be the same arm, not {comp.a!r} and {comp.b!r}"
+                    )
+                _check_metric(where, comp.metric, comp.condition_b, conditions)
+                if comp.condition_b == comp.condition:
+                    raise ValueError(f"{where}: condition_b is condition {comp.condition!r}")
             if METRICS[comp.metric].kind != "scalar":
                 raise ValueError(f"{where}: metric {comp.metric!r} is a curve, not a number")
         for value in self.thesis:

@@ -1,21 +1,27 @@
 """Statistics of one experiment's claims: is arm a `direction` than arm b on a scalar metric?
 
-The unit of analysis is the run (seed). Seeds are paired across arms, but, as the thesis does,
-the arms are compared as independent samples. For each claim `compare` gives mean ± sd per arm,
-the difference of means with a percentile-bootstrap 95% CI, Welch's one-tailed t-test and a
-one-tailed Mann–Whitney U test in the claimed direction, rliable's probability of improvement
-and Hedges' g; `judge_claims` then adjusts the Welch p-values of one experiment's claims with
-Holm–Bonferroni and gives each claim its verdict.
+The unit of analysis is the run (seed). Two arms are compared, as the thesis does, as
+independent samples: `compare` gives mean ± sd per arm, the difference of means with a
+percentile-bootstrap 95% CI, Welch's one-tailed t-test and a one-tailed Mann–Whitney U test in
+the claimed direction, rliable's probability of improvement and Hedges' g. One arm compared
+across two implementation conditions (`paired=True`) has the same runs on both sides, so the
+tests are paired by seed: the one-tailed paired t-test and Wilcoxon's signed-rank test on the
+runs' differences, their bootstrap CI, and the share of runs that improve; Hedges' g is still
+standardised by the runs' spread, so every row's g reads the same way. `judge_claims` then
+adjusts the t-tests' p-values of one experiment's claims with Holm–Bonferroni and gives each
+claim its verdict.
 
 Degenerate input gives a defined outcome, never an exception:
 
-- NaN values (unfinished runs) are dropped; `ArmSummary.dropped` counts them.
+- NaN values (unfinished runs) are dropped; `ArmSummary.dropped` counts them (paired: a run
+  missing on either side is dropped from both).
 - An arm with fewer than 2 finite values: every p-value, the CI and the effect size are NaN,
   the verdict is `not shown`, and a note says why.
-- Both arms constant (zero variance): the t statistic is the limit of vanishing variance.
-  Equal constants give t = 0 and p = 1 both ways (no evidence); different constants give
-  t = ±inf, p = 0 in the direction of the difference and p = 1 against it. Hedges' g is 0 or
-  ±inf in the same way, and the Mann–Whitney p of all-tied values is 1. A note says so.
+- Both arms constant (zero variance; paired: constant differences): the t statistic is the
+  limit of vanishing variance. Equal constants give t = 0 and p = 1 both ways (no evidence);
+  different constants give t = ±inf, p = 0 in the direction of the difference and p = 1
+  against it. Hedges' g is 0 or ±inf in the same way, and the rank test's p of all-tied values
+  (paired: all differences 0) is 1. A note says so.
 """
 
 from __future__ import annotations
@@ -51,8 +57,8 @@ class ArmSummary:
 class PairStats:
     """One claim's statistics before the multiplicity correction.
 
-    Every p-value is one-tailed; `welch_p` and `mann_whitney_p` test the claimed direction,
-    `welch_p_opposite` the other one. `prob_improvement` and `hedges_g` are oriented with the
+    Every p-value is one-tailed; `p` and `rank_p` test the claimed direction,
+    `p_opposite` the other one. `prob_improvement` and `hedges_g` are oriented with the
     claim: above 0.5 and above 0 favour it.
     """
 
@@ -65,13 +71,21 @@ class PairStats:
     # NaN when an arm has fewer than 2 finite values (no test):
     ci_low: float = math.nan  # 95% percentile-bootstrap CI of the difference
     ci_high: float = math.nan
-    welch_t: float = math.nan  # t of mean(a) − mean(b), not oriented
-    welch_df: float = math.nan  # Welch–Satterthwaite degrees of freedom
-    welch_p: float = math.nan
-    welch_p_opposite: float = math.nan
-    mann_whitney_u: float = math.nan  # U of arm a: pairs with a > b, ties counted ½
-    mann_whitney_p: float = math.nan
+    t: float = math.nan  # t of mean(a) − mean(b), not oriented
+    df: float = math.nan  # Welch–Satterthwaite (paired: runs − 1) degrees of freedom
+    p: float = math.nan
+    p_opposite: float = math.nan
+    # Mann–Whitney's U of arm a: pairs with a > b, ties counted ½ (paired: Wilcoxon's W+, the
+    # rank sum of the runs whose difference is positive)
+    rank_statistic: float = math.nan
+    rank_p: float = math.nan
     hedges_g: float = math.nan
+    paired: bool = False  # one arm across two conditions: tests paired by seed
+
+    @property
+    def tests(self) -> tuple[str, str]:
+        """The names of the t-test and the rank test used."""
+        return ("paired t", "Wilcoxon signed-rank") if self.paired else ("Welch", "Mann–Whitney")
 
 
 @dataclass(frozen=True)
@@ -79,8 +93,8 @@ class ClaimStats:
     """A claim's statistics with its Holm-adjusted p-values and its verdict."""
 
     stats: PairStats
-    holm_p: float  # Holm-adjusted welch_p over the experiment's claims
-    holm_p_opposite: float  # Holm-adjusted welch_p_opposite, the same way
+    holm_p: float  # Holm-adjusted p over the experiment's claims
+    holm_p_opposite: float  # Holm-adjusted p_opposite, the same way
     verdict: Verdict
 
 
@@ -121,9 +135,31 @@ def bootstrap_difference_ci(
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     means_a = a[rng.integers(0, a.size, size=(resamples, a.size))].mean(axis=1)
     means_b = b[rng.integers(0, b.size, size=(resamples, b.size))].mean(axis=1)
+    return _percentile_interval(means_a - means_b, level)
+
+
+def bootstrap_mean_ci(
+    d: np.ndarray,
+    rng: np.random.Generator,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    level: float = CI_LEVEL,
+) -> tuple[float, float]:
+    """Percentile-bootstrap CI of mean(d), resampling the runs' paired differences `d`."""
+    d = np.asarray(d, dtype=float)
+    return _percentile_interval(d[rng.integers(0, d.size, size=(resamples, d.size))].mean(1), level)
+
+
+def _percentile_interval(resampled: np.ndarray, level: float) -> tuple[float, float]:
     tail = 100 * (1 - level) / 2
-    low, high = np.percentile(means_a - means_b, [tail, 100 - tail])
+    low, high = np.percentile(resampled, [tail, 100 - tail])
     return float(low), float(high)
+
+
+def _zero_variance_limit(difference: float, direction: Direction) -> tuple[float, float]:
+    """(t, p) when the variance vanishes: t = ±inf or 0, p = 0 only for a shift the claimed way."""
+    t = math.copysign(math.inf, difference) if difference else 0.0
+    shown = (t > 0) if direction == "greater" else (t < 0)
+    return t, 0.0 if shown else 1.0
 
 
 def welch_test(a: np.ndarray, b: np.ndarray, direction: Direction) -> tuple[float, float, float]:
@@ -137,10 +173,8 @@ def welch_test(a: np.ndarray, b: np.ndarray, direction: Direction) -> tuple[floa
     """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if np.ptp(a) == 0 and np.ptp(b) == 0:
-        difference = a[0] - b[0]
-        t = math.copysign(math.inf, difference) if difference else 0.0
-        shown = (t > 0) if direction == "greater" else (t < 0)
-        return t, math.nan, 0.0 if shown else 1.0
+        t, p = _zero_variance_limit(a[0] - b[0], direction)
+        return t, math.nan, p
     with warnings.catch_warnings():  # scipy warns of "precision loss" for one constant arm
         warnings.filterwarnings("ignore", "Precision loss", RuntimeWarning)
         result = scipy_stats.ttest_ind(a, b, equal_var=False, alternative=direction)
@@ -161,6 +195,46 @@ def mann_whitney(a: np.ndarray, b: np.ndarray, direction: Direction) -> tuple[fl
         return a.size * b.size / 2, 1.0
     result = scipy_stats.mannwhitneyu(a, b, alternative=direction)
     return float(result.statistic), float(result.pvalue)
+
+
+def paired_t_test(d: np.ndarray, direction: Direction) -> tuple[float, float, float]:
+    """One-tailed paired t-test that mean(a) is `direction` than mean(b), from the runs'
+    differences d = a − b (at least 2). Constant differences take the zero-variance limit.
+
+    Returns:
+        (t, df, p) with t of mean(d) and df = runs − 1.
+    """
+    d = np.asarray(d, dtype=float)
+    if np.ptp(d) == 0:
+        t, p = _zero_variance_limit(d[0], direction)
+        return t, d.size - 1.0, p
+    result = scipy_stats.ttest_1samp(d, 0.0, alternative=direction)
+    return float(result.statistic), float(result.df), float(result.pvalue)
+
+
+def wilcoxon_signed_rank(d: np.ndarray, direction: Direction) -> tuple[float, float]:
+    """One-tailed Wilcoxon signed-rank test that the runs' differences d = a − b tend to be
+    `direction` than 0. Zero differences are dropped (Wilcoxon's own method); all zero gives
+    p = 1. scipy's default method: exact for small samples without ties, else normal.
+
+    Returns:
+        (W+, the rank sum of the positive differences; p).
+    """
+    d = np.asarray(d, dtype=float)
+    nonzero = d[d != 0]
+    if nonzero.size == 0:
+        return 0.0, 1.0
+    result = scipy_stats.wilcoxon(nonzero, alternative=direction)
+    return float(result.statistic), float(result.pvalue)
+
+
+def share_improved(d: np.ndarray, direction: Direction) -> float:
+    """The paired probability of improvement: the share of runs whose difference d = a − b
+    favours the claim, ties counted ½."""
+    d = np.asarray(d, dtype=float)
+    if direction == "less":
+        d = -d
+    return float(((d > 0).sum() + 0.5 * (d == 0).sum()) / d.size)
 
 
 def probability_of_improvement(a: np.ndarray, b: np.ndarray, direction: Direction) -> float:
@@ -202,6 +276,7 @@ def compare(
     rng: np.random.Generator,
     resamples: int = BOOTSTRAP_RESAMPLES,
     names: tuple[str, str] = ("arm a", "arm b"),
+    paired: bool = False,
 ) -> PairStats:
     """Every statistic of the claim "a is `direction` than b", one value per run.
 
@@ -212,10 +287,19 @@ def compare(
         rng: the bootstrap's only source of randomness.
         resamples: bootstrap resamples.
         names: the arms' names, for the notes.
+        paired: a and b are the same runs (aligned by seed) in two conditions: paired tests,
+            and a run missing on either side is dropped from both.
 
     Returns:
         The claim's statistics, with notes on anything dropped or degenerate.
     """
+    if paired:
+        a_values, b_values = np.asarray(a_values, dtype=float), np.asarray(b_values, dtype=float)
+        if a_values.shape != b_values.shape:
+            raise ValueError(f"paired values need one per run on both sides: {names}")
+        unpaired = ~(np.isfinite(a_values) & np.isfinite(b_values))
+        a_values = np.where(unpaired, np.nan, a_values)
+        b_values = np.where(unpaired, np.nan, b_values)
     a, dropped_a = finite_values(a_values)
     b, dropped_b = finite_values(b_values)
     summary_a, summary_b = summarise(a_values), summarise(b_values)
@@ -225,19 +309,37 @@ def compare(
         if dropped
     ]
     difference = summary_a.mean - summary_b.mean  # NaN when an arm has no value
-    prob = probability_of_improvement(a, b, direction) if a.size and b.size else math.nan
+    d = a - b if paired else None
+    if not (a.size and b.size):
+        prob = math.nan
+    else:
+        prob = (
+            share_improved(d, direction)
+            if d is not None
+            else (probability_of_improvement(a, b, direction))
+        )
     if a.size < 2 or b.size < 2:
         notes.append(
             f"fewer than 2 finite values in an arm ({names[0]}: {a.size}, {names[1]}: {b.size}): "
             "no test"
         )
-        return PairStats(direction, summary_a, summary_b, difference, prob, tuple(notes))
-    if np.ptp(a) == 0 and np.ptp(b) == 0:
-        notes.append("both arms constant: t-test and effect size at their zero-variance limit")
-    ci_low, ci_high = bootstrap_difference_ci(a, b, rng, resamples)
-    t, df, p = welch_test(a, b, direction)
-    _, _, p_opposite = welch_test(a, b, _OPPOSITE[direction])
-    u, mw_p = mann_whitney(a, b, direction)
+        return PairStats(
+            direction, summary_a, summary_b, difference, prob, tuple(notes), paired=paired
+        )
+    if d is not None:
+        if np.ptp(d) == 0:
+            notes.append("constant differences: the t-test at its zero-variance limit")
+        ci_low, ci_high = bootstrap_mean_ci(d, rng, resamples)
+        t, df, p = paired_t_test(d, direction)
+        _, _, p_opposite = paired_t_test(d, _OPPOSITE[direction])
+        rank_statistic, rank_p = wilcoxon_signed_rank(d, direction)
+    else:
+        if np.ptp(a) == 0 and np.ptp(b) == 0:
+            notes.append("both arms constant: t-test and effect size at their zero-variance limit")
+        ci_low, ci_high = bootstrap_difference_ci(a, b, rng, resamples)
+        t, df, p = welch_test(a, b, direction)
+        _, _, p_opposite = welch_test(a, b, _OPPOSITE[direction])
+        rank_statistic, rank_p = mann_whitney(a, b, direction)
     return PairStats(
         direction=direction,
         a=summary_a,
@@ -245,15 +347,16 @@ def compare(
         difference=difference,
         ci_low=ci_low,
         ci_high=ci_high,
-        welch_t=t,
-        welch_df=df,
-        welch_p=p,
-        welch_p_opposite=p_opposite,
-        mann_whitney_u=u,
-        mann_whitney_p=mw_p,
+        t=t,
+        df=df,
+        p=p,
+        p_opposite=p_opposite,
+        rank_statistic=rank_statistic,
+        rank_p=rank_p,
         prob_improvement=prob,
         hedges_g=hedges_g(a, b, direction),
         notes=tuple(notes),
+        paired=paired,
     )
 
 
@@ -284,12 +387,12 @@ def verdict(holm_p: float, holm_p_opposite: float, alpha: float = ALPHA) -> Verd
 
 
 def judge_claims(claims: Sequence[PairStats], alpha: float = ALPHA) -> tuple[ClaimStats, ...]:
-    """Holm-adjust the Welch p-values of one experiment's claims and give each its verdict.
+    """Holm-adjust the t-tests' p-values of one experiment's claims and give each its verdict.
 
     The claimed-direction p-values form one family, the opposite-direction ones another.
     """
-    adjusted = holm([c.welch_p for c in claims])
-    adjusted_opposite = holm([c.welch_p_opposite for c in claims])
+    adjusted = holm([c.p for c in claims])
+    adjusted_opposite = holm([c.p_opposite for c in claims])
     return tuple(
         ClaimStats(c, float(p), float(q), verdict(p, q, alpha))
         for c, p, q in zip(claims, adjusted, adjusted_opposite, strict=True)

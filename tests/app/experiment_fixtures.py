@@ -62,6 +62,16 @@ condition = "break-1"
 direction = "greater"
 source = "Fig. 3.7"
 
+[[comparisons]]
+name = "BS-fault-hurts"
+a = "BS"
+b = "BS"
+metric = "mean_reward"
+condition = "fixed-2-3"
+condition_b = "no-fault"
+direction = "less"
+source = "Fig. 5.6"
+
 [[thesis]]
 arm = "BS"
 metric = "mean_reward"

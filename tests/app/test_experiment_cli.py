@@ -205,11 +205,17 @@ def test_run_status_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert (tmp_path / "runs/experiments/tiny/report-smoke/index.html").is_file()  # from `run`
     assert main(["experiment", "report", *common, "--format", "json"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert [c["name"] for c in report["comparisons"]] == ["fitness", "after-1"]
+    assert [c["name"] for c in report["comparisons"]] == ["fitness", "after-1", "BS-fault-hurts"]
     results = read_summary(summary)
     for comparison in report["comparisons"]:  # the report's means are the run files' values
-        for side, arm in (("a", "BS"), ("b", "RL")):
-            values = results.scalar(comparison["metric"], arm, comparison["condition"])
+        paired = comparison["condition_b"] is not None  # BS with 2 sensors broken against none
+        assert comparison["paired"] == paired and comparison["t_test"]["test"] == (
+            "paired t" if paired else "Welch"
+        )
+        sides = [("a", "BS", comparison["condition"])]
+        sides.append(("b", "BS", comparison["condition_b"]) if paired else ("b", "RL", sides[0][2]))
+        for side, arm, condition in sides:
+            values = results.scalar(comparison["metric"], arm, condition)
             assert comparison[side]["name"] == arm and comparison[side]["n"] == 2
             assert comparison[side]["mean"] == pytest.approx(values.mean(), rel=1e-12)
         assert comparison["verdict"] in ("held", "reversed", "not shown")

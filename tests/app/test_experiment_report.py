@@ -102,7 +102,7 @@ def test_json_means_are_the_means_of_the_runs() -> None:
         assert entry["difference"] == pytest.approx(a_mean - b_mean)
         low, high = entry["ci"]
         assert low < entry["difference"] < high
-        assert entry["holm_p"] >= entry["welch"]["p"]
+        assert entry["holm_p"] >= entry["t_test"]["p"]
     after = report["comparisons"][1:]
     assert [c["verdict"] for c in after] == ["held", "held"]  # 0.05 and 0.1 apart, sd 0.005
     assert after[0]["a"]["thesis"] == {"value": 0.512, "source": "Table 3.4"}
@@ -123,7 +123,7 @@ def test_page_shows_each_comparisons_verdict_and_json_numbers(
         assert f'class="verdict {entry["verdict"].replace(" ", "-")}">{entry["verdict"]}' in section
         shown = [
             entry["a"]["mean"], entry["a"]["sd"], entry["b"]["mean"], entry["b"]["sd"],
-            entry["difference"], *entry["ci"], entry["welch"]["p"], entry["mann_whitney"]["p"],
+            entry["difference"], *entry["ci"], entry["t_test"]["p"], entry["rank_test"]["p"],
             entry["holm_p"], entry["prob_improvement"], entry["hedges_g"],
         ]  # fmt: skip
         for number in shown:
@@ -185,7 +185,7 @@ def test_a_single_seed_reports_without_tests_or_bands(tmp_path: Path) -> None:
     index = write_report(synthetic_results(seeds=(5,)), tmp_path)
     report = json.loads((tmp_path / "report.json").read_text())
     assert all(c["verdict"] == "not shown" for c in report["comparisons"])
-    assert all(c["welch"]["p"] is None and c["a"]["sd"] is None for c in report["comparisons"])
+    assert all(c["t_test"]["p"] is None and c["a"]["sd"] is None for c in report["comparisons"])
     for name in re.findall(r'<img src="([^"]+)"', index.read_text()):
         assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC
 
@@ -245,3 +245,30 @@ def test_the_thesis_numbers_sit_beside_ours(
     assert entry["ours"]["mean"] == pytest.approx(np.mean(ours)) and entry["ours"]["n"] == 4
     table = index.read_text().split("The thesis's numbers beside ours")[1]
     assert "0.512 (Table 3.4)" in table and format_number(entry["ours"]["mean"]) in table
+
+
+def test_one_arm_across_two_conditions_is_tested_paired(tmp_path: Path) -> None:
+    results = synthetic_results()
+    sweep = Comparison(
+        "BS fault sweep", "BS", "BS", "mean_reward_after_fault", "break1", "greater",
+        "Fig. 3.9", condition_b="break2",
+    )  # fmt: skip
+    results = dataclasses.replace(results, comparisons=(*results.comparisons, sweep))
+    index = write_report(results, tmp_path, np.random.default_rng(0))
+    entry = json.loads((tmp_path / "report.json").read_text())["comparisons"][-1]
+    one, two = (results.scalar("mean_reward_after_fault", "BS", c) for c in ("break1", "break2"))
+    assert entry["paired"] and entry["condition_b"] == "break2"
+    assert entry["a"]["mean"] == pytest.approx(one.mean())
+    assert entry["b"]["mean"] == pytest.approx(two.mean())
+    assert entry["t_test"]["test"] == "paired t" and entry["t_test"]["df"] == len(SEEDS) - 1
+    assert entry["rank_test"]["test"] == "Wilcoxon signed-rank"
+    d = one - two
+    assert entry["t_test"]["t"] == pytest.approx(d.mean() / (d.std(ddof=1) / np.sqrt(d.size)))
+    assert entry["claim"] == (
+        "Fuzzy GNP-TSRL (BS) has a higher mean reward per step after the fault in "
+        "1 sensor(s) break than in 2 sensor(s) break"
+    )
+    section = sections(index.read_text())[-1]
+    assert "paired t t (df)" in section and "Wilcoxon signed-rank W+" in section
+    assert "Fuzzy GNP-TSRL (BS), 2 sensor(s) break" in section
+    assert (tmp_path / "runs-3-BS-fault-sweep.png").read_bytes()[:8] == PNG_MAGIC

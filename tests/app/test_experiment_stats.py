@@ -13,15 +13,19 @@ from hypothesis import strategies as st
 from app.experiments.results import VERDICTS
 from app.experiments.stats import (
     bootstrap_difference_ci,
+    bootstrap_mean_ci,
     compare,
     hedges_g,
     holm,
     judge_claims,
     mann_whitney,
+    paired_t_test,
     probability_of_improvement,
+    share_improved,
     summarise,
     verdict,
     welch_test,
+    wilcoxon_signed_rank,
 )
 
 A = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
@@ -139,7 +143,7 @@ def test_compare_never_fails_and_its_p_values_are_probabilities(a: np.ndarray, b
     (claim,) = judge_claims([stats])
     assert claim.verdict in VERDICTS
     tested = a.size >= 2 and b.size >= 2
-    for p in (stats.welch_p, stats.welch_p_opposite, stats.mann_whitney_p, claim.holm_p):
+    for p in (stats.p, stats.p_opposite, stats.rank_p, claim.holm_p):
         assert (0.0 <= p <= 1.0) if tested else math.isnan(p)
     assert 0.0 <= stats.prob_improvement <= 1.0
 
@@ -171,8 +175,8 @@ def test_judge_adjusts_across_the_claims_of_one_experiment() -> None:
     weak = compare(A + 0.5, B, "greater", rng)  # one-tailed Welch p ≈ 0.06
     strong = compare(A + 3.0, B, "greater", rng)
     claims = judge_claims([weak, strong])
-    assert claims[1].holm_p == pytest.approx(2 * strong.welch_p)
-    assert claims[0].holm_p == pytest.approx(max(weak.welch_p, 2 * strong.welch_p))
+    assert claims[1].holm_p == pytest.approx(2 * strong.p)
+    assert claims[0].holm_p == pytest.approx(max(weak.p, 2 * strong.p))
     assert [c.verdict for c in claims] == ["not shown", "held"]
 
 
@@ -189,7 +193,7 @@ def test_unfinished_runs_are_dropped_and_counted() -> None:
     stats = compare(np.array([1.0, 2.0, 3.0, math.nan]), B, "greater", np.random.default_rng(0))
     assert stats.a.dropped == 1 and stats.b.dropped == 0
     assert any("1 unfinished run(s) of arm a" in note for note in stats.notes)
-    assert math.isfinite(stats.welch_p)
+    assert math.isfinite(stats.p)
 
 
 def test_an_arm_with_one_finite_value_is_not_tested() -> None:
@@ -198,7 +202,7 @@ def test_an_arm_with_one_finite_value_is_not_tested() -> None:
     (claim,) = judge_claims([stats])
     assert claim.verdict == "not shown"
     assert stats.a.n == 1 and stats.a.dropped == 2 and math.isnan(stats.a.sd)
-    assert all(math.isnan(p) for p in (stats.welch_p, stats.mann_whitney_p, claim.holm_p))
+    assert all(math.isnan(p) for p in (stats.p, stats.rank_p, claim.holm_p))
     assert math.isnan(stats.ci_low) and math.isnan(stats.hedges_g)
     assert stats.difference == pytest.approx(1.0 - 2.0)
     assert any("fewer than 2" in note for note in stats.notes)
@@ -207,8 +211,8 @@ def test_an_arm_with_one_finite_value_is_not_tested() -> None:
 def test_identical_constant_arms_show_nothing_without_nan() -> None:
     stats = compare(np.full(4, 3.0), np.full(4, 3.0), "greater", np.random.default_rng(0))
     (claim,) = judge_claims([stats])
-    assert (stats.welch_t, stats.welch_p, stats.welch_p_opposite) == (0.0, 1.0, 1.0)
-    assert (stats.mann_whitney_p, stats.prob_improvement, stats.hedges_g) == (1.0, 0.5, 0.0)
+    assert (stats.t, stats.p, stats.p_opposite) == (0.0, 1.0, 1.0)
+    assert (stats.rank_p, stats.prob_improvement, stats.hedges_g) == (1.0, 0.5, 0.0)
     assert (stats.ci_low, stats.ci_high) == (0.0, 0.0)
     assert claim.verdict == "not shown" and claim.holm_p == 1.0
     assert any("constant" in note for note in stats.notes)
@@ -217,6 +221,94 @@ def test_identical_constant_arms_show_nothing_without_nan() -> None:
 def test_different_constant_arms_take_the_zero_variance_limit() -> None:
     stats = compare(np.full(4, 2.0), np.full(3, 1.0), "greater", np.random.default_rng(0))
     (claim,) = judge_claims([stats])
-    assert stats.welch_t == math.inf and (stats.welch_p, stats.welch_p_opposite) == (0.0, 1.0)
+    assert stats.t == math.inf and (stats.p, stats.p_opposite) == (0.0, 1.0)
     assert stats.hedges_g == math.inf and (stats.ci_low, stats.ci_high) == (1.0, 1.0)
     assert claim.verdict == "held"
+
+
+# --- one arm in two conditions: paired by seed ---
+
+
+def test_paired_t_matches_the_hand_formula() -> None:
+    d = np.array([0.5, 1.0, 0.5, 1.0, 1.0])  # A − B2 below
+    mean = sum(d) / 5
+    sd = math.sqrt(sum((x - mean) ** 2 for x in d) / 4)
+    t_hand = mean / (sd / math.sqrt(5))
+    t, df, p = paired_t_test(d, "greater")
+    assert (t, df) == (pytest.approx(t_hand), 4.0)
+    assert p == pytest.approx(1 - student_t_cdf_even_df(t_hand, 4))
+    assert paired_t_test(d, "less")[2] == pytest.approx(student_t_cdf_even_df(t_hand, 4))
+
+
+def test_wilcoxon_exact_p_by_counting_sign_flips() -> None:
+    d = np.array([1.0, 2.0, 3.0, -0.5, 4.0])  # |d| ranks 2, 3, 4, 1, 5: W+ = 14
+    w, p = wilcoxon_signed_rank(d, "greater")
+    flips = [
+        sum(r for r, s in zip(range(1, 6), signs, strict=True) if s)
+        for signs in itertools.product((0, 1), repeat=5)
+    ]  # W+ of every sign pattern, equally likely
+    assert w == 14.0 and p == pytest.approx(sum(x >= 14 for x in flips) / 32)  # 2/32
+    assert wilcoxon_signed_rank(np.zeros(4), "greater") == (0.0, 1.0)
+
+
+def test_share_improved_counts_runs_and_half_ties() -> None:
+    d = np.array([1.0, 0.0, -1.0, 2.0])
+    assert share_improved(d, "greater") == 0.625 and share_improved(d, "less") == 0.375
+
+
+def test_pairing_finds_a_small_shift_the_spread_between_runs_hides() -> None:
+    b = np.array([0.0, 10.0, 20.0, 30.0, 40.0, 50.0])  # runs differ a lot
+    a = b + np.array([1.0, 1.1, 0.9, 1.0, 1.2, 0.8])  # each run gains about 1
+    rng = np.random.default_rng(0)
+    paired, unpaired = (compare(a, b, "greater", rng, paired=p) for p in (True, False))
+    assert paired.paired and paired.tests == ("paired t", "Wilcoxon signed-rank")
+    assert unpaired.tests == ("Welch", "Mann–Whitney")
+    assert paired.p < 1e-5 < 0.4 < unpaired.p
+    assert paired.prob_improvement == 1.0 and paired.difference == pytest.approx(1.0)
+    assert paired.hedges_g == unpaired.hedges_g  # g reads the same way in both
+    assert 0.85 < paired.ci_low < 1.0 < paired.ci_high < 1.15
+    assert (paired.t, paired.df) == paired_t_test(a - b, "greater")[:2]
+
+
+def test_a_run_missing_on_either_side_is_dropped_from_both() -> None:
+    a = np.array([1.0, math.nan, 3.0, 4.0])
+    b = np.array([0.0, 1.0, math.nan, 2.0])
+    stats = compare(a, b, "greater", np.random.default_rng(0), paired=True)
+    assert (stats.a.n, stats.b.n, stats.a.dropped, stats.b.dropped) == (2, 2, 2, 2)
+    assert stats.difference == pytest.approx(1.5) and stats.df == 1.0
+    with pytest.raises(ValueError, match="one per run"):
+        compare(a, b[:3], "greater", np.random.default_rng(0), paired=True)
+
+
+def test_constant_differences_take_the_zero_variance_limit() -> None:
+    stats = compare(A + 2.0, A, "greater", np.random.default_rng(0), paired=True)
+    assert (stats.t, stats.p, stats.p_opposite) == (math.inf, 0.0, 1.0)
+    assert (stats.ci_low, stats.ci_high) == (2.0, 2.0)
+    assert any("constant differences" in note for note in stats.notes)
+    same = compare(A, A, "greater", np.random.default_rng(0), paired=True)
+    assert (same.t, same.p, same.rank_p, same.prob_improvement) == (0.0, 1.0, 1.0, 0.5)
+
+
+def test_the_paired_bootstrap_is_seeded_and_resamples_runs() -> None:
+    d = np.random.default_rng(3).normal(1.0, 0.1, 12)
+    ci = bootstrap_mean_ci(d, np.random.default_rng(5))
+    assert ci == bootstrap_mean_ci(d, np.random.default_rng(5))
+    assert d.min() < ci[0] < d.mean() < ci[1] < d.max()
+
+
+paired_values = st.lists(
+    st.tuples(st.integers(-5, 5).map(float), st.integers(-5, 5).map(float)), min_size=1, max_size=8
+)
+
+
+@given(paired_values)
+def test_paired_compare_never_fails_and_its_p_values_are_probabilities(
+    pairs: list[tuple[float, float]],
+) -> None:
+    a, b = (np.array(side) for side in zip(*pairs, strict=True))
+    stats = compare(a, b, "greater", np.random.default_rng(0), resamples=200, paired=True)
+    (claim,) = judge_claims([stats])
+    assert claim.verdict in VERDICTS
+    for p in (stats.p, stats.p_opposite, stats.rank_p, claim.holm_p):
+        assert (0.0 <= p <= 1.0) if len(pairs) >= 2 else math.isnan(p)
+    assert 0.0 <= stats.prob_improvement <= 1.0

@@ -132,7 +132,9 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
     for row, comparison in zip(rows, report.comparisons, strict=True):
         cells = [cell.strip() for cell in row.strip("|").split(" | ")]
         assert cells[0].startswith(comparison.comparison.name)
-        assert cells[1] == f"BS {format_number(comparison.stats.a.mean)} ± " + format_number(
+        c = comparison.comparison
+        side = f"{c.a} ({c.condition})" if c.paired else c.a  # one arm in two conditions
+        assert cells[1] == f"{side} {format_number(comparison.stats.a.mean)} ± " + format_number(
             comparison.stats.a.sd
         )
         assert cells[-1] == f"**{comparison.claim.verdict}**"
