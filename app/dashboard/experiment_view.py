@@ -260,9 +260,9 @@ def verdict_table(results: ExperimentResults) -> str:
     rows = ["| claim | a | b | a − b [95% CI] | Holm p | verdict |", "|---|---|---|---|---|---|"]
     for c in report.comparisons:
         s = c.stats
-        names = [c.arm_a.name, c.arm_b.name]
-        if c.condition is not None and c.condition_b is not None:  # one arm, two conditions
-            names = [f"{names[0]} ({c.condition.name})", f"{names[1]} ({c.condition_b.name})"]
+        names = list(c.comparison.side_names())
+        if c.comparison.paired:  # one arm: what tells its two sides apart
+            names = [f"{c.arm_a.name} ({name})" for name in names]
         arms = [
             f"{name} {format_number(summary.mean)} ± {format_number(summary.sd)}"
             for name, summary in zip(names, (s.a, s.b), strict=True)

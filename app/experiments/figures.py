@@ -222,14 +222,13 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
     figure = _new_figure(4.0, 3.2)
     axes = figure.add_subplot()
     drawn = False
-    condition_b = comparison.condition_b or comparison.condition
-    sides = ((comparison.a, comparison.condition), (comparison.b, condition_b))
-    found = [results.scalars.get((metric.name, name, where or "")) for name, where in sides]
+    keys = comparison.keys()
+    found = [results.scalars.get(key) for key in keys]
     if comparison.paired and found[0] is not None and found[1] is not None:
         both = np.isfinite(found[0]) & np.isfinite(found[1])
         for a_value, b_value in zip(found[0][both], found[1][both], strict=True):
             axes.plot([0, 1], [a_value, b_value], color="0.75", linewidth=0.8, zorder=2)
-    for position, ((name, _), values) in enumerate(zip(sides, found, strict=True)):
+    for position, ((_, name, _), values) in enumerate(zip(keys, found, strict=True)):
         if values is None:
             continue
         finite = values[np.isfinite(values)]
@@ -249,9 +248,9 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
         drawn = drawn or finite.size > 0
     if not drawn:
         return None
-    labels = [comparison.a, comparison.b]
-    if comparison.paired:
-        labels = [f"{comparison.a}\n{comparison.condition}", f"{comparison.b}\n{condition_b}"]
+    labels = list(comparison.side_names())
+    if comparison.paired:  # one arm: its name over what tells the sides apart
+        labels = [f"{comparison.a}\n{label}" for label in labels]
     axes.set_xticks([0, 1], labels)
     axes.set_xlim(-0.5, 1.6)
     axes.set(ylabel=metric.label, title=comparison.name)

@@ -41,6 +41,7 @@ from app.experiments.stats import (
 )
 
 REPORT_SEED = 0  # the bootstrap's seed when `write_report` is given no generator
+FIGURE_PATTERNS = ("fitness.png", "fault.png", "reward-*.png", "runs-*.png")  # save_figures's
 VALUES_COLUMNS = ("arm", "seed", "condition", "metric", "value")
 _DIRECTION_WORDS = {"greater": "higher", "less": "lower"}
 
@@ -52,7 +53,8 @@ class ComparisonReport:
     comparison: Comparison
     metric: Metric
     condition: Condition | None
-    condition_b: Condition | None  # b's condition when it is not a's (one arm, two conditions)
+    condition_b: Condition | None  # b's condition when it is not a's (paired: one arm)
+    metric_b: Metric | None  # b's metric when it is not a's (paired: one arm)
     arm_a: Arm
     arm_b: Arm
     claim: ClaimStats
@@ -68,10 +70,11 @@ class ComparisonReport:
         """The claim in words."""
         where = f" in {self.condition.label}" if self.condition else ""
         higher = _DIRECTION_WORDS[self.comparison.direction]
-        if self.condition_b is not None:  # one arm in two conditions
-            return (
-                f"{self.arm_a.label} has a {higher} {self.metric.label}{where} than in "
-                f"{self.condition_b.label}"
+        if self.comparison.paired:  # one arm against itself on another metric or condition
+            other = [self.metric_b.label] if self.metric_b else []
+            other += [f"in {self.condition_b.label}"] if self.condition_b else []
+            return f"{self.arm_a.label} has a {higher} {self.metric.label}{where} than " + (
+                " ".join(other)
             )
         return (
             f"{self.arm_a.label} has a {higher} {self.metric.label} than {self.arm_b.label}{where}"
@@ -88,17 +91,9 @@ class ExperimentReport:
     resamples: int
 
 
-def _thesis_value(
-    results: ExperimentResults, arm: str, metric: str, condition: str | None
-) -> ThesisValue | None:
-    return next(
-        (
-            v
-            for v in results.thesis
-            if (v.arm, v.metric, v.condition or None) == (arm, metric, condition or None)
-        ),
-        None,
-    )
+def _thesis_value(results: ExperimentResults, key: tuple[str, str, str]) -> ThesisValue | None:
+    """The thesis's number for the values at `key` (metric, arm, condition), if it gives one."""
+    return next((v for v in results.thesis if (v.metric, v.arm, v.condition or "") == key), None)
 
 
 def _thesis_beside_ours(results: ExperimentResults) -> list[tuple[ThesisValue, ArmSummary]]:
@@ -135,15 +130,15 @@ def analyse(
         named = [c.condition, c.condition_b]
         if c.a not in arms or c.b not in arms or any(n and n not in conditions for n in named):
             raise ValueError(f"comparison {c.name!r} names an arm or condition not in the results")
-        condition_b = c.condition_b or c.condition
+        key_a, key_b = c.keys()
         pairs.append(
             compare(
-                results.scalars.get((c.metric, c.a, c.condition or ""), missing),
-                results.scalars.get((c.metric, c.b, condition_b or ""), missing),
+                results.scalars.get(key_a, missing),
+                results.scalars.get(key_b, missing),
                 c.direction,
                 rng,
                 resamples,
-                names=(c.a, c.b) if not c.paired else (c.condition or "", condition_b or ""),
+                names=c.side_names(),
                 paired=c.paired,
             )
         )
@@ -155,11 +150,12 @@ def analyse(
                 metric=METRICS[c.metric],
                 condition=conditions[c.condition] if c.condition else None,
                 condition_b=conditions[c.condition_b] if c.condition_b else None,
+                metric_b=METRICS[c.metric_b] if c.metric_b else None,
                 arm_a=arms[c.a],
                 arm_b=arms[c.b],
                 claim=claim,
-                thesis_a=_thesis_value(results, c.a, c.metric, c.condition),
-                thesis_b=_thesis_value(results, c.b, c.metric, c.condition_b or c.condition),
+                thesis_a=_thesis_value(results, c.keys()[0]),
+                thesis_b=_thesis_value(results, c.keys()[1]),
             )
             for c, claim in zip(results.comparisons, judge_claims(pairs, alpha), strict=True)
         ),
@@ -204,6 +200,8 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
         "metric_label": report.metric.label,
         "condition": report.comparison.condition,
         "condition_b": report.comparison.condition_b,
+        "metric_b": report.comparison.metric_b,
+        "sides": list(report.comparison.side_names()),
         "direction": report.comparison.direction,
         "a": _arm_json(report.arm_a, s.a, report.thesis_a),
         "b": _arm_json(report.arm_b, s.b, report.thesis_b),
@@ -322,8 +320,15 @@ def _row(*cells: str, header: bool = False) -> str:
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
     s, claim, c = report.stats, report.claim, report.comparison
     sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
-    if report.condition_b is not None and report.condition is not None:  # one arm, 2 conditions
-        sides = [f"{sides[0]}, {report.condition.label}", f"{sides[1]}, {report.condition_b.label}"]
+    if c.paired:  # one arm: each side says its metric or condition
+        parts: list[list[str]] = [[], []]
+        if report.metric_b is not None:
+            parts[0].append(report.metric.label)
+            parts[1].append(report.metric_b.label)
+        if report.condition_b is not None and report.condition is not None:
+            parts[0].append(report.condition.label)
+            parts[1].append(report.condition_b.label)
+        sides = [", ".join([side, *part]) for side, part in zip(sides, parts, strict=True)]
     arm_rows = "".join(
         "<tr>"
         f"<td>{_e(side)}</td>"
@@ -475,6 +480,9 @@ def write_report(
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     report = analyse(results, rng if rng is not None else np.random.default_rng(REPORT_SEED))
+    for pattern in FIGURE_PATTERNS:  # an earlier report's figures: claims may have changed
+        for stale in out_dir.glob(pattern):
+            stale.unlink()
     figures = save_figures(results, out_dir)
     write_values_csv(results, out_dir / "values.csv")
     (out_dir / "report.json").write_text(json.dumps(to_json(report), indent=2, allow_nan=False))

@@ -44,12 +44,13 @@ def _number(value: float | None) -> str:
 def _thesis(comparison: dict[str, Any]) -> str:
     """The thesis's own numbers for a claim, or its figure's ordering when it gives none."""
     a, b = comparison["a"], comparison["b"]
+    names = comparison.get("sides") or (a["name"], b["name"])  # paired: conditions or metrics
     if a["thesis"] is None and b["thesis"] is None:
         sign = ">" if comparison["direction"] == "greater" else "<"
-        return f"{a['name']} {sign} {b['name']} ({comparison['source']})"
+        return f"{names[0]} {sign} {names[1]} ({comparison['source']})"
     return (
-        f"{a['name']} {_number(a['thesis'] and a['thesis']['value'])}, "
-        f"{b['name']} {_number(b['thesis'] and b['thesis']['value'])} ({comparison['source']})"
+        f"{names[0]} {_number(a['thesis'] and a['thesis']['value'])}, "
+        f"{names[1]} {_number(b['thesis'] and b['thesis']['value'])} ({comparison['source']})"
     )
 
 
@@ -139,7 +140,7 @@ def tables(folder: Path) -> str:
         "## Every claim, the thesis beside us\n\n"
         "Each claim is one-sided (a is claimed better than b, or the reverse where the thesis "
         "says so); Δ = mean(a) − mean(b) over runs with its bootstrap 95% CI; p is Welch's "
-        "one-sided test (paired by seed for one arm in two conditions), Holm-adjusted over the "
+        "one-sided test (paired by seed for one arm against itself), Holm-adjusted over the "
         "experiment's claims. `held`: significant in "
         "the claimed direction; `reversed`: significant the other way; `not shown`: neither.\n\n"
         + claims_tables(reports)

@@ -101,7 +101,7 @@ class Condition:
 @dataclass(frozen=True)
 class Comparison:
     """A claim: arm `a` is `direction` than arm `b` on `metric` (in `condition`, if any);
-    or, with `condition_b`, one arm (a = b) in `condition` than in `condition_b`."""
+    or, paired, one arm (a = b) against itself in `condition_b` and/or on `metric_b`."""
 
     name: str
     a: str
@@ -111,11 +111,30 @@ class Comparison:
     direction: Direction
     source: str  # where the thesis claims it ("Fig. 3.9")
     condition_b: str | None = None  # b's condition, when it is not a's (then b is a)
+    metric_b: str | None = None  # b's metric, when it is not a's (then b is a)
 
     @property
     def paired(self) -> bool:
-        """The same runs on both sides (one arm in two conditions): tests paired by seed."""
-        return self.condition_b is not None
+        """The same runs on both sides (one arm in two conditions or on two metrics): tests
+        paired by seed."""
+        return self.condition_b is not None or self.metric_b is not None
+
+    def keys(self) -> tuple[tuple[str, str, str], tuple[str, str, str]]:
+        """The (metric, arm, condition) of a's values and of b's in `ExperimentResults.scalars`."""
+        condition = self.condition or ""
+        return (self.metric, self.a, condition), (
+            self.metric_b or self.metric,
+            self.b,
+            self.condition_b or condition,
+        )
+
+    def side_names(self) -> tuple[str, str]:
+        """What tells the two sides apart: the arms, or (paired) b's metric and condition."""
+        if not self.paired:
+            return self.a, self.b
+        a, b = self.keys()
+        differ = [i for i in (0, 2) if a[i] != b[i]] or [1]
+        return ", ".join(a[i] for i in differ), ", ".join(b[i] for i in differ)
 
 
 @dataclass(frozen=True)

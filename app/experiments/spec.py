@@ -94,6 +94,9 @@ class ComparisonSpec(_Frozen):
     condition_b: str | None = Field(
         None, description="b's condition: one arm (a = b) compared across two conditions"
     )
+    metric_b: str | None = Field(
+        None, description="b's metric: one arm (a = b) compared on two metrics"
+    )
     direction: Literal["greater", "less"]
     source: str = Field(description="where the thesis claims it, e.g. 'Fig. 3.9'")
 
@@ -166,22 +169,29 @@ class ExperimentSpec(_Frozen):
                 if arm not in arms:
                     raise ValueError(f"{where}: unknown arm {arm!r}")
             _check_metric(where, comp.metric, comp.condition, conditions)
-            if comp.condition_b is None and comp.a == comp.b:
+            paired = comp.condition_b is not None or comp.metric_b is not None
+            if not paired and comp.a == comp.b:
                 raise ValueError(
-                    f"{where}: compares arm {comp.a!r} with itself; give condition_b to compare "
-                    "it across two conditions"
+                    f"{where}: compares arm {comp.a!r} with itself; give condition_b or "
+                    "metric_b to compare it across two conditions or metrics"
                 )
-            if comp.condition_b is not None:
+            if paired:
                 if comp.a != comp.b:
                     raise ValueError(
-                        f"{where}: condition_b compares one arm across two conditions; "
+                        f"{where}: condition_b and metric_b compare one arm with itself; "
                         f"a and b must be the same arm, not {comp.a!r} and {comp.b!r}"
                     )
-                _check_metric(where, comp.metric, comp.condition_b, conditions)
-                if comp.condition_b == comp.condition:
-                    raise ValueError(f"{where}: condition_b is condition {comp.condition!r}")
-            if METRICS[comp.metric].kind != "scalar":
-                raise ValueError(f"{where}: metric {comp.metric!r} is a curve, not a number")
+                metric_b = comp.metric_b or comp.metric
+                condition_b = comp.condition_b or comp.condition
+                _check_metric(where, metric_b, condition_b, conditions)
+                if (metric_b, condition_b) == (comp.metric, comp.condition):
+                    raise ValueError(
+                        f"{where}: b is the same as a (metric {metric_b!r}, condition "
+                        f"{condition_b!r}); give b another condition_b or metric_b"
+                    )
+            for metric in {comp.metric, comp.metric_b or comp.metric}:
+                if METRICS[metric].kind != "scalar":
+                    raise ValueError(f"{where}: metric {metric!r} is a curve, not a number")
         for value in self.thesis:
             where = f"thesis value of {value.arm!r} ({value.source})"
             if value.arm not in arms:

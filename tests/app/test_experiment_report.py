@@ -272,3 +272,41 @@ def test_one_arm_across_two_conditions_is_tested_paired(tmp_path: Path) -> None:
     assert "paired t t (df)" in section and "Wilcoxon signed-rank W+" in section
     assert "Fuzzy GNP-TSRL (BS), 2 sensor(s) break" in section
     assert (tmp_path / "runs-3-BS-fault-sweep.png").read_bytes()[:8] == PNG_MAGIC
+
+
+def test_one_arm_on_two_metrics_is_tested_paired(tmp_path: Path) -> None:
+    results = synthetic_results()
+    fault_hurts = Comparison(
+        "RL fault hurts", "RL", "RL", "mean_reward_after_fault", "break2", "less", "Fig. 5.6",
+        metric_b="mean_reward",
+    )  # fmt: skip
+    results = dataclasses.replace(results, comparisons=(fault_hurts,))
+    report = to_json(analyse(results, np.random.default_rng(0), resamples=500))
+    (entry,) = report["comparisons"]
+    after = results.scalar("mean_reward_after_fault", "RL", "break2")
+    whole = results.scalar("mean_reward", "RL", "break2")
+    assert entry["paired"] and entry["metric_b"] == "mean_reward"
+    assert entry["sides"] == ["mean_reward_after_fault", "mean_reward"]
+    assert (entry["a"]["mean"], entry["b"]["mean"]) == (
+        pytest.approx(after.mean()),
+        pytest.approx(whole.mean()),
+    )
+    d = after - whole
+    assert entry["t_test"]["t"] == pytest.approx(d.mean() / (d.std(ddof=1) / np.sqrt(d.size)))
+    assert entry["claim"] == (
+        "Fuzzy GNP-RL has a lower mean reward per step after the fault in 2 sensor(s) break "
+        "than mean reward per step"
+    )
+    write_report(results, tmp_path, np.random.default_rng(0))
+    assert "Fuzzy GNP-RL, mean reward per step</td>" in (tmp_path / "index.html").read_text()
+
+
+def test_a_new_report_replaces_the_figures_of_an_earlier_one(tmp_path: Path) -> None:
+    results = synthetic_results()
+    write_report(results, tmp_path)
+    (tmp_path / "runs-9-a-claim-since-removed.png").write_bytes(PNG_MAGIC)
+    (tmp_path / "notes.png").write_bytes(PNG_MAGIC)  # not a report figure: kept
+    one_claim = dataclasses.replace(results, comparisons=results.comparisons[:1])
+    index = write_report(one_claim, tmp_path)
+    shown = set(re.findall(r'<img src="([^"]+)"', index.read_text()))
+    assert {p.name for p in tmp_path.glob("*.png")} == shown | {"notes.png"}

@@ -87,6 +87,11 @@ def _arm_fault_step(data: dict[str, Any]) -> None:
     data["arms"][1]["config"]["implementation"] = {"fault_step": 30}
 
 
+def _same_metric_b(data: dict[str, Any]) -> None:
+    data["comparisons"][2].pop("condition_b")
+    data["comparisons"][2]["metric_b"] = data["comparisons"][2]["metric"]
+
+
 BAD: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("unknown arm", _set("comparisons.0.a", "CS"), "unknown arm 'CS'"),
     ("unknown metric", _set("comparisons.0.metric", "speed"), "unknown metric 'speed'"),
@@ -96,7 +101,11 @@ BAD: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("unknown condition", _set("comparisons.1.condition", "break-9"), "unknown condition"),
     ("same arm", _set("comparisons.0.b", "BS"), "with itself; give condition_b"),
     ("condition_b, two arms", _set("comparisons.1.condition_b", "no-fault"), "the same arm"),
-    ("condition_b = condition", _set("comparisons.2.condition_b", "fixed-2-3"), "is condition"),
+    ("condition_b = condition", _set("comparisons.2.condition_b", "fixed-2-3"), "same as a"),
+    ("metric_b = metric", _same_metric_b, "same as a"),
+    ("metric_b, two arms", _set("comparisons.1.metric_b", "mean_reward"), "the same arm"),
+    ("curve metric_b", _set("comparisons.2.metric_b", "reward_per_step"), "is a curve"),
+    ("unknown metric_b", _set("comparisons.2.metric_b", "speed"), "unknown metric"),
     ("unknown condition_b", _set("comparisons.2.condition_b", "break-9"), "unknown condition"),
     ("training condition_b", _set("comparisons.2.metric", "final_best_fitness"), "training"),
     ("bad direction", _set("comparisons.0.direction", "bigger"), "direction"),
