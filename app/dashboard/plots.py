@@ -21,7 +21,7 @@ MAX_POINTS = 600
 SMOOTH = 50
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
 WHOLE_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0)
-"""Tick spacings for a generation axis (no 2.5th generation)."""
+"""Tick spacings for a generation or step axis (no 2.5th generation)."""
 FAULT_STYLE: dict[str, Any] = {"stroke": "#e61414", "dash": (6.0, 4.0), "width": 1.5}
 
 
@@ -171,6 +171,7 @@ def band_plot(gui: viser.GuiApi, title: str, x_label: str) -> viser.GuiUplotHand
         series=({"label": x_label}, {"label": "(nothing yet)"}),
         title=title,
         scales=X_NOT_TIME,
+        axes=({"incrs": WHOLE_STEPS}, {}),  # generations and steps: no 2.5th
         aspect=1.6,
     )
 
