@@ -216,7 +216,7 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
 
 def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | None:
     """Each run's value of a comparison's metric for its two arms (or, paired, its one arm in
-    two conditions, each run's two values joined), with the mean and 95% t-CI."""
+    two conditions or on two metrics, each run's two values joined), with the mean and 95% t-CI."""
     metric = METRICS[comparison.metric]
     colours = arm_colours(results)
     figure = _new_figure(4.0, 3.2)

@@ -4,12 +4,12 @@ The unit of analysis is the run (seed). Two arms are compared, as the thesis doe
 independent samples: `compare` gives mean ± sd per arm, the difference of means with a
 percentile-bootstrap 95% CI, Welch's one-tailed t-test and a one-tailed Mann–Whitney U test in
 the claimed direction, rliable's probability of improvement and Hedges' g. One arm compared
-across two implementation conditions (`paired=True`) has the same runs on both sides, so the
-tests are paired by seed: the one-tailed paired t-test and Wilcoxon's signed-rank test on the
-runs' differences, their bootstrap CI, and the share of runs that improve; Hedges' g is still
-standardised by the runs' spread, so every row's g reads the same way. `judge_claims` then
-adjusts the t-tests' p-values of one experiment's claims with Holm–Bonferroni and gives each
-claim its verdict.
+with itself, in two conditions or on two metrics (`paired=True`), has the same runs on both
+sides, so the tests are paired by seed: the one-tailed paired t-test and Wilcoxon's
+signed-rank test on the runs' differences, their bootstrap CI, and the share of runs that
+improve; Hedges' g is still standardised by the runs' spread, so every row's g reads the same
+way. `judge_claims` then adjusts the t-tests' p-values of one experiment's claims with
+Holm–Bonferroni and gives each claim its verdict.
 
 Degenerate input gives a defined outcome, never an exception:
 
@@ -80,7 +80,7 @@ class PairStats:
     rank_statistic: float = math.nan
     rank_p: float = math.nan
     hedges_g: float = math.nan
-    paired: bool = False  # one arm across two conditions: tests paired by seed
+    paired: bool = False  # one arm against itself (two conditions or metrics): paired by seed
 
     @property
     def tests(self) -> tuple[str, str]:
@@ -287,8 +287,8 @@ def compare(
         rng: the bootstrap's only source of randomness.
         resamples: bootstrap resamples.
         names: the arms' names, for the notes.
-        paired: a and b are the same runs (aligned by seed) in two conditions: paired tests,
-            and a run missing on either side is dropped from both.
+        paired: a and b are the same runs (aligned by seed) in two conditions or on two
+            metrics: paired tests, and a run missing on either side is dropped from both.
 
     Returns:
         The claim's statistics, with notes on anything dropped or degenerate.
