@@ -210,6 +210,7 @@ class Dashboard:
         """Stop the loop, any training, implementation or experiment, and close files."""
         self._stop.set()
         self._thread.join(timeout=5)
+        self.runs.wait_for_export()  # a replay being written is finished, not cut
         with self.lock:
             self.train.close()
             self.runs.close()

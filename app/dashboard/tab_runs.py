@@ -4,7 +4,8 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from concurrent.futures import Future, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import viser
@@ -50,6 +51,10 @@ class RunsTab:
     loaded: store.RunReader | None = None
     implementation: ImplementationJob | None = None
     last_export: Path | None = None
+    exporting: Future[Path] | None = None  # a replay being exported (a second or so)
+    _pool: ThreadPoolExecutor = field(
+        default_factory=lambda: ThreadPoolExecutor(1, thread_name_prefix="export")
+    )
 
     def list_runs(self, runs: Sequence[store.RunSummary]) -> None:
         """Offer `runs` to load and describe them in a table."""
@@ -124,21 +129,49 @@ class RunsTab:
     def export(self, replay: bool = False) -> None:
         """Export the loaded run's best of the chosen generation into `<runs dir>/exports/
         <run>-g<G>/`, or the replay of its final elite (the recorded life) into `<run>-replay/`;
-        the status line names the folder (also kept in `last_export`)."""
+        the status line names the folder (also kept in `last_export`).
+
+        A replay takes a second or so to draw and record: it is written in the background
+        (`exporting`), so the page and its robots go on meanwhile."""
         if self.loaded is None:
             raise DashboardInputError("load a run first")
+        if self.exporting is not None and not self.exporting.done():
+            raise DashboardInputError("a replay is being exported: one at a time")
         run = self.loaded.path
+        if replay:
+            out = self.exports_dir / f"{run.stem}-replay"
+            self.status.set(f"exporting the replay of {run.stem} to {out}")
+            self.exporting = self._pool.submit(self._export_replay, run, out)
+            return
         try:
-            if replay:
-                out = export_replay(run, self.exports_dir / f"{run.stem}-replay")
-            else:
-                generation = whole(self.generation.value, "generation", -(10**6), 10**6)
-                chosen = check_run(self.loaded, generation)
-                out = export_run(run, self.exports_dir / f"{run.stem}-g{chosen}", chosen)
+            generation = whole(self.generation.value, "generation", -(10**6), 10**6)
+            chosen = check_run(self.loaded, generation)
+            out = export_run(run, self.exports_dir / f"{run.stem}-g{chosen}", chosen)
         except ExportError as error:
             raise DashboardInputError(str(error)) from None
         self.last_export = out
-        self.status.set(f"exported {'the replay of ' if replay else ''}{run.stem} to {out}")
+        self.status.set(f"exported {run.stem} to {out}")
+
+    def _export_replay(self, run: Path, out: Path) -> Path:
+        """Write a replay (in the export thread), then put its folder, or why not, on the
+        status line: the future is done only once the page says so."""
+        try:
+            path = export_replay(run, out)
+        except Exception as error:  # a thread's failure goes to the page, not to stderr
+            failed = isinstance(error, ExportError)
+            message = str(error) if failed else f"exporting the replay of {run.stem}: {error}"
+            with self.status.lock:
+                self.status.set(f"⚠ {message}")
+            raise
+        with self.status.lock:
+            self.last_export = path
+            self.status.set(f"exported the replay of {run.stem} to {path}")
+        return path
+
+    def wait_for_export(self, seconds: float = 60.0) -> None:
+        """Let a replay being written finish (call without the lock: its last step takes it)."""
+        if self.exporting is not None:
+            wait([self.exporting], timeout=seconds)
 
     @property
     def exports_dir(self) -> Path:
@@ -180,6 +213,7 @@ class RunsTab:
         self.status.set("implementation phase finished")
 
     def close(self) -> None:
+        self._pool.shutdown(wait=False)  # under the lock: Dashboard.stop waited for it before
         if self.implementation is not None:
             self.implementation.close()
         if self.loaded is not None:

@@ -10,6 +10,7 @@ import pytest
 import gnp
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
+from app.export import ExportError
 
 
 def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path) -> None:
@@ -38,11 +39,21 @@ def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path)
             set_value(tab.generation, -1)
             tab.export()
             assert tab.last_export == tmp_path / "exports" / "tiny-g2"
-            tab.export(replay=True)
-        replay = tab.last_export
-        assert replay is not None and replay == tmp_path / "exports" / "tiny-replay"
+            tab.export(replay=True)  # in the background: the lock is not held meanwhile
+            assert dashboard.status.text.startswith("exporting the replay of tiny")
+            with pytest.raises(DashboardInputError, match="one at a time"):
+                tab.export(replay=True)
+        assert tab.exporting is not None
+        replay = tab.exporting.result(timeout=120)
+        assert replay == tmp_path / "exports" / "tiny-replay" and tab.last_export == replay
         assert {"index.html", "replay.viser"} <= {p.name for p in replay.iterdir()}
         assert dashboard.status.text == f"exported the replay of tiny to {replay}"
+        # Again: the replay folder is there; the failure reaches the status line.
+        with dashboard.lock:
+            tab.export(replay=True)
+        with pytest.raises(ExportError):
+            tab.exporting.result(timeout=120)
+        assert dashboard.status.text == f"⚠ {replay} exists and is not empty; nothing was written"
         # Again: the folder is there; refused on the status line, nothing overwritten.
         before = sorted(p.stat().st_mtime_ns for p in out.iterdir())
         set_value(tab.generation, 1)
