@@ -331,6 +331,15 @@ def default_workers() -> int:
     return cores()
 
 
+NO_DASHBOARD: dict[str, Any] = {
+    "dashboard_address": None,
+    # The scheduler still serves its HTTP routes: on a free loopback port, not on 8787, which a
+    # second cluster on the machine would find taken (and warn about).
+    "scheduler_kwargs": {"dashboard_address": "127.0.0.1:0"},
+}
+"""LocalCluster arguments: no dashboard, and nothing on a fixed port."""
+
+
 @contextmanager
 def connect(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
     """A Dask client: of the cluster at `scheduler`, or of a new LocalCluster on 127.0.0.1
@@ -359,8 +368,8 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
                 threads_per_worker=1,
                 processes=True,
                 host="127.0.0.1",
-                dashboard_address=None,
                 silence_logs=logging.ERROR,
+                **NO_DASHBOARD,
             )
         with cluster, Client(cluster) as client:
             yield client

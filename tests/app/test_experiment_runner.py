@@ -22,7 +22,14 @@ from experiment_fixtures import write_tiny
 from lab_fixtures import assert_same_data
 
 from app.experiments.results import ExperimentResults
-from app.experiments.runner import collect, inspect, plan, run_experiment, summary_path
+from app.experiments.runner import (
+    NO_DASHBOARD,
+    collect,
+    inspect,
+    plan,
+    run_experiment,
+    summary_path,
+)
 from app.experiments.spec import ExperimentError, ExperimentSpec, load_file
 from app.experiments.summary import FORMAT, read_summary, write_summary
 from app.store import RunReader
@@ -43,9 +50,7 @@ def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) ->
     from distributed import Client
 
     runs = tmp_path_factory.mktemp("reference")
-    with Client(
-        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
-    ) as client:
+    with Client(processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD) as client:
         run_experiment(spec, SCALE, runs, client=client, quiet=True, echo=lambda line: None)
     return runs
 
@@ -162,7 +167,7 @@ def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: P
             processes=False,
             n_workers=1,
             threads_per_worker=1,
-            dashboard_address=None,
+            **NO_DASHBOARD,
         ) as c,
     ):
         fcntl.flock(lock, fcntl.LOCK_EX)  # as if another gnp-lab process were writing it
@@ -212,7 +217,7 @@ def test_killed_worker_task_is_retried_with_identical_results(
 
     with (
         LocalCluster(
-            n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
+            n_workers=2, threads_per_worker=1, host="127.0.0.1", **NO_DASHBOARD
         ) as cluster,
         Client(cluster) as client,
     ):

@@ -17,7 +17,7 @@ import pytest
 
 from app.experiments.report import write_report
 from app.experiments.results import METRICS, VERDICTS
-from app.experiments.runner import run_experiment
+from app.experiments.runner import NO_DASHBOARD, run_experiment
 from app.experiments.spec import SCALES, ConditionSpec, ExperimentSpec, load_shipped, shipped_names
 from app.experiments.thesis_data import TableRow, ThesisData, load_thesis_data
 
@@ -211,9 +211,7 @@ def client() -> Iterator[Any]:
     """An in-process Dask cluster (threads), shared by the smoke runs."""
     from distributed import Client
 
-    with Client(
-        processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
-    ) as client:
+    with Client(processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD) as client:
         yield client
 
 
