@@ -269,6 +269,17 @@ class SavedFigures:
     runs: tuple[FigureFile | None, ...]  # per comparison, aligned with results.comparisons
 
 
+FIGURE_FILES = ("fitness.png", "fault.png", "reward-*.png", "runs-*.png")
+"""The names `save_figures` gives its PNGs (as glob patterns)."""
+
+
+def remove_figures(out_dir: Path) -> None:
+    """Remove the PNGs an earlier `save_figures` left in `out_dir` (its claims may differ)."""
+    for pattern in FIGURE_FILES:
+        for stale in out_dir.glob(pattern):
+            stale.unlink()
+
+
 def save_figures(results: ExperimentResults, out_dir: Path) -> SavedFigures:
     """Draw every figure the results allow and save each as a PNG in `out_dir`."""
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from app.experiments.figures import FigureFile, SavedFigures, save_figures
+from app.experiments.figures import FigureFile, SavedFigures, remove_figures, save_figures
 from app.experiments.results import (
     METRICS,
     Arm,
@@ -41,7 +41,6 @@ from app.experiments.stats import (
 )
 
 REPORT_SEED = 0  # the bootstrap's seed when `write_report` is given no generator
-FIGURE_PATTERNS = ("fitness.png", "fault.png", "reward-*.png", "runs-*.png")  # save_figures's
 VALUES_COLUMNS = ("arm", "seed", "condition", "metric", "value")
 _DIRECTION_WORDS = {"greater": "higher", "less": "lower"}
 
@@ -480,9 +479,7 @@ def write_report(
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     report = analyse(results, rng if rng is not None else np.random.default_rng(REPORT_SEED))
-    for pattern in FIGURE_PATTERNS:  # an earlier report's figures: claims may have changed
-        for stale in out_dir.glob(pattern):
-            stale.unlink()
+    remove_figures(out_dir)  # an earlier report's: its claims may have been others
     figures = save_figures(results, out_dir)
     write_values_csv(results, out_dir / "values.csv")
     (out_dir / "report.json").write_text(json.dumps(to_json(report), indent=2, allow_nan=False))
