@@ -17,33 +17,15 @@ node it leads to (Eq. 3.2's r_{t+1}).
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, NoReturn, cast, overload
+from typing import Literal, NoReturn, overload
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
-from gnp.config import (
-    JUDGMENT,
-    METHODS,
-    NODE_COST,
-    PROCESSING,
-    SKIP_COST,
-    STEP_BUDGET,
-    GnpConfig,
-    GnpError,
-)
-from gnp.population import CACHE_LINE, Population, record_dtype
-from gnp.rng import next_uniform, seed_states
-
-METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
-_BS, _CS = 1, 2
-_JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
+from gnp.config import GnpConfig, GnpError
+from gnp.kernel import METHOD_CODE, record_layout, step_kernel
+from gnp.population import Population, record_dtype
+from gnp.rng import seed_states
 
 
 @dataclass(frozen=True)
@@ -206,26 +188,6 @@ def _floats(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
     return value
 
 
-_LAYOUT_FIELDS = (
-    "q_ss", "q_bs", "q_cs", "mu_beta", "mu_alpha", "conn", "credit", "function", "speed"
-)  # fmt: skip
-
-
-@functools.cache
-def _layout(n_sub: int, n_conn_branches: int) -> tuple[int, ...]:
-    """The record layout as the kernel reads it: the record's size in bytes, then where each
-    field of `_LAYOUT_FIELDS` starts, in words of the field's own size."""
-    fields = record_dtype(n_sub, n_conn_branches).fields
-    assert fields is not None
-    offsets = [fields[f][1] // fields[f][0].base.itemsize for f in _LAYOUT_FIELDS]
-    return (record_dtype(n_sub, n_conn_branches).itemsize, *offsets)
-
-
-# numba's option to compile without its reference-counting runtime (absent from its type
-# stubs): the kernel allocates nothing, and the runtime's atomic reference counts on every
-# array argument cost more than a third of a call for small batches.
-_WITHOUT_NRT = {"_nrt": False}
-
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
 _NO_TRACE = np.empty((5, 0, 0), np.int32)
 _NO_COUNT = np.empty(0, np.int32)
@@ -366,7 +328,7 @@ def run_kernel(
     count: np.ndarray,
 ) -> None:
     """One call of the compiled kernel on checked arguments (see `step`)."""
-    _step_kernel(
+    step_kernel(
         method_code,
         cfg.fuzzy,
         cfg.gamma,
@@ -376,7 +338,7 @@ def run_kernel(
         cfg.n_conn_branches,
         # One array for the whole population: every array argument costs the call time.
         pop.record_bytes,
-        _layout(cfg.n_sub, cfg.n_conn_branches),
+        record_layout(cfg.n_sub, cfg.n_conn_branches),
         state.walk,
         state.wheels,
         state.rng,
@@ -387,256 +349,3 @@ def run_kernel(
         visits,
         count,
     )
-
-
-def _prefetch_typer(typingctx, array, index):
-    """Hint the CPU to load array[index] (a tuple of ndim indices) into cache; no effect else.
-
-    The engine is bound by memory latency: a world step evicts the population's records, and
-    a visit's next node is known only at its end. Prefetching the next record while another
-    controller runs overlaps those waits (see `_step_kernel`).
-    """
-    if not (isinstance(array, types.Array) and isinstance(index, types.BaseTuple)):
-        return None
-    if len(index) != array.ndim:
-        return None
-
-    def codegen(context, builder, signature, args):
-        array_type, index_type = signature.args
-        arr = context.make_array(array_type)(context, builder, args[0])
-        indices = [
-            context.cast(builder, i, t, types.intp)
-            for i, t in zip(cgutils.unpack_tuple(builder, args[1]), index_type, strict=True)
-        ]
-        ptr = cgutils.get_item_pointer(context, builder, array_type, arr, indices, False)
-        byte_ptr = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fn_type = ir.FunctionType(ir.VoidType(), [byte_ptr, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fn_type, "llvm.prefetch.p0i8")
-        # read, highest temporal locality, data cache
-        builder.call(fn, [builder.bitcast(ptr, byte_ptr), i32(0), i32(3), i32(1)])
-        return context.get_dummy_value()
-
-    return types.void(array, index), codegen
-
-
-_prefetch = cast(Callable[[np.ndarray, tuple[int, ...]], None], intrinsic(_prefetch_typer))
-
-
-@njit(cache=True, inline="always")
-def _prefetch_record(words: np.ndarray, start: int, lines: int) -> None:
-    """Prefetch the `lines` cache lines of a record that begins at float32 word `start`."""
-    for i in range(lines):
-        _prefetch(words, (start + i * (CACHE_LINE // 4),))
-
-
-@njit(cache=True, inline="always")
-def _ix(i):  # pragma: no cover - compiled
-    """A flat index as unsigned: numba then skips its negative-index wraparound, two
-    instructions on every one of a visit's ~25 loads and stores."""
-    return np.uint64(i)
-
-
-@njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
-    """ε-greedy over the k action values q[start : start + k]: (new stream state, chosen index).
-
-    Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima (one
-    more draw only when there is a tie). Reads by flat index rather than through a slice: a
-    slice costs reference counting in the hot loop.
-    """
-    s, u = next_uniform(s)
-    if u < eps:
-        s, v = next_uniform(s)
-        return s, min(int(v * k), k - 1)
-    best = q[_ix(start)]
-    ties = 1
-    for a in range(1, k):
-        value = q[_ix(start + a)]
-        if value > best:
-            best = value
-            ties = 1
-        elif value == best:
-            ties += 1
-    pick = 0
-    if ties > 1:
-        s, v = next_uniform(s)
-        pick = min(int(v * ties), ties - 1)
-    for a in range(k):
-        if q[_ix(start + a)] == best:
-            if pick == 0:
-                return s, a
-            pick -= 1
-    return s, k - 1  # unreachable
-
-
-# Positions in the `run` tuple the kernel hands its helpers.
-_METHOD, _N_NODES, _WORDS32, _LAYOUT, _WALK, _COUNT = 0, 3, 7, 10, 11, 19
-
-
-@njit(cache=True, inline="always")
-def _visit(c, used, k, run):  # pragma: no cover - compiled
-    """Controller c's next visit (after the start node, if it stands there): choose, learn,
-    run, and move on. Its walk (`walk[c]`, `rng[c]`) is read from and written back to memory,
-    so that controllers can take turns (see `_step_kernel`). Returns (used, k): the step's
-    time units spent and visits made so far, the start node included."""
-    (
-        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
-        layout, walk, wheels, rng, obs, reward, rates, learn, visits, _,
-    ) = run  # fmt: skip
-    i = _ix(c)  # controller c's rows, indexed without numba's negative-index check
-    record_bytes = layout[0]
-    r32, r16 = record_bytes // 4, record_bytes // 2
-    ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:]
-    trace = visits.shape[1] > 0
-    rate_row = 0 if rates.shape[0] == 1 else c
-    eps, lr = rates[rate_row, 0], rates[rate_row, 1]
-    s = rng[i]
-    node = walk[i, 0]
-    while node == 0:  # the start node: costs nothing, runs once per episode
-        if trace:
-            visits[0, c, k] = node
-            visits[1:, c, k] = 0
-        k += 1
-        node = words16[_ix(c * n_nodes * r16 + cn)]
-    # The last visit (awaiting its Q_SS/Q_CS update) and the one before it (awaiting its
-    # Q_BS update): (node, sub, branch, u, credit), and where their Q values are.
-    pn, pp, pb, pu, pc = walk[i, 1], walk[i, 2], walk[i, 3], walk[i, 4], walk[i, 5]
-    bn, bp, bb, bu = walk[i, 6], walk[i, 7], walk[i, 8], walk[i, 9]
-    # A step's first visit credits the previous step's reward to the visit before it, unless
-    # that was a credit skip (reward 0, Eq. 5.3).
-    pend_r = reward[i] if used == 0 and pn >= 0 and pc != 1 else 0.0
-    record = c * n_nodes + node
-    q, h, b = record * r32, record * r16, record * record_bytes
-    s, p = _egreedy(words32, q + ss, n_sub, eps, s)
-    cs = 0
-    if method == _CS:
-        s, cs = _egreedy(words32, q + cs_ + 2 * p, 2, eps, s)
-    if learn and pn >= 0:
-        last_q = (c * n_nodes + pn) * r32
-        last_ss = last_q + ss + pp
-        words32[_ix(last_ss)] += lr * (
-            pend_r + gamma * words32[_ix(q + ss + p)] - words32[_ix(last_ss)]
-        )
-        if method == _CS:
-            last_cs = last_q + cs_ + 2 * pp + pc
-            target = pend_r + gamma * words32[_ix(q + cs_ + 2 * p + cs)]
-            words32[_ix(last_cs)] += lr * (target - words32[_ix(last_cs)])
-        if method == _BS and bn >= 0:
-            last_bs = last_q + bs + (2 * pp + pb) * n_conn + pu
-            before_bs = (c * n_nodes + bn) * r32 + bs + (2 * bp + bb) * n_conn + bu
-            words32[_ix(before_bs)] += lr * (
-                pend_r + gamma * words32[_ix(last_bs)] - words32[_ix(before_bs)]
-            )
-    if cs == 1:
-        used += SKIP_COST
-        branch = -1
-        u = -1
-        nxt = words16[_ix(h + cr + p)]
-    else:
-        fn = words8[_ix(b + fn_ + p)]
-        if node <= n_judgment:  # nodes 1..n_judgment judge
-            used += _JUDGMENT_COST
-            x = obs[i, _ix(fn)]
-            lo = words16[_ix(h + beta + p)]
-            hi = words16[_ix(h + alpha + p)]
-            if fuzzy:
-                if x >= hi:
-                    mu = 1.0
-                elif x <= lo:
-                    mu = 0.0
-                else:
-                    mu = (x - lo) / (hi - lo)
-                s, v = next_uniform(s)
-                branch = 0 if v < mu else 1
-            else:
-                branch = 0 if x >= (lo + hi) / 2.0 else 1
-        else:
-            used += _PROCESSING_COST
-            # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
-            # (left, right).
-            wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
-            branch = 0
-        u = 0
-        if method == _BS:
-            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
-        nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
-    # The next record, loading while the other controller takes its turn.
-    _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
-    if trace:
-        visits[0, c, k] = node
-        visits[1, c, k] = p
-        visits[2, c, k] = branch
-        visits[3, c, k] = u
-        visits[4, c, k] = cs
-    walk[i, 6], walk[i, 7], walk[i, 8], walk[i, 9], walk[i, 10] = pn, pp, pb, pu, pc
-    walk[i, 1], walk[i, 2], walk[i, 3], walk[i, 4], walk[i, 5] = node, p, branch, u, cs
-    walk[i, 0] = nxt
-    rng[i] = s
-    return used, k + 1
-
-
-@njit(cache=True, inline="always")
-def _turn(c, used, k, waiting, run):  # pragma: no cover - compiled
-    """Lane of controller c: one visit; once c's step is done the lane takes the next waiting
-    controller. A lane whose controller number reaches N is idle. Returns (c, used, k,
-    waiting) for the lane's next turn."""
-    walk, count = run[_WALK], run[_COUNT]
-    n_ctrl = walk.shape[0]
-    if c >= n_ctrl:
-        return c, used, k, waiting
-    used, k = _visit(c, used, k, run)
-    if used >= STEP_BUDGET:
-        if count.shape[0] > 0:
-            count[c] = k
-        c, used, k, waiting = waiting, 0, 0, waiting + 1
-        if c < n_ctrl:
-            _prefetch_walk(c, run)
-    return c, used, k, waiting
-
-
-@njit(cache=True, inline="always")
-def _prefetch_walk(c, run):  # pragma: no cover - compiled
-    """Prefetch what controller c's step starts with: its current node's record, and the Q
-    values of its last two visits, which its first visit updates (the world step in between
-    has evicted them). Q values lead a record, so their first line is prefetched, no more:
-    every line the engine loads evicts one of the world's."""
-    n_nodes, words32, layout, walk = run[_N_NODES], run[_WORDS32], run[_LAYOUT], run[_WALK]
-    r32 = layout[0] // 4
-    _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, layout[0] // CACHE_LINE)
-    if walk[c, 1] >= 0:
-        _prefetch_record(words32, (c * n_nodes + walk[c, 1]) * r32, 1)
-    if walk[c, 6] >= 0 and run[_METHOD] == _BS:
-        _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
-
-
-@njit(cache=True, **_WITHOUT_NRT)  # type: ignore[call-overload]
-def _step_kernel(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count,
-):  # fmt: skip  # pragma: no cover - compiled
-    """Run every controller's visits until its step's time units are spent.
-
-    Two controllers take turns, a visit each: the record of a controller's next node is
-    then fetched while the other one runs, instead of stalling the walk (the engine is bound by
-    the latency of these loads, not by arithmetic). Controllers never share data, so the
-    turns change nothing in what each one does.
-    """
-    words32, words16, words8 = (
-        records.view(np.float32),
-        records.view(np.int16),
-        records.view(np.int8),
-    )
-    # Everything a visit reads, in one tuple (`_visit` unpacks it; `_METHOD` … name positions).
-    run = (
-        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, words32, words16, words8,
-        layout, walk, wheels, rng, obs, reward, rates, learn, visits, count,
-    )  # fmt: skip
-    n_ctrl = walk.shape[0]
-    for c in range(min(n_ctrl, 2)):
-        _prefetch_walk(c, run)
-    a, b, waiting = 0, 1, 2
-    used_a = used_b = k_a = k_b = 0
-    while a < n_ctrl or b < n_ctrl:
-        a, used_a, k_a, waiting = _turn(a, used_a, k_a, waiting, run)
-        b, used_b, k_b, waiting = _turn(b, used_b, k_b, waiting, run)

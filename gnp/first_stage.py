@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from gnp.config import GnpConfig
-from gnp.engine import METHOD_CODE, TRACE_DTYPE, EngineState, StepTrace, run_kernel
+from gnp.engine import TRACE_DTYPE, EngineState, StepTrace, run_kernel
+from gnp.kernel import METHOD_CODE
 from gnp.population import Population
 
 
