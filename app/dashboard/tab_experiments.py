@@ -172,10 +172,14 @@ class ExperimentsTab:
             self.select()  # the curves so far, from the run files
 
     def _landed(self, future: Future[Any]) -> None:
-        """A background read is done: on the page with it at once (not at the loop's next turn)."""
+        """A background read is done: on the page with it at once (not at the loop's next turn).
+
+        A read that lands once the tab is closed is dropped: the page may be gone. `close` runs
+        under the same lock, so the check cannot race it."""
         if not future.cancelled():
             with self.status.lock:
-                self._put_read()
+                if not self._closed:
+                    self._put_read()
 
     def _put_read(self) -> None:
         """Put the catalogue and the view read in the background on the page, once read."""

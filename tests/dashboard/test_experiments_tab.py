@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import re
 import shutil
+import threading
 import time
 from collections.abc import Callable, Iterator
 from importlib import resources
@@ -325,3 +326,30 @@ def test_starting_a_finished_experiment_writes_its_summary_without_a_cluster(
     assert re.search(r"finished: summary written · 4/4 runs done", tab.progress_text.content)
     assert summary.exists() and not tab.cluster.started
     until(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)  # new summary
+
+
+def test_a_read_that_lands_after_the_tab_closed_stays_off_the_page(
+    dashboard: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The page may be gone once the tab is closed: a background read still under way then
+    puts nothing on it (viser would warn of a message on a closed connection)."""
+    tab = dashboard.experiments
+    reading, release = threading.Event(), threading.Event()
+    build_view = ev.build_view
+
+    def slow_build_view(entry: ev.Entry, scale: str, *args: Any) -> ev.ExperimentView:
+        if (entry.name, scale) == (NAME, SCALE):  # the read the page asks for, held back
+            reading.set()
+            assert release.wait(60)
+        return build_view(entry, scale, *args)
+
+    monkeypatch.setattr(ev, "build_view", slow_build_view)
+    until(dashboard, lambda: NAME in tab.entries)
+    choose(dashboard, NAME, SCALE)
+    until(dashboard, reading.is_set)
+    with dashboard.lock:
+        tab.close()
+        shown, about = tab.view, tab.about.content
+    release.set()
+    tab._pool.shutdown(wait=True)  # the read has landed, its callback run
+    assert tab.view is shown and tab.about.content == about
