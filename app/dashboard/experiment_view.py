@@ -252,12 +252,12 @@ def _cell(text: str) -> str:
 
 def verdict_table(results: ExperimentResults) -> str:
     """The comparisons as a markdown table, with the report's statistics and verdicts."""
-    from app.experiments.report import REPORT_SEED, analyse, format_number
+    from app.experiments.report import analyse, format_number, interval_text
 
     if not results.comparisons:
         return "This experiment makes no comparisons."
-    report = analyse(results, np.random.default_rng(REPORT_SEED))  # the report's own numbers
-    rows = ["| claim | a | b | a − b [95% CI] | Holm p | verdict |", "|---|---|---|---|---|---|"]
+    report = analyse(results)  # the report's own numbers
+    rows = ["| claim | a | b | a − b [interval] | runs | verdict |", "|---|---|---|---|---|---|"]
     for c in report.comparisons:
         s = c.stats
         names = list(c.comparison.side_names())
@@ -267,11 +267,9 @@ def verdict_table(results: ExperimentResults) -> str:
             f"{name} {format_number(summary.mean)} ± {format_number(summary.sd)}"
             for name, summary in zip(names, (s.a, s.b), strict=True)
         ]
-        difference = (
-            f"{format_number(s.difference)} [{format_number(s.ci_low)}, {format_number(s.ci_high)}]"
-        )
+        difference = f"{format_number(s.difference)} {interval_text(c.claim)}"
         cells = [f"{c.comparison.name} ({c.comparison.source})", *arms, difference]
-        cells += [format_number(c.claim.holm_p), f"**{c.claim.verdict}**"]
+        cells += [f"{c.claim.runs[0]}, {c.claim.runs[1]}", f"**{c.claim.verdict}**"]
         rows.append("| " + " | ".join(_cell(cell) for cell in cells) + " |")
     return "\n".join(rows)
 

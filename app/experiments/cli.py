@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import (
     SCALES,
@@ -75,10 +76,35 @@ def add_parser(commands: Any) -> None:
         help="worker processes of the local cluster (default: one per core)",
     )
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="run seeds in stages, judging the claims after each, and give more seeds only to "
+        "the arms an undecided claim needs (family-wise error over claims and stages)",
+    )
+    run.add_argument(
+        "--max-seeds",
+        type=_positive,
+        metavar="N",
+        help=f"--adaptive: at most N seeds per arm (default {DEFAULT_MAX_SEEDS})",
+    )
+    run.add_argument(
+        "--stage-seeds",
+        type=_positive,
+        metavar="n",
+        help=f"--adaptive: seeds per arm added at each stage (default {DEFAULT_STAGE_SEEDS})",
+    )
     report = verbs.add_parser("report", help="statistics and figures from the run files")
     common(report)
     report.add_argument("--format", choices=("html", "json"), default="html")
     report.add_argument("--out", metavar="DIR", help="report folder (default: in the experiment's)")
+    report.add_argument(
+        "--from-values",
+        metavar="CSV",
+        help="write the report from a report's values.csv instead of the run files (e.g. a "
+        "committed report, again, after the verdict rules changed); its curve figures are "
+        "kept from the --out folder",
+    )
     status = verbs.add_parser("status", help="what the experiment's folder holds so far")
     common(status)
     listing = verbs.add_parser("list", help="the shipped experiments and their cost per scale")
@@ -161,6 +187,29 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 
     if args.scheduler and args.workers:
         raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
+    definition = Path(args.file).read_text(encoding="utf-8") if args.file else None
+    if args.adaptive:
+        if args.seeds:
+            raise ExperimentError("--seeds fixes the seed count; --adaptive takes --max-seeds")
+        from app.experiments.adaptive import run_adaptive
+
+        results, _ = run_adaptive(
+            spec,
+            args.scale,
+            args.runs_dir,
+            stage_seeds=args.stage_seeds or DEFAULT_STAGE_SEEDS,
+            max_seeds=args.max_seeds or DEFAULT_MAX_SEEDS,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            quiet=args.quiet,
+            definition=definition,
+        )
+        folder = runner.experiment_dir(args.runs_dir, spec.name)
+        print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
+        print(_write_report(results, folder / f"report-{args.scale}"))
+        return 0
+    if args.max_seeds or args.stage_seeds:
+        raise ExperimentError("--max-seeds and --stage-seeds go with --adaptive")
     results = runner.run_experiment(
         spec,
         args.scale,
@@ -169,7 +218,7 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         workers=args.workers,
         quiet=args.quiet,
-        definition=Path(args.file).read_text(encoding="utf-8") if args.file else None,
+        definition=definition,
     )
     folder = runner.experiment_dir(args.runs_dir, spec.name)
     print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
@@ -177,11 +226,40 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     return 0
 
 
+def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
+    import tempfile
+
+    from app.experiments import runner
+    from app.experiments.values import read_values_csv
+
+    with tempfile.TemporaryDirectory(prefix="gnp-lab-empty-") as empty:
+        template = runner.collect(spec, args.scale, empty)  # the shape, every value NaN
+    results = read_values_csv(args.from_values, spec, template)
+    if args.format == "json":
+        return _print_json(results)
+    if not args.out:
+        raise ExperimentError("--from-values writes a report folder: give --out")
+    from app.experiments.report import write_report
+
+    print(f"report: {write_report(results, Path(args.out), keep_curves=True)}")
+    return 0
+
+
+def _print_json(results: ExperimentResults) -> int:
+    from app.experiments.report import analyse, to_json
+
+    json.dump(to_json(analyse(results)), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
+    sys.stdout.write("\n")
+    return 0
+
+
 def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     from app.experiments import runner
     from app.experiments.summary import write_summary
 
-    results = runner.collect(spec, args.scale, args.runs_dir, args.seeds)
+    if args.from_values:
+        return _from_values(spec, args)
+    results = _collected(spec, args)
     folder = runner.experiment_dir(args.runs_dir, spec.name)
     if not any(Path(t.path).exists() for t in runner.plan(spec, args.scale, args.runs_dir)):
         raise ExperimentError(
@@ -190,17 +268,28 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         )
     write_summary(results, runner.summary_path(args.runs_dir, spec.name, args.scale))
     if args.format == "json":
-        import numpy as np
-
-        from app.experiments.report import REPORT_SEED, analyse, to_json
-
-        report = analyse(results, np.random.default_rng(REPORT_SEED))
-        json.dump(to_json(report), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
-        sys.stdout.write("\n")
-        return 0
+        return _print_json(results)
     out = Path(args.out) if args.out else folder / f"report-{args.scale}"
     print(_write_report(results, out))
     return 0
+
+
+def _collected(spec: ExperimentSpec, args: argparse.Namespace) -> ExperimentResults:
+    """The results to report: of an adaptive run when the summary says it was one (its looks,
+    and the seeds up to its last look), else of the asked seeds."""
+    from app.experiments import runner
+    from app.experiments.summary import SummaryError, read_summary
+
+    looks: tuple[int, ...] = ()
+    seeds = args.seeds
+    if not seeds:
+        try:
+            summary = read_summary(runner.summary_path(args.runs_dir, spec.name, args.scale))
+        except SummaryError:
+            summary = None
+        if summary is not None and summary.looks:
+            looks, seeds = summary.looks, len(summary.seeds)
+    return runner.collect(spec, args.scale, args.runs_dir, seeds, looks)
 
 
 def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:

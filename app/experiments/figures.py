@@ -9,6 +9,7 @@ a finite value there; with one run there is no interval. Missing curves are skip
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -214,13 +215,16 @@ def fault_figure(results: ExperimentResults) -> Figure | None:
     return figure
 
 
-def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | None:
+def runs_figure(
+    results: ExperimentResults, comparison: Comparison, delta: DeltaBar | None = None
+) -> Figure | None:
     """Each run's value of a comparison's metric for its two arms (or, paired, its one arm in
-    two conditions or on two metrics, each run's two values joined), with the mean and 95% t-CI."""
+    two conditions or on two metrics, each run's two values joined) with their means, and
+    beside them the difference with the verdict's interval."""
     metric = METRICS[comparison.metric]
     colours = arm_colours(results)
-    figure = _new_figure(4.0, 3.2)
-    axes = figure.add_subplot()
+    figure = _new_figure(5.2, 3.2)
+    axes, right = figure.subplots(1, 2, width_ratios=[3, 1])
     drawn = False
     keys = comparison.keys()
     found = [results.scalars.get(key) for key in keys]
@@ -235,16 +239,8 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
         spread = finite.size > 1 and not comparison.paired  # paired: on the lines joining runs
         jitter = np.linspace(-0.12, 0.12, finite.size) if spread else np.zeros(finite.size)
         axes.scatter(position + jitter, finite, color=colours[name], s=18, zorder=3)
-        mean, half_width, _ = _scalar_mean_ci(values)
-        axes.errorbar(
-            position + 0.3,
-            mean,
-            yerr=half_width,
-            color="black",
-            marker="_",
-            markersize=12,
-            capsize=4,
-        )
+        if finite.size:
+            axes.plot(position + 0.3, finite.mean(), color="black", marker="_", markersize=14)
         drawn = drawn or finite.size > 0
     if not drawn:
         return None
@@ -256,7 +252,33 @@ def runs_figure(results: ExperimentResults, comparison: Comparison) -> Figure | 
     axes.set(ylabel=metric.label, title=comparison.name)
     axes.title.set_fontsize("medium")
     axes.grid(alpha=0.3, axis="y")
+    _delta_panel(right, delta)
     return figure
+
+
+def _delta_panel(axes: Axes, delta: DeltaBar | None) -> None:
+    axes.axhline(0.0, color="0.4", linestyle="--", linewidth=0.8)
+    axes.set_xticks([0], ["a − b"])
+    axes.set_xlim(-0.6, 0.6)
+    axes.grid(alpha=0.3, axis="y")
+    if delta is None or not np.isfinite(delta.difference):
+        return
+    if np.isfinite(delta.low):
+        axes.errorbar(
+            0,
+            delta.difference,
+            yerr=[[delta.difference - delta.low], [delta.high - delta.difference]],
+            color="black",
+            marker="o",
+            capsize=4,
+        )
+    else:
+        axes.plot(0, delta.difference, "ko")
+    if delta.margin is not None:
+        signs = {"greater": [1], "less": [-1], "equivalent": [-1, 1]}[delta.direction]
+        for sign in signs:
+            axes.axhline(sign * delta.margin, color="0.3", linestyle=":", linewidth=1)
+    axes.set_title(delta.label, fontsize="small")
 
 
 def _slug(text: str) -> str:
@@ -273,18 +295,40 @@ FIGURE_FILES = ("fitness.png", "fault.png", "reward-*.png", "runs-*.png")
 """The names `save_figures` gives its PNGs (as glob patterns)."""
 
 
-def remove_figures(out_dir: Path) -> None:
-    """Remove the PNGs an earlier `save_figures` left in `out_dir` (its claims may differ)."""
+@dataclass(frozen=True)
+class DeltaBar:
+    """A comparison's verdict interval, drawn beside its runs: the same interval as the table."""
+
+    difference: float
+    low: float
+    high: float
+    margin: float | None  # the thesis's effect (equivalence: ±margin), in the metric's units
+    direction: str
+    label: str  # the interval's coverage, e.g. "99.6%"
+
+
+def save_figures(
+    results: ExperimentResults,
+    out_dir: Path,
+    deltas: Sequence[DeltaBar | None] = (),
+    keep_curves: bool = False,
+) -> SavedFigures:
+    """Draw every figure the results allow and save each as a PNG in `out_dir`.
+
+    `deltas` (per comparison) adds the verdict's interval of the difference beside its runs.
+    With `keep_curves`, a curve figure that the results cannot draw (no curves: results read
+    back from values.csv) keeps the folder's earlier file; every other earlier PNG goes.
+    """
+    kept = {f.name for f in out_dir.glob("*.png")} if keep_curves else set()
     for pattern in FIGURE_FILES:
         for stale in out_dir.glob(pattern):
-            stale.unlink()
-
-
-def save_figures(results: ExperimentResults, out_dir: Path) -> SavedFigures:
-    """Draw every figure the results allow and save each as a PNG in `out_dir`."""
+            if not (pattern in ("fitness.png", "reward-*.png") and stale.name in kept):
+                stale.unlink()
 
     def save(figure: Figure | None, file: str, title: str, caption: str) -> FigureFile | None:
         if figure is None:
+            if file in kept and (out_dir / file).exists():
+                return FigureFile(file, title, caption)
             return None
         figure.savefig(out_dir / file, dpi=DPI)
         return FigureFile(file, title, caption)
@@ -323,14 +367,16 @@ def save_figures(results: ExperimentResults, out_dir: Path) -> SavedFigures:
             "slightly per arm for legibility), error bars: 95% t-interval of the mean over runs.",
         )
     )
+    bars = list(deltas) or [None] * len(results.comparisons)
     runs = tuple(
         save(
-            runs_figure(results, comparison),
+            runs_figure(results, comparison, bar),
             f"runs-{index}-{_slug(comparison.name)}.png",
             f"Runs: {comparison.name}",
-            "One point per run (the unit of analysis); black: mean over runs with its 95% "
-            "t-interval.",
+            "One point per run (the unit of analysis), black: mean over runs; right: the "
+            "difference a − b with the verdict's interval (the table's), dashed at 0, dotted "
+            "at the thesis's effect.",
         )
-        for index, comparison in enumerate(results.comparisons)
+        for index, (comparison, bar) in enumerate(zip(results.comparisons, bars, strict=True))
     )
     return SavedFigures(tuple(f for f in overview if f is not None), runs)

@@ -1,14 +1,14 @@
 """An experiment's report: every claim's statistics, as a typed object, JSON and a static page.
 
-`analyse` computes the statistics of every comparison of an `ExperimentResults` (Holm across
-the experiment's comparisons), `to_json` gives them as a JSON-ready dict, and `write_report`
+`analyse` computes the statistics and the verdict of every comparison of an
+`ExperimentResults` (`sequential.judge` over the looks of an adaptive run, Holm across the
+experiment's comparisons), `to_json` gives them as a JSON-ready dict, and `write_report`
 writes a self-contained `index.html` with PNG figures, the per-run values (`values.csv`) every
 statistic was computed from, and the JSON (`report.json`), all in one folder.
 """
 
 from __future__ import annotations
 
-import csv
 import html
 import json
 import math
@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from app.experiments.figures import FigureFile, SavedFigures, remove_figures, save_figures
+from app.experiments.figures import DeltaBar, FigureFile, SavedFigures, save_figures
 from app.experiments.results import (
+    CORE_STEPS_PER_SECOND,
     METRICS,
     Arm,
     Comparison,
@@ -28,21 +29,50 @@ from app.experiments.results import (
     Metric,
     ThesisValue,
 )
-from app.experiments.stats import (
+from app.experiments.sequential import (
     ALPHA,
-    BOOTSTRAP_RESAMPLES,
-    CI_LEVEL,
-    ArmSummary,
-    ClaimStats,
-    PairStats,
-    compare,
-    judge_claims,
-    summarise,
+    POWER,
+    ClaimData,
+    ClaimVerdict,
+    Design,
+    judge,
+    seeds_for_power,
 )
+from app.experiments.stats import ArmSummary, PairStats, compare, holm, summarise
+from app.experiments.values import VALUES_COLUMNS, write_values_csv
 
-REPORT_SEED = 0  # the bootstrap's seed when `write_report` is given no generator
-VALUES_COLUMNS = ("arm", "seed", "condition", "metric", "value")
-_DIRECTION_WORDS = {"greater": "higher", "less": "lower"}
+_DIRECTION_WORDS = {"greater": "higher", "less": "lower", "equivalent": "about the same"}
+
+
+@dataclass(frozen=True)
+class Need:
+    """What an undecided claim would need: seeds per arm for 80% power at its level, at the
+    thesis's effect (its margin) and at ours (the observed difference), and their cost."""
+
+    seeds_at_thesis: float  # NaN: no margin declared; inf: no effect to find
+    seeds_at_ours: float
+    core_hours_at_thesis: float
+    core_hours_at_ours: float
+
+
+@dataclass(frozen=True)
+class ClaimStats:
+    """A claim's descriptive statistics, its verdict and, undecided, what it would need."""
+
+    stats: PairStats
+    holm_p: float  # two-sided p, Holm-adjusted over the experiment's claims (for the reader)
+    judged: ClaimVerdict
+    margin: float | None  # the effect the verdict rules out, in the metric's units
+    need: Need | None
+
+    @property
+    def verdict(self) -> str:
+        return self.judged.verdict
+
+    @property
+    def runs(self) -> tuple[int, int]:
+        """Runs used on each side by the look that decided the claim (or the last look)."""
+        return self.judged.interval.n_a, self.judged.interval.n_b
 
 
 @dataclass(frozen=True)
@@ -69,6 +99,9 @@ class ComparisonReport:
         """The claim in words."""
         where = f" in {self.condition.label}" if self.condition else ""
         higher = _DIRECTION_WORDS[self.comparison.direction]
+        if self.comparison.direction == "equivalent":
+            b_side = self.arm_b.label if not self.comparison.paired else "its other side"
+            return f"{self.arm_a.label} has {higher} {self.metric.label}{where} as {b_side}"
         if self.comparison.paired:  # one arm against itself on another metric or condition
             other = [self.metric_b.label] if self.metric_b else []
             other += [f"in {self.condition_b.label}"] if self.condition_b else []
@@ -87,7 +120,12 @@ class ExperimentReport:
     results: ExperimentResults
     comparisons: tuple[ComparisonReport, ...]
     alpha: float
-    resamples: int
+    design: Design  # the planned looks (one look at every seed when not adaptive)
+    looks: tuple[int, ...]  # seeds per arm at each look made
+
+    def of_kind(self, kind: str) -> tuple[ComparisonReport, ...]:
+        """The thesis's questions ("question") or the within-arm sanity claims ("sanity")."""
+        return tuple(c for c in self.comparisons if c.comparison.kind == kind)
 
 
 def _thesis_value(results: ExperimentResults, key: tuple[str, str, str]) -> ThesisValue | None:
@@ -104,19 +142,42 @@ def _thesis_beside_ours(results: ExperimentResults) -> list[tuple[ThesisValue, A
     ]
 
 
-def analyse(
-    results: ExperimentResults,
-    rng: np.random.Generator,
-    resamples: int = BOOTSTRAP_RESAMPLES,
-    alpha: float = ALPHA,
-) -> ExperimentReport:
-    """Every comparison's statistics, Holm-adjusted across the experiment's comparisons.
+def looks_made(results: ExperimentResults) -> tuple[Design, tuple[int, ...]]:
+    """The design of the results' looks and the seed counts of the looks made so far."""
+    n = len(results.seeds)
+    if not results.looks:
+        return Design((n,)), (n,)
+    design = Design(results.looks)
+    made = tuple(k for k in design.looks if k <= n)
+    return design, made or (n,)
+
+
+def _need(c: Comparison, judged: ClaimVerdict, margin: float | None, steps: float) -> Need:
+    iv = judged.interval
+    sides = 1 if c.paired else 2
+    ours = abs(iv.difference)
+    if c.direction == "equivalent" and margin is not None:
+        ours = abs(margin - ours)
+    at_thesis = (
+        seeds_for_power(iv.sd, margin, c.paired, judged.family_level)
+        if margin is not None
+        else math.nan
+    )
+    at_ours = seeds_for_power(iv.sd, ours, c.paired, judged.family_level)
+
+    def hours(seeds: float) -> float:
+        return seeds * sides * steps / CORE_STEPS_PER_SECOND / 3600 if steps else math.nan
+
+    return Need(at_thesis, at_ours, hours(at_thesis), hours(at_ours))
+
+
+def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentReport:
+    """Every comparison's statistics and verdict (the looks of an adaptive run, Holm across
+    the experiment's comparisons).
 
     Args:
         results: the experiment's per-run values.
-        rng: the bootstraps' only source of randomness (used in comparison order).
-        resamples: bootstrap resamples per comparison.
-        alpha: significance level of the verdicts.
+        alpha: family-wise error rate of the verdicts.
 
     Returns:
         The report; a comparison whose values are missing counts as all runs unfinished.
@@ -124,23 +185,39 @@ def analyse(
     arms = {arm.name: arm for arm in results.arms}
     conditions = {c.name: c for c in results.conditions}
     missing = np.full(len(results.seeds), np.nan)
-    pairs = []
     for c in results.comparisons:
         named = [c.condition, c.condition_b]
         if c.a not in arms or c.b not in arms or any(n and n not in conditions for n in named):
             raise ValueError(f"comparison {c.name!r} names an arm or condition not in the results")
+    values = []
+    for c in results.comparisons:
         key_a, key_b = c.keys()
-        pairs.append(
-            compare(
-                results.scalars.get(key_a, missing),
-                results.scalars.get(key_b, missing),
-                c.direction,
-                rng,
-                resamples,
-                names=c.side_names(),
-                paired=c.paired,
-            )
-        )
+        values.append((results.scalars.get(key_a, missing), results.scalars.get(key_b, missing)))
+    design, made = looks_made(results)
+    margins: list[list[float | None]] = [[] for _ in results.comparisons]
+    looks = []
+    for n in made:
+        claims = []
+        for i, (c, (a, b)) in enumerate(zip(results.comparisons, values, strict=True)):
+            b_look = b[:n]
+            mean_b = float(np.nanmean(b_look)) if np.isfinite(b_look).any() else math.nan
+            margin = c.margin_for(mean_b)
+            margins[i].append(margin)
+            claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin))
+        looks.append(claims)
+    judged = judge(looks, design, alpha) if results.comparisons else ()
+    pairs = [
+        compare(a[: made[j.look]], b[: made[j.look]], c.direction, names=c.side_names(),
+                paired=c.paired)
+        for c, (a, b), j in zip(results.comparisons, values, judged, strict=True)
+    ]  # fmt: skip
+    two_sided = [min(1.0, 2 * min(p.p, p.p_opposite)) for p in pairs]
+    adjusted = holm(two_sided) if pairs else np.array([])
+    claims_out = []
+    for i, (c, j) in enumerate(zip(results.comparisons, judged, strict=True)):
+        margin = margins[i][j.look]
+        need = _need(c, j, margin, results.steps_per_run) if j.verdict == "undecided" else None
+        claims_out.append(ClaimStats(pairs[i], float(adjusted[i]), j, margin, need))
     return ExperimentReport(
         results=results,
         comparisons=tuple(
@@ -156,10 +233,11 @@ def analyse(
                 thesis_a=_thesis_value(results, c.keys()[0]),
                 thesis_b=_thesis_value(results, c.keys()[1]),
             )
-            for c, claim in zip(results.comparisons, judge_claims(pairs, alpha), strict=True)
+            for c, claim in zip(results.comparisons, claims_out, strict=True)
         ),
         alpha=alpha,
-        resamples=resamples,
+        design=design,
+        looks=made,
     )
 
 
@@ -189,23 +267,54 @@ def _arm_json(arm: Arm, summary: ArmSummary, thesis: ThesisValue | None) -> dict
     }
 
 
-def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
-    s, claim = report.stats, report.claim
+def _need_json(need: Need | None) -> dict[str, Any] | None:
+    if need is None:
+        return None
     return {
-        "name": report.comparison.name,
+        "power": POWER,
+        "seeds_per_arm_at_thesis_effect": json_number(need.seeds_at_thesis),
+        "seeds_per_arm_at_our_effect": json_number(need.seeds_at_ours),
+        "core_hours_at_thesis_effect": json_number(need.core_hours_at_thesis),
+        "core_hours_at_our_effect": json_number(need.core_hours_at_ours),
+    }
+
+
+def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
+    s, claim, c = report.stats, report.claim, report.comparison
+    iv = claim.judged.interval
+    return {
+        "name": c.name,
         "claim": report.sentence,
-        "source": report.comparison.source,
+        "kind": c.kind,
+        "source": c.source,
         "metric": report.metric.name,
         "metric_label": report.metric.label,
-        "condition": report.comparison.condition,
-        "condition_b": report.comparison.condition_b,
-        "metric_b": report.comparison.metric_b,
-        "sides": list(report.comparison.side_names()),
-        "direction": report.comparison.direction,
+        "condition": c.condition,
+        "condition_b": c.condition_b,
+        "metric_b": c.metric_b,
+        "sides": list(c.side_names()),
+        "direction": c.direction,
         "a": _arm_json(report.arm_a, s.a, report.thesis_a),
         "b": _arm_json(report.arm_b, s.b, report.thesis_b),
         "difference": json_number(s.difference),
-        "ci": [json_number(s.ci_low), json_number(s.ci_high)],
+        "verdict": claim.verdict,
+        "interval": {
+            "low": json_number(iv.low),
+            "high": json_number(iv.high),
+            "level": json_number(1 - claim.judged.level),
+            "family_share": json_number(claim.judged.family_level),
+        },
+        "runs": list(claim.runs),
+        "look": claim.judged.look + 1,
+        "margin": None
+        if c.margin is None
+        else {
+            "value": c.margin,
+            "form": c.margin_form,
+            "source": c.margin_source,
+            "in_units": json_number(claim.margin if claim.margin is not None else math.nan),
+        },
+        "need": _need_json(claim.need),
         "paired": s.paired,
         "t_test": {
             "test": s.tests[0],
@@ -220,12 +329,37 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
             "p": json_number(s.rank_p),
         },
         "holm_p": json_number(claim.holm_p),
-        "holm_p_opposite": json_number(claim.holm_p_opposite),
         "prob_improvement": json_number(s.prob_improvement),
         "hedges_g": json_number(s.hedges_g),
-        "verdict": claim.verdict,
         "notes": list(s.notes),
     }
+
+
+def stages_json(report: ExperimentReport) -> list[dict[str, Any]]:
+    """Per look: seeds per arm, the runs each arm had, and the claims it decided."""
+    results = report.results
+    missing = np.full(len(results.seeds), np.nan)
+    out = []
+    for k, n in enumerate(report.looks):
+        runs = {
+            arm.name: int(
+                np.isfinite(
+                    results.scalars.get(("final_best_fitness", arm.name, ""), missing)[:n]
+                ).sum()
+            )
+            for arm in results.arms
+        }
+        decided = [
+            {"name": c.comparison.name, "verdict": c.claim.verdict}
+            for c in report.comparisons
+            if c.claim.verdict != "undecided" and c.claim.judged.look == k
+        ]
+        still_open = sum(
+            c.claim.verdict == "undecided" or c.claim.judged.look > k for c in report.comparisons
+        )
+        out.append({"look": k + 1, "seeds_per_arm": n, "runs": runs, "decided": decided,
+                    "open_after": still_open})  # fmt: skip
+    return out
 
 
 def to_json(report: ExperimentReport) -> dict[str, Any]:
@@ -239,8 +373,10 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
         "seeds": list(results.seeds),
         "unit_of_analysis": "run (seed): a run's value is its mean over trials",
         "alpha": report.alpha,
-        "ci_level": CI_LEVEL,
-        "bootstrap_resamples": report.resamples,
+        "looks_planned": list(report.design.looks),
+        "looks_made": list(report.looks),
+        "stages": stages_json(report),
+        "control": results.control,
         "arms": [{"name": a.name, "label": a.label} for a in results.arms],
         "conditions": [
             {
@@ -268,16 +404,6 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
     }
 
 
-def write_values_csv(results: ExperimentResults, path: Path) -> None:
-    """Every per-run scalar value (NaN for unfinished runs), one row per run and metric."""
-    with path.open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(VALUES_COLUMNS)
-        for (metric, arm, condition), values in results.scalars.items():
-            for seed, value in zip(results.seeds, np.asarray(values, dtype=float), strict=True):
-                writer.writerow([arm, seed, condition, metric, repr(float(value))])
-
-
 _CSS = """
 body { font: 15px/1.45 system-ui, sans-serif; max-width: 1100px; margin: 2em auto;
        padding: 0 1em; color: #222; }
@@ -290,7 +416,8 @@ th { background: #f4f4f4; }
 .verdict { white-space: nowrap; font-weight: 700; padding: 0.1em 0.5em; border-radius: 4px; }
 .held { background: #d8f3dc; color: #1b5e20; }
 .reversed { background: #fde2e1; color: #9b1c1c; }
-.not-shown { background: #eee; color: #555; }
+.ruled-out { background: #fff1c2; color: #7a4b00; }
+.undecided { background: #eee; color: #555; }
 .comparison { display: flex; gap: 1.5em; align-items: flex-start; flex-wrap: wrap; }
 .comparison figure { margin: 0.6em 0; flex: 1 1 320px; max-width: 440px; }
 figure { margin: 1em 0; } figcaption { color: #555; font-size: 0.9em; max-width: 780px; }
@@ -314,6 +441,37 @@ def _verdict_html(verdict: str) -> str:
 def _row(*cells: str, header: bool = False) -> str:
     tag = "th" if header else "td"
     return "<tr>" + "".join(f"<{tag}>{cell}</{tag}>" for cell in cells) + "</tr>"
+
+
+def interval_level(claim: ClaimStats) -> str:
+    """The interval's coverage, e.g. '99.6%'."""
+    return f"{100 * (1 - claim.judged.level):.3g}%"
+
+
+def interval_text(claim: ClaimStats) -> str:
+    iv = claim.judged.interval
+    return f"[{format_number(iv.low)}, {format_number(iv.high)}]"
+
+
+def margin_text(report: ComparisonReport) -> str:
+    c = report.comparison
+    if c.margin is None:
+        return "none declared"
+    form = f"{c.margin:g} of b's mean" if c.margin_form == "relative" else f"{c.margin:g}"
+    sign = "±" if c.direction == "equivalent" else ""
+    return f"{sign}{format_number(report.claim.margin)} ({form}; {c.margin_source})"
+
+
+def need_text(need: Need) -> str:
+    def one(seeds: float, hours: float) -> str:
+        if not math.isfinite(seeds):
+            return "–" if math.isnan(seeds) else "∞"
+        return f"{seeds:.0f} ({hours:.3g} core-h)"
+
+    return (
+        f"{one(need.seeds_at_thesis, need.core_hours_at_thesis)}, "
+        f"{one(need.seeds_at_ours, need.core_hours_at_ours)}"
+    )
 
 
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
@@ -345,19 +503,23 @@ def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str
             (sides[1], s.b, report.thesis_b),
         )
     )
-    ci = f"[{format_number(s.ci_low)}, {format_number(s.ci_high)}]"
     t_test, rank_test = s.tests
     rows = [
-        ("difference of means (a − b)", f"{format_number(s.difference)} {ci}"),
+        ("difference of means (a − b)", format_number(s.difference)),
+        (f"verdict's interval ({interval_level(claim)})", interval_text(claim)),
+        ("effect ruled out by 'ruled out'", margin_text(report)),
+        ("runs (a, b); look", f"{claim.runs[0]}, {claim.runs[1]}; {claim.judged.look + 1}"),
         (f"{t_test} t (df)", f"{format_number(s.t)} ({format_number(s.df)})"),
-        (f"{t_test} p, one-tailed", format_number(s.p)),
+        (f"{t_test} p, one-tailed (other direction)",
+         f"{format_number(s.p)} ({format_number(s.p_opposite)})"),
         (f"{rank_test} {'W+' if s.paired else 'U'} (p, one-tailed)",
          f"{format_number(s.rank_statistic)} ({format_number(s.rank_p)})"),
-        (f"Holm-adjusted {t_test} p", format_number(claim.holm_p)),
-        (f"Holm-adjusted {t_test} p, other direction", format_number(claim.holm_p_opposite)),
+        (f"Holm-adjusted two-sided {t_test} p", format_number(claim.holm_p)),
         ("P(improvement)", format_number(s.prob_improvement)),
         ("Hedges' g", format_number(s.hedges_g)),
     ]  # fmt: skip
+    if claim.need is not None:
+        rows.append(("seeds per arm for 80% power: thesis's effect, ours", need_text(claim.need)))
     stats_rows = "".join(f'<tr><td>{_e(k)}</td><td class="num">{_e(v)}</td></tr>' for k, v in rows)
     notes = "".join(f'<li class="note">{_e(note)}</li>' for note in s.notes)
     image = (
@@ -390,11 +552,36 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
             ("unit of analysis", "the run (seed): a run's value is its mean over trials"),
         )
     )
-    summary = "".join(
-        _row(_e(c.comparison.name), _e(c.sentence), _e(c.comparison.source),
-             _e(format_number(c.claim.holm_p)), _verdict_html(c.claim.verdict))
-        for c in report.comparisons
+
+    def verdict_rows(kind: str) -> str:
+        return "".join(
+            _row(_e(c.comparison.name), _e(c.sentence), _e(c.comparison.source),
+                 _e(f"{format_number(c.stats.difference)} {interval_text(c.claim)}"),
+                 _e(f"{c.claim.runs[0]}, {c.claim.runs[1]}"), _verdict_html(c.claim.verdict))
+            for c in report.of_kind(kind)
+        )  # fmt: skip
+
+    verdict_head = _row("comparison", "claim", "claimed in", "Δ [interval]", "runs (a, b)",
+                        "verdict", header=True)  # fmt: skip
+    questions, sanity = verdict_rows("question"), verdict_rows("sanity")
+    summary = (
+        f"<h3>The thesis's questions</h3><table>{verdict_head}{questions}</table>"
+        if questions
+        else ""
+    ) + (f"<h3>Within one arm (sanity)</h3><table>{verdict_head}{sanity}</table>" if sanity else "")
+    stage_rows = "".join(
+        _row(str(st["look"]), str(st["seeds_per_arm"]),
+             _e(", ".join(f"{arm} {n}" for arm, n in st["runs"].items())),
+             _e(", ".join(f"{d['name']} ({d['verdict']})" for d in st["decided"]) or "–"),
+             str(st["open_after"]))
+        for st in stages_json(report)
     )  # fmt: skip
+    stages = (
+        "<h2>Stages</h2><table>"
+        + _row("look", "seeds per arm", "runs", "decided", "still open", header=True)
+        + stage_rows
+        + "</table>"
+    )
     thesis_rows = "".join(
         _row(_e(v.arm), _e(METRICS[v.metric].label if v.metric in METRICS else v.metric),
              _e(v.condition or "–"), _e(f"{format_number(v.value)} ({v.source})"),
@@ -423,7 +610,6 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
     comparisons = "".join(
         _comparison_html(c, f) for c, f in zip(report.comparisons, figures.runs, strict=True)
     )
-    level = f"{CI_LEVEL:.0%}"
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>{_e(results.name)} ({_e(results.scale)})</title>
@@ -431,24 +617,24 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
 <h1>{_e(results.name)}</h1>
 <p>{_e(results.description)}</p>
 <table class="facts">{facts}</table>
-<p>Each arm is run with the same {len(results.seeds)} seeds; the unit of analysis is the run,
-so n counts runs, never trials. As in the thesis, arms are compared as independent samples.
-Per comparison: mean ± sd (ddof = 1) per arm; the difference of means with a {level}
-percentile-bootstrap CI ({report.resamples:,} resamples, each arm resampled independently);
-Welch's one-tailed t-test and a one-tailed Mann–Whitney U test in the claimed direction;
-P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> = X<sub>b</sub>)
-over all pairs of runs (rliable), oriented so that above 0.5 favours the claim; Hedges' g
-(pooled sd, exact small-sample correction), oriented so that above 0 favours the claim.
-One arm compared across two conditions has the same runs on both sides: its tests are paired
-by seed (the one-tailed paired t-test and Wilcoxon's signed-rank test on the runs'
-differences, the bootstrap resampling runs, P(improvement) the share of runs that improve).
-The t-tests' p-values are Holm-adjusted across this experiment's {len(report.comparisons)}
-comparison(s). Verdict: <i>held</i> if the adjusted p in the claimed direction is below
-{report.alpha:g}, <i>reversed</i> if the adjusted p in the other direction is, else
-<i>not shown</i>. Unfinished runs (NaN) are left out and counted.</p>
+<p>Each arm is run with the same seeds; the unit of analysis is the run, so n counts runs,
+never trials. As in the thesis, arms are compared as independent samples (Welch); one arm
+compared across two conditions or metrics has the same runs on both sides and is tested paired
+by seed (paired t). Each claim's verdict rests on an interval of Δ = mean(a) − mean(b):
+<i>held</i> when it lies on the claimed side of 0 (an equivalence claim: inside ±margin),
+<i>reversed</i> when it lies on the other side, <i>ruled out</i> when it excludes the thesis's
+effect (the margin declared in the experiment's file before the runs), else <i>undecided</i>,
+with the seeds per arm that 80% power would need at the thesis's effect and at ours, and their
+cost in core-hours. The intervals are two-sided t-intervals at level α/r (α = {report.alpha:g},
+r the claims still open; Holm over all claims, both directions in one family) widened, for an
+adaptive run, by the Lan–DeMets O'Brien–Fleming boundary of the look, so the chance of any
+wrong verdict over all claims and looks is at most α. Mann–Whitney U (Wilcoxon signed-rank
+when paired), P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> =
+X<sub>b</sub>) (rliable) and Hedges' g describe each claim too. Unfinished runs (NaN) are left
+out and counted.</p>
 <h2>Verdicts</h2>
-<table>{_row("comparison", "claim", "claimed in", "Holm p", "verdict", header=True)}{summary}
-</table>
+{summary}
+{stages}
 {thesis_section}
 <h2>Comparisons</h2>{comparisons}
 <h2>Figures</h2>{other_figures or "<p>No curves were recorded.</p>"}
@@ -463,24 +649,32 @@ comparison(s). Verdict: <i>held</i> if the adjusted p in the claimed direction i
 """  # fmt: skip
 
 
-def write_report(
-    results: ExperimentResults, out_dir: Path, rng: np.random.Generator | None = None
-) -> Path:
+def write_report(results: ExperimentResults, out_dir: Path, keep_curves: bool = False) -> Path:
     """Write `index.html`, its PNG figures, `values.csv` and `report.json` into `out_dir`.
 
     Args:
         results: the experiment's per-run values.
         out_dir: the report's folder, created if needed.
-        rng: the bootstraps' generator; by default seeded with REPORT_SEED, so a report of
-            the same results is the same.
+        keep_curves: keep the folder's curve figures (results read back from a values.csv
+            have no curves; the verdict rules may change, the curves do not).
 
     Returns:
         The path of `index.html`.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    report = analyse(results, rng if rng is not None else np.random.default_rng(REPORT_SEED))
-    remove_figures(out_dir)  # an earlier report's: its claims may have been others
-    figures = save_figures(results, out_dir)
+    report = analyse(results)
+    deltas = [
+        DeltaBar(
+            c.stats.difference,
+            c.claim.judged.interval.low,
+            c.claim.judged.interval.high,
+            c.claim.margin,
+            c.comparison.direction,
+            interval_level(c.claim),
+        )
+        for c in report.comparisons
+    ]
+    figures = save_figures(results, out_dir, deltas, keep_curves=keep_curves)
     write_values_csv(results, out_dir / "values.csv")
     (out_dir / "report.json").write_text(json.dumps(to_json(report), indent=2, allow_nan=False))
     index = out_dir / "index.html"

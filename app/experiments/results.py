@@ -14,9 +14,15 @@ import numpy as np
 
 MetricKind = Literal["scalar", "curve"]
 MetricScope = Literal["training", "condition"]
-Direction = Literal["greater", "less"]
-Verdict = Literal["held", "reversed", "not shown"]
-VERDICTS: tuple[Verdict, ...] = ("held", "reversed", "not shown")
+Direction = Literal["greater", "less", "equivalent"]
+Verdict = Literal["held", "reversed", "ruled out", "undecided"]
+VERDICTS: tuple[Verdict, ...] = ("held", "reversed", "ruled out", "undecided")
+MarginForm = Literal["absolute", "relative"]
+ClaimKind = Literal["question", "sanity"]
+# Simulated steps per second on one core of this machine, measured: ch3-bs-rl at thesis scale,
+# 3.9 G steps in 71 min on 2 cores (0.92 M/s). Prices the seeds an undecided claim needs.
+CORE_STEPS_PER_SECOND = 0.46e6
+CONVERGENCE_SHARE = 0.9  # convergence: the first generation at 90% of the run's final fitness
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,22 @@ METRICS: dict[str, Metric] = {
             "whole trial when no sensor breaks)",
         ),
         Metric(
+            "fault_effect",
+            "reward lost to the fault",
+            "scalar",
+            "condition",
+            "reward per step from the fault step on, minus the same steps of the no-fault "
+            "control condition with the same trial seeds (negative: the fault costs reward)",
+        ),
+        Metric(
+            "convergence_generation",
+            "generations to converge",
+            "scalar",
+            "training",
+            f"first generation whose best fitness reaches {CONVERGENCE_SHARE:.0%} of the "
+            "run's final best fitness (counted from 1)",
+        ),
+        Metric(
             "reward_per_step",
             "reward per step",
             "curve",
@@ -112,6 +134,25 @@ class Comparison:
     source: str  # where the thesis claims it ("Fig. 3.9")
     condition_b: str | None = None  # b's condition, when it is not a's (then b is a)
     metric_b: str | None = None  # b's metric, when it is not a's (then b is a)
+    # The thesis's effect, to rule out (or the equivalence margin): in the metric's units
+    # ("absolute") or as a share of b's mean ("relative"); None: no effect to rule out.
+    margin: float | None = None
+    margin_form: MarginForm = "absolute"
+    margin_source: str = ""  # where the margin comes from, and why
+    role: ClaimKind | None = None  # None: "sanity" for one arm against itself, else "question"
+
+    @property
+    def kind(self) -> ClaimKind:
+        """A thesis question (method against baseline) or a sanity claim (within one arm)."""
+        return self.role or ("sanity" if self.paired else "question")
+
+    def margin_for(self, mean_b: float) -> float | None:
+        """The margin in the metric's units, given our mean of side b."""
+        if self.margin is None:
+            return None
+        if self.margin_form == "relative":
+            return abs(self.margin * mean_b) if np.isfinite(mean_b) else None
+        return self.margin
 
     @property
     def paired(self) -> bool:
@@ -166,6 +207,9 @@ class ExperimentResults:
     conditions: tuple[Condition, ...]
     comparisons: tuple[Comparison, ...]
     thesis: tuple[ThesisValue, ...] = ()
+    control: str | None = None  # the no-fault condition that `fault_effect` is measured against
+    looks: tuple[int, ...] = ()  # seeds per arm at each look of an adaptive run; () = one look
+    steps_per_run: float = 0.0  # simulated steps of one run (training + conditions), for costs
     scalars: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
     curves: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
 

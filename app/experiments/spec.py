@@ -33,7 +33,16 @@ from app.config import (
     describe_problems,
     preset_layer,
 )
-from app.experiments.results import METRICS, Arm, Comparison, Condition, ThesisValue
+from app.experiments.results import (
+    METRICS,
+    Arm,
+    ClaimKind,
+    Comparison,
+    Condition,
+    Direction,
+    MarginForm,
+    ThesisValue,
+)
 
 Scale = Literal["smoke", "small", "thesis"]
 SCALES: tuple[Scale, ...] = ("smoke", "small", "thesis")
@@ -84,7 +93,8 @@ class ConditionSpec(_Frozen):
 
 
 class ComparisonSpec(_Frozen):
-    """A claim: arm `a` is `direction` than arm `b` on a scalar metric."""
+    """A claim: arm `a` is `direction` than arm `b` on a scalar metric (or, `equivalent`,
+    within ±margin of it)."""
 
     name: str
     a: str
@@ -97,8 +107,29 @@ class ComparisonSpec(_Frozen):
     metric_b: str | None = Field(
         None, description="b's metric: one arm (a = b) compared on two metrics"
     )
-    direction: Literal["greater", "less"]
+    direction: Direction
     source: str = Field(description="where the thesis claims it, e.g. 'Fig. 3.9'")
+    margin: float | None = Field(
+        None,
+        gt=0,
+        description="the thesis's effect, to rule out (equivalence: the margin), declared "
+        "before the runs; in the metric's units or, relative, as a share of b's mean",
+    )
+    margin_form: MarginForm = "absolute"
+    margin_source: str = Field("", description="where the margin comes from, and why")
+    role: ClaimKind | None = Field(
+        None,
+        description="question (a thesis's method-versus-baseline claim) or sanity (within one "
+        "arm); unset: sanity when one arm is compared with itself",
+    )
+
+    @model_validator(mode="after")
+    def _margin_explained(self) -> ComparisonSpec:
+        if self.margin is not None and not self.margin_source:
+            raise ValueError(f"comparison {self.name!r}: say where its margin comes from")
+        if self.direction == "equivalent" and self.margin is None:
+            raise ValueError(f"comparison {self.name!r}: an equivalence claim needs a margin")
+        return self
 
 
 class ThesisValueSpec(_Frozen):
@@ -150,6 +181,11 @@ class ExperimentSpec(_Frozen):
     config: dict[str, Any] = Field(default_factory=dict, description="base overlay")
     arms: tuple[ArmSpec, ...] = Field(min_length=1)
     conditions: tuple[ConditionSpec, ...] = ()
+    control: str | None = Field(
+        None,
+        description="the condition without a fault that `fault_effect` is measured against "
+        "(same trial seeds as every condition)",
+    )
     comparisons: tuple[ComparisonSpec, ...] = ()
     thesis: tuple[ThesisValueSpec, ...] = ()
     scales: dict[Scale, ScaleSpec] = Field(min_length=1)
@@ -163,6 +199,8 @@ class ExperimentSpec(_Frozen):
         _unique("condition", [c.name for c in self.conditions])
         _unique("comparison", [c.name for c in self.comparisons])
         arms, conditions = {a.name for a in self.arms}, {c.name for c in self.conditions}
+        if self.control is not None and self.control not in conditions:
+            raise ValueError(f"control: unknown condition {self.control!r}")
         for comp in self.comparisons:
             where = f"comparison {comp.name!r}"
             for arm in (comp.a, comp.b):
@@ -192,6 +230,8 @@ class ExperimentSpec(_Frozen):
             for metric in {comp.metric, comp.metric_b or comp.metric}:
                 if METRICS[metric].kind != "scalar":
                     raise ValueError(f"{where}: metric {metric!r} is a curve, not a number")
+                if metric == "fault_effect" and self.control is None:
+                    raise ValueError(f"{where}: fault_effect needs the experiment's control")
         for value in self.thesis:
             where = f"thesis value of {value.arm!r} ({value.source})"
             if value.arm not in arms:
@@ -264,6 +304,24 @@ class ExperimentSpec(_Frozen):
         """The claims as the statistics see them."""
         return tuple(Comparison(**c.model_dump()) for c in self.comparisons)
 
+    def check_control(self, scale: str) -> None:
+        """The control condition has no fault and every condition's length (fault_effect
+        subtracts its reward from theirs, step by step)."""
+        if self.control is None:
+            return
+        info = {c.name: c for c in self.conditions_info(scale)}
+        control = info[self.control]
+        if control.fault_step is not None:
+            raise ExperimentError(
+                f"experiment {self.name!r}: control condition {self.control!r} has a fault"
+            )
+        for c in info.values():
+            if c.steps != control.steps:
+                raise ExperimentError(
+                    f"experiment {self.name!r}: condition {c.name!r} lasts {c.steps} steps, "
+                    f"the control {control.steps}"
+                )
+
     def thesis_info(self) -> tuple[ThesisValue, ...]:
         """The thesis's numbers, to sit beside ours."""
         return tuple(ThesisValue(**v.model_dump()) for v in self.thesis)
@@ -309,6 +367,7 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
                         f"{where}, condition {condition.name!r}: steps and fault_step must be "
                         f"the same for every arm (the first arm's are {shape})"
                     )
+        spec.check_control(scale)
     return spec
 
 

@@ -1,15 +1,16 @@
 """Statistics of one experiment's claims: is arm a `direction` than arm b on a scalar metric?
 
 The unit of analysis is the run (seed). Two arms are compared, as the thesis does, as
-independent samples: `compare` gives mean ± sd per arm, the difference of means with a
-percentile-bootstrap 95% CI, Welch's one-tailed t-test and a one-tailed Mann–Whitney U test in
-the claimed direction, rliable's probability of improvement and Hedges' g. One arm compared
-with itself, in two conditions or on two metrics (`paired=True`), has the same runs on both
-sides, so the tests are paired by seed: the one-tailed paired t-test and Wilcoxon's
-signed-rank test on the runs' differences, their bootstrap CI, and the share of runs that
-improve; Hedges' g is still standardised by the runs' spread, so every row's g reads the same
-way. `judge_claims` then adjusts the t-tests' p-values of one experiment's claims with
-Holm–Bonferroni and gives each claim its verdict.
+independent samples: `compare` gives mean ± sd per arm, the difference of means, Welch's
+one-tailed t-test and a one-tailed Mann–Whitney U test in the claimed direction, rliable's
+probability of improvement and Hedges' g. One arm compared with itself, in two conditions or
+on two metrics (`paired=True`), has the same runs on both sides, so the tests are paired by
+seed: the one-tailed paired t-test and Wilcoxon's signed-rank test on the runs' differences,
+and the share of runs that improve; Hedges' g is still standardised by the runs' spread, so
+every row's g reads the same way. An equivalence claim is described as "greater" (its
+p-values test both directions anyway). The verdicts, and the interval they rest on, are
+`app.experiments.sequential`'s; `holm` adjusts the two-sided p-values of one experiment's
+claims as one family, for the reader.
 
 Degenerate input gives a defined outcome, never an exception:
 
@@ -34,11 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as scipy_stats
 
-from app.experiments.results import Direction, Verdict
-
-ALPHA = 0.05
-BOOTSTRAP_RESAMPLES = 10_000
-CI_LEVEL = 0.95
+from app.experiments.results import Direction
 
 _OPPOSITE: dict[Direction, Direction] = {"greater": "less", "less": "greater"}
 
@@ -69,8 +66,6 @@ class PairStats:
     prob_improvement: float
     notes: tuple[str, ...] = ()
     # NaN when an arm has fewer than 2 finite values (no test):
-    ci_low: float = math.nan  # 95% percentile-bootstrap CI of the difference
-    ci_high: float = math.nan
     t: float = math.nan  # t of mean(a) − mean(b), not oriented
     df: float = math.nan  # Welch–Satterthwaite (paired: runs − 1) degrees of freedom
     p: float = math.nan
@@ -88,16 +83,6 @@ class PairStats:
         return ("paired t", "Wilcoxon signed-rank") if self.paired else ("Welch", "Mann–Whitney")
 
 
-@dataclass(frozen=True)
-class ClaimStats:
-    """A claim's statistics with its Holm-adjusted p-values and its verdict."""
-
-    stats: PairStats
-    holm_p: float  # Holm-adjusted p over the experiment's claims
-    holm_p_opposite: float  # Holm-adjusted p_opposite, the same way
-    verdict: Verdict
-
-
 def finite_values(values: np.ndarray) -> tuple[np.ndarray, int]:
     """The finite values of `values` and how many NaN (or ±inf) values were dropped."""
     values = np.asarray(values, dtype=float).ravel()
@@ -111,48 +96,6 @@ def summarise(values: np.ndarray) -> ArmSummary:
     mean = float(kept.mean()) if kept.size else math.nan
     sd = float(kept.std(ddof=1)) if kept.size >= 2 else math.nan
     return ArmSummary(n=int(kept.size), dropped=dropped, mean=mean, sd=sd)
-
-
-def bootstrap_difference_ci(
-    a: np.ndarray,
-    b: np.ndarray,
-    rng: np.random.Generator,
-    resamples: int = BOOTSTRAP_RESAMPLES,
-    level: float = CI_LEVEL,
-) -> tuple[float, float]:
-    """Percentile-bootstrap CI of mean(a) − mean(b), resampling each arm independently.
-
-    Args:
-        a: finite values of arm a (at least one).
-        b: finite values of arm b (at least one).
-        rng: the only source of randomness.
-        resamples: bootstrap resamples.
-        level: coverage of the interval.
-
-    Returns:
-        The (low, high) percentiles of the resampled differences.
-    """
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    means_a = a[rng.integers(0, a.size, size=(resamples, a.size))].mean(axis=1)
-    means_b = b[rng.integers(0, b.size, size=(resamples, b.size))].mean(axis=1)
-    return _percentile_interval(means_a - means_b, level)
-
-
-def bootstrap_mean_ci(
-    d: np.ndarray,
-    rng: np.random.Generator,
-    resamples: int = BOOTSTRAP_RESAMPLES,
-    level: float = CI_LEVEL,
-) -> tuple[float, float]:
-    """Percentile-bootstrap CI of mean(d), resampling the runs' paired differences `d`."""
-    d = np.asarray(d, dtype=float)
-    return _percentile_interval(d[rng.integers(0, d.size, size=(resamples, d.size))].mean(1), level)
-
-
-def _percentile_interval(resampled: np.ndarray, level: float) -> tuple[float, float]:
-    tail = 100 * (1 - level) / 2
-    low, high = np.percentile(resampled, [tail, 100 - tail])
-    return float(low), float(high)
 
 
 def _zero_variance_limit(difference: float, direction: Direction) -> tuple[float, float]:
@@ -273,19 +216,15 @@ def compare(
     a_values: np.ndarray,
     b_values: np.ndarray,
     direction: Direction,
-    rng: np.random.Generator,
-    resamples: int = BOOTSTRAP_RESAMPLES,
     names: tuple[str, str] = ("arm a", "arm b"),
     paired: bool = False,
 ) -> PairStats:
-    """Every statistic of the claim "a is `direction` than b", one value per run.
+    """Every descriptive statistic of the claim "a is `direction` than b", one value per run.
 
     Args:
         a_values: arm a's value of each run; NaN (unfinished runs) are dropped.
         b_values: arm b's value of each run, the same way.
-        direction: "greater" or "less".
-        rng: the bootstrap's only source of randomness.
-        resamples: bootstrap resamples.
+        direction: "greater", "less" or "equivalent" (described as "greater").
         names: the arms' names, for the notes.
         paired: a and b are the same runs (aligned by seed) in two conditions or on two
             metrics: paired tests, and a run missing on either side is dropped from both.
@@ -293,6 +232,8 @@ def compare(
     Returns:
         The claim's statistics, with notes on anything dropped or degenerate.
     """
+    if direction == "equivalent":
+        direction = "greater"
     if paired:
         a_values, b_values = np.asarray(a_values, dtype=float), np.asarray(b_values, dtype=float)
         if a_values.shape != b_values.shape:
@@ -329,14 +270,12 @@ def compare(
     if d is not None:
         if np.ptp(d) == 0:
             notes.append("constant differences: the t-test at its zero-variance limit")
-        ci_low, ci_high = bootstrap_mean_ci(d, rng, resamples)
         t, df, p = paired_t_test(d, direction)
         _, _, p_opposite = paired_t_test(d, _OPPOSITE[direction])
         rank_statistic, rank_p = wilcoxon_signed_rank(d, direction)
     else:
         if np.ptp(a) == 0 and np.ptp(b) == 0:
             notes.append("both arms constant: t-test and effect size at their zero-variance limit")
-        ci_low, ci_high = bootstrap_difference_ci(a, b, rng, resamples)
         t, df, p = welch_test(a, b, direction)
         _, _, p_opposite = welch_test(a, b, _OPPOSITE[direction])
         rank_statistic, rank_p = mann_whitney(a, b, direction)
@@ -345,8 +284,6 @@ def compare(
         a=summary_a,
         b=summary_b,
         difference=difference,
-        ci_low=ci_low,
-        ci_high=ci_high,
         t=t,
         df=df,
         p=p,
@@ -375,25 +312,3 @@ def holm(p_values: Sequence[float]) -> np.ndarray:
     scaled = (m - np.arange(m)) * p[order]
     adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
     return adjusted
-
-
-def verdict(holm_p: float, holm_p_opposite: float, alpha: float = ALPHA) -> Verdict:
-    """`held` if significant in the claimed direction, `reversed` if the other way."""
-    if holm_p < alpha:
-        return "held"
-    if holm_p_opposite < alpha:
-        return "reversed"
-    return "not shown"  # also when the p-values are NaN
-
-
-def judge_claims(claims: Sequence[PairStats], alpha: float = ALPHA) -> tuple[ClaimStats, ...]:
-    """Holm-adjust the t-tests' p-values of one experiment's claims and give each its verdict.
-
-    The claimed-direction p-values form one family, the opposite-direction ones another.
-    """
-    adjusted = holm([c.p for c in claims])
-    adjusted_opposite = holm([c.p_opposite for c in claims])
-    return tuple(
-        ClaimStats(c, float(p), float(q), verdict(p, q, alpha))
-        for c, p, q in zip(claims, adjusted, adjusted_opposite, strict=True)
-    )

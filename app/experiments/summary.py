@@ -44,6 +44,8 @@ UNITS = {
     "mean_reward, mean_reward_before_fault, mean_reward_after_fault, reward_per_step": (
         "reward per step, 0..1"
     ),
+    "fault_effect": "reward per step, after the fault minus the no-fault control, -1..1",
+    "convergence_generation": "generation (1 = the first)",
     "best_fitness_curve axis 1": "generation",
     "reward_per_step axis 1": "implementation step",
 }
@@ -66,6 +68,9 @@ def write_summary(results: ExperimentResults, path: str | Path) -> Path:
             attrs["package_version"] = package_version()
             for key in ("name", "description", "source", "scale"):
                 attrs[key] = getattr(results, key)
+            attrs["control"] = results.control or ""
+            attrs["looks"] = np.asarray(results.looks, dtype=np.int64)
+            attrs["steps_per_run"] = float(results.steps_per_run)
             attrs["units"] = json.dumps(UNITS, ensure_ascii=False)
             for key in ("arms", "conditions", "comparisons", "thesis"):
                 items = [asdict(item) for item in getattr(results, key)]
@@ -133,6 +138,9 @@ def read_summary(path: str | Path) -> ExperimentResults:
                 conditions=_items(attrs, "conditions", Condition),
                 comparisons=_items(attrs, "comparisons", Comparison),
                 thesis=_items(attrs, "thesis", ThesisValue),
+                control=str(attrs.get("control", "")) or None,
+                looks=tuple(int(n) for n in attrs.get("looks", ())),
+                steps_per_run=float(attrs.get("steps_per_run", 0.0)),
                 scalars=_table(handle, "scalars"),
                 curves=_table(handle, "curves"),
             )

@@ -1,0 +1,119 @@
+"""Seeds spent adaptively: an experiment run in stages until its claims are decided.
+
+Stage k runs seeds 0..n_k − 1 of the arms that some claim still open needs (all arms at the
+first stage), then judges every claim over the looks made so far (`sequential.judge`, which
+keeps the family-wise error over all claims and stages at α). A claim decided at a look keeps
+its verdict; when none is open, or at the last planned look, the run stops. Everything is a
+function of the run files, so a rerun resumes where a stage was cut and decides the same.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from app.experiments.results import ExperimentResults
+from app.experiments.runner import (
+    Echo,
+    Watch,
+    collect,
+    connect,
+    execute,
+    inspect,
+    keep_definition,
+    plan,
+    summary_path,
+)
+from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.experiments.summary import write_summary
+
+DEFAULT_STAGE_SEEDS = 10
+DEFAULT_MAX_SEEDS = 30
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One look of an adaptive run: the runs it asked for and what stayed open after it."""
+
+    seeds: int  # per arm, counted from seed 0
+    arms: tuple[str, ...]  # the arms run up to `seeds` (the others stopped earlier)
+    open_claims: tuple[str, ...]  # claims still undecided after this look
+
+
+def needed_arms(spec: ExperimentSpec, open_claims: list[str]) -> tuple[str, ...]:
+    """The arms the open claims compare, in the spec's order."""
+    wanted = {arm for c in spec.comparisons if c.name in open_claims for arm in (c.a, c.b)}
+    return tuple(a.name for a in spec.arms if a.name in wanted)
+
+
+def run_adaptive(
+    spec: ExperimentSpec,
+    scale: str,
+    runs_dir: str | Path,
+    *,
+    stage_seeds: int = DEFAULT_STAGE_SEEDS,
+    max_seeds: int = DEFAULT_MAX_SEEDS,
+    client: Any = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    quiet: bool = False,
+    echo: Echo | None = None,
+    watch: Watch | None = None,
+    definition: str | None = None,
+) -> tuple[ExperimentResults, tuple[Stage, ...]]:
+    """Run an experiment in stages of seeds until every claim is decided or `max_seeds`.
+
+    After each stage the claims are judged (`sequential.judge`: family-wise error over every
+    claim and stage); the next stage runs only the arms an undecided claim compares. The
+    stages are a function of the run files, so a rerun resumes where it was cut and makes the
+    same decisions; the summary holds the seeds up to the last look made.
+
+    Raises:
+        ExperimentError: as `run_experiment`, or stage sizes that cannot be used.
+    """
+    from app.experiments.report import analyse
+    from app.experiments.sequential import Design
+
+    try:
+        design = Design.staged(stage_seeds, max_seeds)
+    except ValueError as error:
+        raise ExperimentError(str(error)) from None
+    spec.scale(scale)
+    if definition is not None:
+        for task in plan(spec, scale, runs_dir, max_seeds):  # refuse a foreign file first
+            if Path(task.path).exists():
+                inspect(task)
+        keep_definition(runs_dir, spec.name, definition)
+    say = echo or (lambda line: None if quiet else print(line, flush=True))
+    arms = tuple(a.name for a in spec.arms)
+    stages: list[Stage] = []
+    errors: list[str] = []
+    own: Any = None
+    with contextlib.ExitStack() as stack:
+        for n in design.looks:
+            tasks = [t for t in plan(spec, scale, runs_dir, n) if t.arm in arms]
+            todo = [t for t in tasks if not inspect(t).complete(t)]
+            if todo:
+                if client is None and own is None:
+                    own = stack.enter_context(connect(scheduler, workers))
+                say(f"stage {len(stages) + 1}: seeds 0-{n - 1} of {', '.join(arms)}")
+                errors += execute(tasks, client or own, quiet, echo, watch)
+            results = collect(spec, scale, runs_dir, n, design.looks)
+            if errors:
+                break
+            report = analyse(results)
+            open_claims = [
+                c.comparison.name for c in report.comparisons if c.claim.verdict == "undecided"
+            ]
+            stages.append(Stage(n, arms, tuple(open_claims)))
+            decided = len(report.comparisons) - len(open_claims)
+            say(f"after {n} seeds per arm: {decided} claim(s) decided, {len(open_claims)} open")
+            arms = needed_arms(spec, open_claims)
+            if not arms:
+                break
+    write_summary(results, summary_path(runs_dir, spec.name, scale))
+    if errors:
+        raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}")
+    return results, tuple(stages)

@@ -1,0 +1,75 @@
+"""An experiment's per-run values as CSV: the table every statistic of a report comes from.
+
+`values.csv` has one row per run, metric and condition (columns `VALUES_COLUMNS`; `nan` for an
+unfinished run). A committed report keeps it, so a report can be written again from it when
+the rules of the verdicts change, without the run files (`read_values_csv`).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from app.experiments.results import METRICS, ExperimentResults
+from app.experiments.spec import ExperimentError, ExperimentSpec
+
+VALUES_COLUMNS = ("arm", "seed", "condition", "metric", "value")
+
+
+def write_values_csv(results: ExperimentResults, path: Path) -> None:
+    """Every per-run scalar value (NaN for unfinished runs), one row per run and metric."""
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(VALUES_COLUMNS)
+        for (metric, arm, condition), values in results.scalars.items():
+            for seed, value in zip(results.seeds, np.asarray(values, dtype=float), strict=True):
+                writer.writerow([arm, seed, condition, metric, repr(float(value))])
+
+
+def read_values_csv(
+    path: str | Path, spec: ExperimentSpec, template: ExperimentResults
+) -> ExperimentResults:
+    """`template` (the experiment's results shape, e.g. `collect` of an empty folder) with the
+    scalar values of a `values.csv` in place of its own, over the seeds the file holds.
+
+    Metrics the file lacks (added to the experiment since) stay NaN; curves stay empty.
+
+    Raises:
+        ExperimentError: the file is missing, not a values table, or names an arm, metric or
+            condition the experiment does not have.
+    """
+    path = Path(path)
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except (OSError, UnicodeDecodeError) as error:
+        raise ExperimentError(f"cannot read values file {path}: {error}") from None
+    if not rows or tuple(rows[0]) != VALUES_COLUMNS:
+        raise ExperimentError(f"{path} is not a values table (columns {', '.join(VALUES_COLUMNS)})")
+    arms = {a.name for a in spec.arms}
+    conditions = {c.name for c in spec.conditions} | {""}
+    parsed: list[tuple[str, int, str, str, float]] = []
+    for number, row in enumerate(rows[1:], start=2):
+        try:
+            arm, seed, condition, metric, text = row
+            parsed.append((arm, int(seed), condition, metric, float(text)))
+        except ValueError:
+            raise ExperimentError(f"{path}, line {number}: not a row of values: {row}") from None
+        if arm not in arms or condition not in conditions or metric not in METRICS:
+            raise ExperimentError(
+                f"{path}, line {number}: arm {arm!r}, condition {condition!r} or metric "
+                f"{metric!r} is not the experiment's"
+            )
+    seeds = tuple(sorted({seed for _, seed, _, _, _ in parsed}))
+    row_of = {seed: i for i, seed in enumerate(seeds)}
+    scalars = {key: np.full(len(seeds), np.nan) for key in template.scalars}
+    for arm, seed, condition, metric, value in parsed:
+        key = (metric, arm, condition)
+        scalars.setdefault(key, np.full(len(seeds), np.nan))[row_of[seed]] = (
+            value if math.isfinite(value) else np.nan
+        )
+    return dataclasses.replace(template, seeds=seeds, scalars=scalars, curves={})
