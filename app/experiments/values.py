@@ -64,12 +64,12 @@ def read_values_csv(
                 f"{path}, line {number}: arm {arm!r}, condition {condition!r} or metric "
                 f"{metric!r} is not the experiment's"
             )
-    seeds = tuple(sorted({seed for _, seed, _, _, _ in parsed}))
-    row_of = {seed: i for i, seed in enumerate(seeds)}
+    seeds = tuple(sorted({run for _, run, _, _, _ in parsed}))
+    row_of = {run: i for i, run in enumerate(seeds)}
     scalars = {key: np.full(len(seeds), np.nan) for key in template.scalars}
-    for arm, seed, condition, metric, value in parsed:
+    for arm, run, condition, metric, value in parsed:
         key = (metric, arm, condition)
-        scalars.setdefault(key, np.full(len(seeds), np.nan))[row_of[seed]] = (
+        scalars.setdefault(key, np.full(len(seeds), np.nan))[row_of[run]] = (
             value if math.isfinite(value) else np.nan
         )
     return dataclasses.replace(template, seeds=seeds, scalars=scalars, curves={})
