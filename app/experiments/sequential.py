@@ -15,7 +15,12 @@ sequentially rejective procedure of Maurer & Bretz 2013): at each look, every cl
 decided gets the interval at two-sided level α/r, r the number of claims not decided so far
 (at any look), widened by the Lan–DeMets O'Brien–Fleming boundary of that level at the look's
 information fraction. Claims whose interval decides them are decided at that level; r drops
-and the others are looked at again at the new level. A wrong verdict of any kind needs the
+and the others are looked at again at the new level. Only `held` and `reversed` free a share
+(Holm with directional decisions): a claim `ruled out` keeps its verdict and its share, since
+with Δ = 0 it is decided rightly about half the time while its interval still carries its
+share of wrong `held`/`reversed` verdicts, and handing that share on lifted the family-wise
+error of two such claims to 0.061 and of three to 0.070 at α = 0.05 (20000 simulated
+experiments). A wrong verdict of any kind needs the
 interval to miss the true Δ, which each claim's repeated confidence interval (Jennison &
 Turnbull 1989) allows with probability at most its level over all looks, so the chance of any
 wrong verdict is at most α whatever the number of claims and looks. One look (no stages) is
@@ -236,6 +241,9 @@ class ClaimVerdict:
     family_level: float  # α / r: the claim's Holm share when it was decided (or at the end)
 
 
+_FREES: tuple[Verdict, ...] = ("held", "reversed")  # the verdicts that hand their share on
+
+
 def judge(
     looks: Sequence[Sequence[ClaimData]], design: Design, alpha: float = ALPHA
 ) -> tuple[ClaimVerdict, ...]:
@@ -259,12 +267,16 @@ def judge(
     decided: dict[int, ClaimVerdict] = {}
     # Claims never testable (a side with fewer than 2 runs at the last look) hold no share.
     testable = {i for i in range(m) if interval(looks[-1][i], alpha).tested}
+
+    def holding() -> int:  # claims that hold a share: all but those held or reversed
+        return sum(decided[i].verdict not in _FREES if i in decided else 1 for i in testable)
+
     for k, claims in enumerate(looks):
         while True:
             open_claims = [i for i in sorted(testable) if i not in decided]
             if not open_claims:
                 break
-            share = alpha / len(open_claims)
+            share = alpha / holding()
             level = nominal_level(fractions[: k + 1], k, share)
             newly = {}
             for i in open_claims:
@@ -277,8 +289,7 @@ def judge(
             decided.update(newly)
     last = len(looks) - 1
     out = []
-    open_claims = [i for i in sorted(testable) if i not in decided]
-    share = alpha / len(open_claims) if open_claims else alpha
+    share = alpha / max(1, holding())
     level = nominal_level(fractions[: last + 1], last, share)
     for i in range(m):
         if i in decided:

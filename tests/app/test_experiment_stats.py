@@ -1,4 +1,8 @@
-"""Statistics of an experiment's claims, checked against hand-computed values."""
+"""Descriptive statistics of an experiment's claims, checked against hand-computed values.
+
+The verdicts (intervals, Holm, looks) are tested in test_sequential.py; here `decide` and
+`interval` only check that the claims these statistics describe get the verdict they should.
+"""
 
 from __future__ import annotations
 
@@ -10,26 +14,32 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app.experiments.results import VERDICTS
+from app.experiments.results import VERDICTS, Direction
+from app.experiments.sequential import ClaimData, Design, decide, interval, judge
 from app.experiments.stats import (
-    bootstrap_difference_ci,
-    bootstrap_mean_ci,
     compare,
     hedges_g,
     holm,
-    judge_claims,
     mann_whitney,
     paired_t_test,
     probability_of_improvement,
     share_improved,
     summarise,
-    verdict,
     welch_test,
     wilcoxon_signed_rank,
 )
 
 A = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
 B = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+
+
+def one_verdict(
+    a: np.ndarray, b: np.ndarray, direction: Direction = "greater", paired: bool = False
+) -> str:
+    """The verdict of a lone claim at one look (α = 0.05, no margin)."""
+    data = ClaimData(np.asarray(a, float), np.asarray(b, float), direction, paired, None)
+    (claim,) = judge([[data]], Design((max(len(a), len(b)),)))
+    return claim.verdict
 
 
 def welch_t_and_df(a: list[float], b: list[float]) -> tuple[float, float]:
@@ -139,58 +149,43 @@ def test_probability_of_improvement_of_both_orders_sums_to_one(a: np.ndarray, b:
 
 @given(values, values)
 def test_compare_never_fails_and_its_p_values_are_probabilities(a: np.ndarray, b: np.ndarray):
-    stats = compare(a, b, "greater", np.random.default_rng(0), resamples=200)
-    (claim,) = judge_claims([stats])
-    assert claim.verdict in VERDICTS
+    stats = compare(a, b, "greater")
+    assert one_verdict(a, b) in VERDICTS
     tested = a.size >= 2 and b.size >= 2
-    for p in (stats.p, stats.p_opposite, stats.rank_p, claim.holm_p):
+    for p in (stats.p, stats.p_opposite, stats.rank_p):
         assert (0.0 <= p <= 1.0) if tested else math.isnan(p)
     assert 0.0 <= stats.prob_improvement <= 1.0
 
 
-def test_bootstrap_ci_is_seeded_and_covers_a_clear_shift() -> None:
-    b = np.random.default_rng(1).normal(0.0, 1.0, 10)
-    a = b + 5.0  # the difference of means is exactly 5
-    ci = bootstrap_difference_ci(a, b, np.random.default_rng(7))
-    assert ci == bootstrap_difference_ci(a, b, np.random.default_rng(7))
-    assert ci != bootstrap_difference_ci(a, b, np.random.default_rng(8))
-    low, high = ci
-    assert 0.0 < low < 5.0 < high < 10.0
-
-
 def test_a_clear_effect_the_other_way_is_reversed() -> None:
-    (claim,) = judge_claims([compare(B - 10.0, B, "greater", np.random.default_rng(0))])
-    assert claim.verdict == "reversed"
-    assert claim.stats.prob_improvement == 0.0 and claim.stats.hedges_g < 0
-    assert claim.stats.ci_high < 0
+    stats = compare(B - 10.0, B, "greater")
+    assert one_verdict(B - 10.0, B) == "reversed"
+    assert stats.prob_improvement == 0.0 and stats.hedges_g < 0
+    assert stats.p + stats.p_opposite == pytest.approx(1.0) and stats.p_opposite < 1e-4
 
 
 def test_a_clear_effect_in_the_claimed_direction_is_held() -> None:
-    (claim,) = judge_claims([compare(B, B + 10.0, "less", np.random.default_rng(0))])
-    assert claim.verdict == "held" and claim.stats.prob_improvement == 1.0
+    assert compare(B, B + 10.0, "less").prob_improvement == 1.0
+    assert one_verdict(B, B + 10.0, "less") == "held"
 
 
-def test_judge_adjusts_across_the_claims_of_one_experiment() -> None:
-    rng = np.random.default_rng(0)
-    weak = compare(A + 0.5, B, "greater", rng)  # one-tailed Welch p ≈ 0.06
-    strong = compare(A + 3.0, B, "greater", rng)
-    claims = judge_claims([weak, strong])
-    assert claims[1].holm_p == pytest.approx(2 * strong.p)
-    assert claims[0].holm_p == pytest.approx(max(weak.p, 2 * strong.p))
-    assert [c.verdict for c in claims] == ["not shown", "held"]
+def test_a_weak_effect_is_undecided_and_its_two_sided_p_says_why() -> None:
+    stats = compare(A + 0.5, B, "greater")  # t = 1.5 / √1 = 1.5, df 8
+    assert stats.t == pytest.approx(1.5) and stats.p == pytest.approx(
+        1 - student_t_cdf_even_df(1.5, 8)
+    )
+    assert 0.05 < stats.p < 0.1  # ≈ 0.086: not below α/2 = 0.025 of the two-sided interval
+    assert one_verdict(A + 0.5, B) == "undecided"
 
 
-def test_verdict_thresholds() -> None:
-    assert verdict(0.049, 0.99) == "held"
-    assert verdict(0.99, 0.01) == "reversed"
-    assert verdict(0.05, 0.95) == "not shown"
-    assert verdict(math.nan, math.nan) == "not shown"
+def test_an_equivalence_claim_is_described_as_greater() -> None:
+    assert compare(A, B, "equivalent") == compare(A, B, "greater")
 
 
 def test_unfinished_runs_are_dropped_and_counted() -> None:
     summary = summarise(np.array([1.0, 2.0, 3.0, math.nan]))
     assert (summary.n, summary.dropped, summary.mean, summary.sd) == (3, 1, 2.0, 1.0)
-    stats = compare(np.array([1.0, 2.0, 3.0, math.nan]), B, "greater", np.random.default_rng(0))
+    stats = compare(np.array([1.0, 2.0, 3.0, math.nan]), B, "greater")
     assert stats.a.dropped == 1 and stats.b.dropped == 0
     assert any("1 unfinished run(s) of arm a" in note for note in stats.notes)
     assert math.isfinite(stats.p)
@@ -198,32 +193,35 @@ def test_unfinished_runs_are_dropped_and_counted() -> None:
 
 def test_an_arm_with_one_finite_value_is_not_tested() -> None:
     a = np.array([1.0, math.nan, math.nan])
-    stats = compare(a, B, "greater", np.random.default_rng(0))
-    (claim,) = judge_claims([stats])
-    assert claim.verdict == "not shown"
+    stats = compare(a, B, "greater")
+    assert one_verdict(a, B) == "undecided"
     assert stats.a.n == 1 and stats.a.dropped == 2 and math.isnan(stats.a.sd)
-    assert all(math.isnan(p) for p in (stats.p, stats.rank_p, claim.holm_p))
-    assert math.isnan(stats.ci_low) and math.isnan(stats.hedges_g)
+    assert all(math.isnan(p) for p in (stats.p, stats.rank_p))
+    assert math.isnan(stats.hedges_g)
+    assert not interval(ClaimData(a, B, "greater", False, None), 0.05).tested
     assert stats.difference == pytest.approx(1.0 - 2.0)
     assert any("fewer than 2" in note for note in stats.notes)
 
 
 def test_identical_constant_arms_show_nothing_without_nan() -> None:
-    stats = compare(np.full(4, 3.0), np.full(4, 3.0), "greater", np.random.default_rng(0))
-    (claim,) = judge_claims([stats])
+    same = np.full(4, 3.0)
+    stats = compare(same, same, "greater")
     assert (stats.t, stats.p, stats.p_opposite) == (0.0, 1.0, 1.0)
     assert (stats.rank_p, stats.prob_improvement, stats.hedges_g) == (1.0, 0.5, 0.0)
-    assert (stats.ci_low, stats.ci_high) == (0.0, 0.0)
-    assert claim.verdict == "not shown" and claim.holm_p == 1.0
+    iv = interval(ClaimData(same, same, "greater", False, None), 0.05)
+    assert (iv.low, iv.high) == (0.0, 0.0)  # the zero-variance point interval
+    assert one_verdict(same, same) == "undecided"
+    assert decide(iv, "greater", 0.01) == "ruled out"  # no spread: any margin is excluded
     assert any("constant" in note for note in stats.notes)
 
 
 def test_different_constant_arms_take_the_zero_variance_limit() -> None:
-    stats = compare(np.full(4, 2.0), np.full(3, 1.0), "greater", np.random.default_rng(0))
-    (claim,) = judge_claims([stats])
+    a, b = np.full(4, 2.0), np.full(3, 1.0)
+    stats = compare(a, b, "greater")
     assert stats.t == math.inf and (stats.p, stats.p_opposite) == (0.0, 1.0)
-    assert stats.hedges_g == math.inf and (stats.ci_low, stats.ci_high) == (1.0, 1.0)
-    assert claim.verdict == "held"
+    iv = interval(ClaimData(a, b, "greater", False, None), 0.05)
+    assert stats.hedges_g == math.inf and (iv.low, iv.high) == (1.0, 1.0)
+    assert one_verdict(a, b) == "held"
 
 
 # --- one arm in two conditions: paired by seed ---
@@ -259,41 +257,37 @@ def test_share_improved_counts_runs_and_half_ties() -> None:
 def test_pairing_finds_a_small_shift_the_spread_between_runs_hides() -> None:
     b = np.array([0.0, 10.0, 20.0, 30.0, 40.0, 50.0])  # runs differ a lot
     a = b + np.array([1.0, 1.1, 0.9, 1.0, 1.2, 0.8])  # each run gains about 1
-    rng = np.random.default_rng(0)
-    paired, unpaired = (compare(a, b, "greater", rng, paired=p) for p in (True, False))
+    paired, unpaired = (compare(a, b, "greater", paired=p) for p in (True, False))
     assert paired.paired and paired.tests == ("paired t", "Wilcoxon signed-rank")
     assert unpaired.tests == ("Welch", "Mann–Whitney")
     assert paired.p < 1e-5 < 0.4 < unpaired.p
     assert paired.prob_improvement == 1.0 and paired.difference == pytest.approx(1.0)
     assert paired.hedges_g == unpaired.hedges_g  # g reads the same way in both
-    assert 0.85 < paired.ci_low < 1.0 < paired.ci_high < 1.15
+    # d: sd √0.02, se √0.02/√6 ≈ 0.0577, t(0.975, 5) ≈ 2.571: [0.852, 1.148]
+    iv = interval(ClaimData(a, b, "greater", True, None), 0.05)
+    assert 0.85 < iv.low < 1.0 < iv.high < 1.15
+    assert one_verdict(a, b, paired=True) == "held" != one_verdict(a, b)
     assert (paired.t, paired.df) == paired_t_test(a - b, "greater")[:2]
 
 
 def test_a_run_missing_on_either_side_is_dropped_from_both() -> None:
     a = np.array([1.0, math.nan, 3.0, 4.0])
     b = np.array([0.0, 1.0, math.nan, 2.0])
-    stats = compare(a, b, "greater", np.random.default_rng(0), paired=True)
+    stats = compare(a, b, "greater", paired=True)
     assert (stats.a.n, stats.b.n, stats.a.dropped, stats.b.dropped) == (2, 2, 2, 2)
     assert stats.difference == pytest.approx(1.5) and stats.df == 1.0
     with pytest.raises(ValueError, match="one per run"):
-        compare(a, b[:3], "greater", np.random.default_rng(0), paired=True)
+        compare(a, b[:3], "greater", paired=True)
 
 
 def test_constant_differences_take_the_zero_variance_limit() -> None:
-    stats = compare(A + 2.0, A, "greater", np.random.default_rng(0), paired=True)
+    stats = compare(A + 2.0, A, "greater", paired=True)
     assert (stats.t, stats.p, stats.p_opposite) == (math.inf, 0.0, 1.0)
-    assert (stats.ci_low, stats.ci_high) == (2.0, 2.0)
+    iv = interval(ClaimData(A + 2.0, A, "greater", True, None), 0.05)
+    assert (iv.low, iv.high, iv.sd) == (2.0, 2.0, 0.0)
     assert any("constant differences" in note for note in stats.notes)
-    same = compare(A, A, "greater", np.random.default_rng(0), paired=True)
+    same = compare(A, A, "greater", paired=True)
     assert (same.t, same.p, same.rank_p, same.prob_improvement) == (0.0, 1.0, 1.0, 0.5)
-
-
-def test_the_paired_bootstrap_is_seeded_and_resamples_runs() -> None:
-    d = np.random.default_rng(3).normal(1.0, 0.1, 12)
-    ci = bootstrap_mean_ci(d, np.random.default_rng(5))
-    assert ci == bootstrap_mean_ci(d, np.random.default_rng(5))
-    assert d.min() < ci[0] < d.mean() < ci[1] < d.max()
 
 
 paired_values = st.lists(
@@ -306,9 +300,8 @@ def test_paired_compare_never_fails_and_its_p_values_are_probabilities(
     pairs: list[tuple[float, float]],
 ) -> None:
     a, b = (np.array(side) for side in zip(*pairs, strict=True))
-    stats = compare(a, b, "greater", np.random.default_rng(0), resamples=200, paired=True)
-    (claim,) = judge_claims([stats])
-    assert claim.verdict in VERDICTS
-    for p in (stats.p, stats.p_opposite, stats.rank_p, claim.holm_p):
+    stats = compare(a, b, "greater", paired=True)
+    assert one_verdict(a, b, paired=True) in VERDICTS
+    for p in (stats.p, stats.p_opposite, stats.rank_p):
         assert (0.0 <= p <= 1.0) if len(pairs) >= 2 else math.isnan(p)
     assert 0.0 <= stats.prob_improvement <= 1.0
