@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from app.experiments import runner
+from app.experiments.results import VERDICTS
 from app.experiments.spec import SCALES, ExperimentError, load_shipped, shipped_names
 
 PAGE = "README.md"
@@ -46,7 +47,7 @@ def _thesis(comparison: dict[str, Any]) -> str:
     a, b = comparison["a"], comparison["b"]
     names = comparison.get("sides") or (a["name"], b["name"])  # paired: conditions or metrics
     if a["thesis"] is None and b["thesis"] is None:
-        sign = ">" if comparison["direction"] == "greater" else "<"
+        sign = {"greater": ">", "less": "<", "equivalent": "≈"}[comparison["direction"]]
         return f"{names[0]} {sign} {names[1]} ({comparison['source']})"
     return (
         f"{names[0]} {_number(a['thesis'] and a['thesis']['value'])}, "
@@ -55,46 +56,77 @@ def _thesis(comparison: dict[str, Any]) -> str:
 
 
 def _ours(comparison: dict[str, Any]) -> str:
-    a, b = comparison["a"], comparison["b"]
-    low, high = comparison["ci"]
+    a, b, interval = comparison["a"], comparison["b"], comparison["interval"]
+    if a["mean"] is None or b["mean"] is None:
+        return "not run"
+    if interval["low"] is None:
+        return f"{a['mean']:.3f} vs {b['mean']:.3f}, Δ {comparison['difference']:+.3f}"
     return (
         f"{a['mean']:.3f} vs {b['mean']:.3f}, Δ {comparison['difference']:+.3f} "
-        f"[{low:+.3f}, {high:+.3f}]"
+        f"[{interval['low']:+.3f}, {interval['high']:+.3f}]"
     )
 
 
 def _verdict(comparison: dict[str, Any]) -> str:
-    p = comparison["holm_p"] if comparison["verdict"] != "reversed" else None
-    q = comparison["holm_p_opposite"]
-    shown = f"p = {p:.3g}" if p is not None else f"p(other way) = {q:.3g}"
-    return f"**{comparison['verdict']}** ({shown})"
+    runs = comparison["runs"]
+    if not (runs[0] and runs[1]):
+        return f"**{comparison['verdict']}** (not run)"
+    used = (
+        f"{runs[0]} + {runs[1]} runs"
+        if runs[0] != runs[1] or not comparison["paired"]
+        else (f"{runs[0]} runs")
+    )
+    need = comparison.get("need")
+    if comparison["verdict"] == "undecided" and need:
+        seeds = need["seeds_per_arm_at_thesis_effect"]
+        if seeds is not None:
+            used += f"; 80% power at the thesis's effect: {seeds:.0f} seeds per arm"
+    return f"**{comparison['verdict']}** ({used})"
 
 
 def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def claims_tables(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
-    """A table per shipped experiment: a row per claim, our numbers and verdict per scale run."""
+def _tally(comparisons: list[dict[str, Any]]) -> str:
+    counts = {v: 0 for v in VERDICTS}
+    for c in comparisons:
+        counts[c["verdict"]] += 1
+    return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
+
+
+def claims_tables(reports: dict[tuple[str, str], dict[str, Any]], kind: str) -> str:
+    """A table per shipped experiment of its claims of one kind ("question" or "sanity"):
+    a row per claim, our numbers and verdict per scale run."""
     out = []
     for name in shipped_names():
         scales = [s for s in SCALES if (name, s) in reports and s != "smoke"]
         spec = load_shipped(name)
-        out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
+        if kind == "question":
+            out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
         if not scales:
-            out.append("Not run yet at `small` or `thesis` scale.\n")
+            if kind == "question":
+                out.append("Not run yet at `small` or `thesis` scale.\n")
             continue
+        # a claim per row, matched by name: a report written before a claim was added lacks it
+        by_scale = [
+            {c["name"]: c for c in reports[name, s]["comparisons"] if c.get("kind") == kind}
+            for s in scales
+        ]
+        claims = {c: None for found in by_scale for c in found}  # first seen first, no repeats
+        if not claims:
+            continue
+        if kind == "sanity":
+            out.append(f"### {name}\n")
         links = ", ".join(f"[{s}]({name}-{s}/index.html)" for s in scales)
-        seeds = ", ".join(f"{len(reports[name, s]['seeds'])} seeds at {s}" for s in scales)
-        out.append(f"Reports: {links} ({seeds}).\n")
+        tallies = "; ".join(f"{s}: {_tally(list(found.values()))}" for s, found in zip(
+            scales, by_scale, strict=True))  # fmt: skip
+        out.append(f"Reports: {links}. Verdicts: {tallies}.\n")
         head = ["claim", "thesis"]
         for scale in scales:
-            head += [f"ours, {scale}: a vs b, Δ [95% CI]", f"verdict, {scale}"]
+            head += [f"ours, {scale}: a vs b, Δ [interval]", f"verdict, {scale}"]
         out.append("| " + " | ".join(head) + " |")
         out.append("|" + "---|" * len(head))
-        # a claim per row, matched by name: a report written before a claim was added lacks it
-        by_scale = [{c["name"]: c for c in reports[name, s]["comparisons"]} for s in scales]
-        claims = {c: None for found in by_scale for c in found}  # first seen first, no repeats
         for claim in claims:
             comparison = next(found[claim] for found in by_scale if claim in found)
             row = [comparison["claim"], _thesis(comparison)]
@@ -133,17 +165,47 @@ def cost_table() -> str:
     return "\n".join(out) + "\n"
 
 
+def tallies(reports: dict[tuple[str, str], dict[str, Any]]) -> dict[tuple[str, str], int]:
+    """(kind, verdict) -> count over every committed report at `small` scale."""
+    counts: dict[tuple[str, str], int] = {}
+    for (_, scale), report in reports.items():
+        if scale != "small":
+            continue
+        for c in report["comparisons"]:
+            key = (c.get("kind", "question"), c["verdict"])
+            counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
 def tables(folder: Path) -> str:
     """The written part of the page."""
     reports = load_reports(folder)
+    counts = tallies(reports)
+
+    def tally(kind: str) -> str:
+        found = {v: counts.get((kind, v), 0) for v in VERDICTS}
+        total = sum(found.values())
+        return f"{total} claims at `small`: " + ", ".join(f"{n} {v}" for v, n in found.items())
+
     return (
-        "## Every claim, the thesis beside us\n\n"
-        "Each claim is one-sided (a is claimed better than b, or the reverse where the thesis "
-        "says so); Δ = mean(a) − mean(b) over runs with its bootstrap 95% CI; p is Welch's "
-        "one-sided test (paired by seed for one arm against itself), Holm-adjusted over the "
-        "experiment's claims. `held`: significant in "
-        "the claimed direction; `reversed`: significant the other way; `not shown`: neither.\n\n"
-        + claims_tables(reports)
+        "## How to read the verdicts\n\n"
+        "Each claim compares two sides on Δ = mean(a) − mean(b) over runs (seeds). Its interval "
+        "is a two-sided t-interval at level α/r (α = 0.05, r the claims still open; Holm over "
+        "the experiment's claims, both directions in one family; widened by the "
+        "O'Brien–Fleming boundary of its look in an adaptive run). `held`: the interval lies on "
+        "the claimed side of 0; `reversed`: on the other side; `ruled out`: it excludes the "
+        "thesis's effect (its own Δ relative to its baseline where it prints numbers, else a "
+        "smallest effect of interest declared before the runs); `undecided`: none of these, "
+        "with the seeds per arm that 80% power would need at the thesis's effect. "
+        "`not run`: the claim was added after the report's runs (no values yet).\n\n"
+        "## The thesis's questions: method against baseline\n\n"
+        f"{tally('question')}.\n\n"
+        + claims_tables(reports, "question")
+        + "\n## Within one arm: sanity claims\n\n"
+        "More broken sensors give less reward, the reward after a fault is below the reward "
+        f"before it: claims about one method, apart from the thesis's questions. {tally('sanity')}."
+        "\n\n"
+        + claims_tables(reports, "sanity")
         + "\n## What each experiment costs\n\n"
         + "Simulated work per scale, and the wall time measured on this machine (2 vCPUs).\n\n"
         + cost_table()

@@ -85,7 +85,7 @@ METRICS: dict[str, Metric] = {
         ),
         Metric(
             "convergence_generation",
-            "generations to converge",
+            "convergence generation",
             "scalar",
             "training",
             f"first generation whose best fitness reaches {CONVERGENCE_SHARE:.0%} of the "
