@@ -131,14 +131,19 @@ def to_toml(data: dict[str, Any]) -> str:
             return "[" + ", ".join(value(x) for x in v) + "]"
         return repr(v)
 
+    def is_tables(v: Any) -> bool:
+        return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
+
     def table(prefix: str, d: dict[str, Any]) -> None:
+        # plain keys first: after a [[table]] header they would belong to that table
+        lines.extend(
+            f'"{k}" = {value(v)}' for k, v in d.items() if not (is_tables(v) or isinstance(v, dict))
+        )
         for k, v in d.items():
-            if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            if is_tables(v):
                 for item in v:
                     lines.append(f"[[{prefix}{k}]]")
                     lines.extend(f'"{kk}" = {value(vv)}' for kk, vv in item.items())
-            elif not isinstance(v, dict):
-                lines.append(f'"{k}" = {value(v)}')
         for k, v in d.items():
             if isinstance(v, dict):
                 lines.append(f'[{prefix}"{k}"]')

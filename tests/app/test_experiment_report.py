@@ -12,16 +12,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.image import imread
+from scipy import stats as scipy_stats
 
 from app.experiments.figures import mean_and_ci, moving_average, smoothing_window
 from app.experiments.report import analyse, format_number, to_json, write_report
 from app.experiments.results import (
+    CORE_STEPS_PER_SECOND,
     Arm,
     Comparison,
     Condition,
     ExperimentResults,
     ThesisValue,
 )
+from app.experiments.sequential import ALPHA, seeds_for_power
 
 SEEDS = (11, 12, 13, 14)
 STEPS, FAULT_STEP, GENERATIONS = 400, 100, 30
@@ -83,13 +86,15 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[ExperimentResults
 
 def sections(page: str) -> list[str]:
     """The page's comparison sections, in order."""
-    return [part.split("<h2>")[0] for part in page.split("<h3>")[1:]]
+    comparisons = page.split("<h2>Comparisons</h2>")[1]
+    return [part.split("<h2>")[0] for part in comparisons.split("<h3>")[1:]]
 
 
 def test_json_means_are_the_means_of_the_runs() -> None:
     results = synthetic_results()
-    report = to_json(analyse(results, np.random.default_rng(0), resamples=500))
+    report = to_json(analyse(results))
     assert report["scale"] == "smoke" and report["seeds"] == list(SEEDS)
+    assert report["looks_planned"] == report["looks_made"] == [len(SEEDS)]  # not adaptive
     assert [c["name"] for c in report["comparisons"]] == [c.name for c in results.comparisons]
     for entry, comparison in zip(report["comparisons"], results.comparisons, strict=True):
         for side in ("a", "b"):
@@ -100,11 +105,14 @@ def test_json_means_are_the_means_of_the_runs() -> None:
             assert entry[side]["n"] == len(SEEDS) and entry[side]["dropped"] == 0
         a_mean, b_mean = entry["a"]["mean"], entry["b"]["mean"]
         assert entry["difference"] == pytest.approx(a_mean - b_mean)
-        low, high = entry["ci"]
-        assert low < entry["difference"] < high
+        interval = entry["interval"]
+        assert interval["low"] < entry["difference"] < interval["high"]
         assert entry["holm_p"] >= entry["t_test"]["p"]
+        assert (entry["runs"], entry["look"], entry["kind"]) == ([4, 4], 1, "question")
+        assert entry["margin"] is None  # none declared
     after = report["comparisons"][1:]
     assert [c["verdict"] for c in after] == ["held", "held"]  # 0.05 and 0.1 apart, sd 0.005
+    assert all(c["need"] is None for c in after)  # decided: nothing more needed
     assert after[0]["a"]["thesis"] == {"value": 0.512, "source": "Table 3.4"}
     assert after[0]["b"]["thesis"] is None and after[1]["a"]["thesis"] is None
     json.dumps(report, allow_nan=False)  # valid JSON, no NaN
@@ -123,7 +131,8 @@ def test_page_shows_each_comparisons_verdict_and_json_numbers(
         assert f'class="verdict {entry["verdict"].replace(" ", "-")}">{entry["verdict"]}' in section
         shown = [
             entry["a"]["mean"], entry["a"]["sd"], entry["b"]["mean"], entry["b"]["sd"],
-            entry["difference"], *entry["ci"], entry["t_test"]["p"], entry["rank_test"]["p"],
+            entry["difference"], entry["interval"]["low"], entry["interval"]["high"],
+            entry["t_test"]["p"], entry["rank_test"]["p"],
             entry["holm_p"], entry["prob_improvement"], entry["hedges_g"],
         ]  # fmt: skip
         for number in shown:
@@ -184,8 +193,11 @@ def test_unfinished_runs_are_counted_in_json_and_page(tmp_path: Path) -> None:
 def test_a_single_seed_reports_without_tests_or_bands(tmp_path: Path) -> None:
     index = write_report(synthetic_results(seeds=(5,)), tmp_path)
     report = json.loads((tmp_path / "report.json").read_text())
-    assert all(c["verdict"] == "not shown" for c in report["comparisons"])
+    assert all(c["verdict"] == "undecided" for c in report["comparisons"])
     assert all(c["t_test"]["p"] is None and c["a"]["sd"] is None for c in report["comparisons"])
+    assert all(c["interval"]["low"] is None for c in report["comparisons"])
+    # no spread to price seeds by
+    assert all(c["need"]["seeds_per_arm_at_our_effect"] is None for c in report["comparisons"])
     for name in re.findall(r'<img src="([^"]+)"', index.read_text()):
         assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC
 
@@ -198,13 +210,101 @@ def test_missing_curves_leave_out_their_figures(tmp_path: Path) -> None:
     assert not (tmp_path / "fitness.png").exists()
 
 
-def test_the_bootstrap_is_seeded(tmp_path: Path) -> None:
+def test_the_verdicts_interval_is_welchs_at_the_claims_holm_share() -> None:
     results = synthetic_results()
-    first = to_json(analyse(results, np.random.default_rng(1), resamples=300))
-    again = to_json(analyse(results, np.random.default_rng(1), resamples=300))
-    other = to_json(analyse(results, np.random.default_rng(2), resamples=300))
-    assert first == again
-    assert first["comparisons"][0]["ci"] != other["comparisons"][0]["ci"]
+    report = analyse(results)
+    fitness, after_1, after_2 = report.comparisons
+    # both reward claims are held at α/3; fitness (0.1 apart, sd 1) then stands alone at α
+    assert [c.claim.verdict for c in report.comparisons] == ["undecided", "held", "held"]
+    assert after_1.claim.judged.family_level == pytest.approx(ALPHA / 3)
+    assert after_2.claim.judged.family_level == pytest.approx(ALPHA / 3)
+    assert fitness.claim.judged.family_level == pytest.approx(ALPHA)
+    bs, rl = (results.scalar("final_best_fitness", arm) for arm in ("BS", "RL"))
+    welch = scipy_stats.ttest_ind(bs, rl, equal_var=False).confidence_interval(1 - ALPHA)
+    iv = fitness.claim.judged.interval
+    assert (iv.low, iv.high) == (pytest.approx(welch.low), pytest.approx(welch.high))
+    entry = to_json(report)["comparisons"][0]
+    assert entry["interval"]["level"] == pytest.approx(1 - ALPHA)
+    assert entry["interval"]["family_share"] == pytest.approx(ALPHA)
+    assert to_json(analyse(results)) == to_json(report)  # no resampling: the same every time
+
+
+def test_an_undecided_claim_says_the_seeds_and_core_hours_it_needs() -> None:
+    steps = 2.3e6  # simulated steps per run
+    results = dataclasses.replace(
+        synthetic_results(),
+        steps_per_run=steps,
+        comparisons=(
+            Comparison("fitness", "BS", "RL", "final_best_fitness", None, "greater", "Fig. 3.6",
+                       margin=0.05, margin_form="relative", margin_source="test"),
+        ),
+    )  # fmt: skip
+    (claim,) = analyse(results).comparisons
+    judged = claim.claim.judged
+    assert judged.verdict == "undecided" and judged.family_level == ALPHA
+    rl = results.scalar("final_best_fitness", "RL")
+    assert claim.claim.margin == pytest.approx(0.05 * rl.mean())  # 5% of b's mean
+    sd = judged.interval.sd
+    assert sd == pytest.approx(
+        math.sqrt((results.scalar("final_best_fitness", "BS").var(ddof=1) + rl.var(ddof=1)) / 2)
+    )  # pooled, equal n
+    need = claim.claim.need
+    assert need is not None
+    at_thesis = seeds_for_power(sd, 0.05 * rl.mean(), False, ALPHA)
+    at_ours = seeds_for_power(sd, abs(judged.interval.difference), False, ALPHA)
+    assert (need.seeds_at_thesis, need.seeds_at_ours) == (at_thesis, at_ours)
+    hours = at_thesis * 2 * steps / CORE_STEPS_PER_SECOND / 3600  # both arms' runs
+    assert need.core_hours_at_thesis == pytest.approx(hours)
+    entry = to_json(analyse(results))["comparisons"][0]
+    assert entry["margin"] == {
+        "value": 0.05,
+        "form": "relative",
+        "source": "test",
+        "in_units": pytest.approx(0.05 * rl.mean()),
+    }
+    assert entry["need"]["seeds_per_arm_at_thesis_effect"] == at_thesis
+    assert entry["need"]["core_hours_at_thesis_effect"] == pytest.approx(hours)
+
+
+def test_a_margin_below_the_interval_is_ruled_out() -> None:
+    # the reward claims lie 0.05 and 0.1 apart (sd 0.005): "less" with margin 0.2 is excluded
+    results = synthetic_results()
+    ruled = [
+        Comparison(f"below {c}", "BS", "RL", "mean_reward_after_fault", c, "less", "test",
+                   margin=0.2, margin_source="test")
+        for c in ("break1", "break2")
+    ]  # fmt: skip
+    equal = Comparison("same", "BS", "RL", "mean_reward_after_fault", "break1", "equivalent",
+                       "test", margin=0.2, margin_source="test")  # fmt: skip
+    apart = Comparison("apart", "BS", "RL", "mean_reward_after_fault", "break2", "equivalent",
+                       "test", margin=0.02, margin_source="test")  # fmt: skip
+    results = dataclasses.replace(results, comparisons=(*ruled, equal, apart))
+    report = to_json(analyse(results))
+    assert [c["verdict"] for c in report["comparisons"]] == [
+        "reversed",  # the interval lies above 0, the claim says below
+        "reversed",
+        "held",  # 0.05 apart lies within ±0.2
+        "ruled out",  # 0.1 apart lies beyond ±0.02
+    ]
+
+
+def test_the_looks_of_an_adaptive_run_decide_claims_early() -> None:
+    seeds = tuple(range(6))
+    results = dataclasses.replace(synthetic_results(seeds), looks=(3, 6))
+    report = to_json(analyse(results))
+    assert report["looks_planned"] == report["looks_made"] == [3, 6]
+    fitness, *after = report["comparisons"]
+    # 0.05 and 0.1 apart with sd 0.005: decided on the first three runs of each arm
+    assert [(c["verdict"], c["look"], c["runs"]) for c in after] == [("held", 1, [3, 3])] * 2
+    assert (fitness["verdict"], fitness["look"], fitness["runs"]) == ("undecided", 2, [6, 6])
+    first, second = report["stages"]
+    assert (first["seeds_per_arm"], first["runs"]) == (3, {"RL": 3, "BS": 3})
+    assert {d["name"] for d in first["decided"]} == {"after break1", "after break2"}
+    assert (first["open_after"], second["open_after"], second["decided"]) == (1, 1, [])
+    # results of the first five seeds have made the first look only
+    partial = dataclasses.replace(results, seeds=seeds[:5], scalars={
+        k: v[:5] for k, v in results.scalars.items()})  # fmt: skip
+    assert to_json(analyse(partial))["looks_made"] == [3]
 
 
 def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
@@ -254,7 +354,7 @@ def test_one_arm_across_two_conditions_is_tested_paired(tmp_path: Path) -> None:
         "Fig. 3.9", condition_b="break2",
     )  # fmt: skip
     results = dataclasses.replace(results, comparisons=(*results.comparisons, sweep))
-    index = write_report(results, tmp_path, np.random.default_rng(0))
+    index = write_report(results, tmp_path)
     entry = json.loads((tmp_path / "report.json").read_text())["comparisons"][-1]
     one, two = (results.scalar("mean_reward_after_fault", "BS", c) for c in ("break1", "break2"))
     assert entry["paired"] and entry["condition_b"] == "break2"
@@ -281,7 +381,7 @@ def test_one_arm_on_two_metrics_is_tested_paired(tmp_path: Path) -> None:
         metric_b="mean_reward",
     )  # fmt: skip
     results = dataclasses.replace(results, comparisons=(fault_hurts,))
-    report = to_json(analyse(results, np.random.default_rng(0), resamples=500))
+    report = to_json(analyse(results))
     (entry,) = report["comparisons"]
     after = results.scalar("mean_reward_after_fault", "RL", "break2")
     whole = results.scalar("mean_reward", "RL", "break2")
@@ -297,7 +397,7 @@ def test_one_arm_on_two_metrics_is_tested_paired(tmp_path: Path) -> None:
         "Fuzzy GNP-RL has a lower mean reward per step after the fault in 2 sensor(s) break "
         "than mean reward per step"
     )
-    write_report(results, tmp_path, np.random.default_rng(0))
+    write_report(results, tmp_path)
     assert "Fuzzy GNP-RL, mean reward per step</td>" in (tmp_path / "index.html").read_text()
 
 

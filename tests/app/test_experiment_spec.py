@@ -37,10 +37,14 @@ def test_ch3_is_the_thesis_experiment() -> None:
             assert run.controller.fuzzy and run.training.noise_sigma == 50
             assert run.training.population == 300 and run.training.steps == 1000
             assert run.implementation.noise_sigma == 50
-        assert [c.broken_count for c in spec.conditions_info(scale)] == [1, 2, 3, 4, 5]
+        info = spec.conditions_info(scale)
+        assert [c.broken_count for c in info] == [0, 1, 2, 3, 4, 5]
+        # the no-fault control: the same trials, no sensor breaks
+        assert spec.control == info[0].name and info[0].fault_step is None
+        assert [c.fault_step for c in info[1:]] == [500] * 5
         for condition in spec.conditions:
             settings = spec.condition_settings(condition, bs, scale)
-            assert settings.steps == 3000 and settings.fault_step == 500
+            assert settings.steps == 3000 and settings.has_fault == (condition.name != spec.control)
             assert settings.broken_sensors == () and settings.fault_mode == "dead"
             assert settings.epsilon == 0.1 and settings.alpha == 0.1
     assert spec.run_config("BS", "small", 0).training.generations == 100
@@ -53,7 +57,9 @@ def test_ch3_is_the_thesis_experiment() -> None:
     assert ("BS", "RL", "final_best_fitness", None, "greater") in claims
     for k in range(1, 6):
         assert ("BS", "RL", "mean_reward_after_fault", f"break-{k}", "greater") in claims
+        assert ("BS", "RL", "fault_effect", f"break-{k}", "greater") in claims  # recovers better
     assert all(c.metric in METRICS for c in spec.comparisons)
+    assert all(c.margin is not None and c.margin_source for c in spec.comparisons)
 
 
 def test_smoke_scale_sizes_every_condition() -> None:
@@ -85,6 +91,14 @@ def _arm_fault_step(data: dict[str, Any]) -> None:
         del scale["config"]["implementation"]["fault_step"]
     data["config"]["implementation"]["fault_step"] = 40
     data["arms"][1]["config"]["implementation"] = {"fault_step": 30}
+
+
+def _shorter_control(data: dict[str, Any]) -> None:
+    for scale in data["scales"].values():  # the scales size every condition alike
+        del scale["config"]["implementation"]["steps"]
+    data["config"]["implementation"]["steps"] = 100
+    data["control"] = "no-fault"
+    data["conditions"][2]["implementation"] = {"steps": 80}
 
 
 def _same_metric_b(data: dict[str, Any]) -> None:
@@ -128,6 +142,15 @@ BAD: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("zero seeds", _set("seeds", 0), "seeds"),
     ("arms' conditions differ", _arm_fault_step, "the same for every arm"),
     ("no arms", _set("arms", []), "arms"),
+    ("margin unexplained", _set("comparisons.0.margin", 0.1), "say where its margin comes from"),
+    ("zero margin", _set("comparisons.0.margin", 0.0), "margin"),
+    ("margin form", _set("comparisons.0.margin_form", "percent"), "margin_form"),
+    ("role", _set("comparisons.0.role", "main"), "role"),
+    ("equivalence, no margin", _set("comparisons.0.direction", "equivalent"), "needs a margin"),
+    ("unknown control", _set("control", "calm"), "control: unknown condition 'calm'"),
+    ("control with a fault", _set("control", "break-1"), "has a fault"),
+    ("fault_effect, no control", _set("comparisons.1.metric", "fault_effect"), "needs the"),
+    ("control shorter", _shorter_control, "lasts 100 steps, the control 80"),
 ]
 
 
@@ -143,7 +166,7 @@ def test_bad_file_fails_with_one_line(
         load_file(path)
     message = str(raised.value)
     assert "\n" not in message and needle in message, message
-    assert str(path) in message or "name" in message
+    assert str(path) in message or "name" in message or "experiment 'tiny'" in message
 
 
 def test_good_file_round_trips(tmp_path: Path) -> None:
@@ -154,6 +177,28 @@ def test_good_file_round_trips(tmp_path: Path) -> None:
     with pytest.raises(ExperimentError, match="no scale 'thesis'"):
         spec.scale("thesis")
     assert [c.fault_step for c in spec.conditions_info("smoke")] == [40, 40, None]
+
+
+def test_margins_roles_and_the_control_reach_the_claims() -> None:
+    data = tiny_data()
+    data["control"] = "no-fault"
+    data["comparisons"][0].update(margin=0.05, margin_form="relative", margin_source="Fig. 3.6")
+    data["comparisons"][1].update(metric="fault_effect", role="sanity")
+    data["comparisons"].append(
+        dict(data["comparisons"][0], name="alike", direction="equivalent", margin=0.5,
+             margin_form="absolute", margin_source="declared")
+    )  # fmt: skip
+    spec = parse(data, "test")
+    fitness, after, fault_hurts, alike = spec.comparisons_info()
+    assert (fitness.margin, fitness.margin_form, fitness.margin_source) == (
+        0.05, "relative", "Fig. 3.6",
+    )  # fmt: skip
+    assert fitness.margin_for(200.0) == pytest.approx(10.0)
+    assert (alike.direction, alike.margin_for(200.0)) == ("equivalent", 0.5)
+    assert after.metric == "fault_effect" and after.margin is None
+    # role: a question between two arms, a sanity claim within one, unless the file says so
+    assert [c.kind for c in (fitness, after, fault_hurts)] == ["question", "sanity", "sanity"]
+    assert spec.control == "no-fault"
 
 
 @pytest.mark.parametrize(("text", "needle"), [(None, "not found"), ("name = [", "not valid TOML")])

@@ -19,13 +19,27 @@ import pytest
 from page_helpers import TIMEOUT_MS, choose, field, open_page, press, wait_for_line
 
 from app.dashboard.headless import start_dashboard, stop_dashboard
+from app.experiments.results import VERDICTS
 from app.experiments.spec import load_shipped
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
-NAME, SCALE = "ch3-bs-rl", "smoke"  # 4 runs of 2 generations, 5 conditions: seconds of work
+NAME, SCALE = "ch3-bs-rl", "smoke"  # 4 runs of 2 generations and a few conditions: seconds
 PROGRESS = "experiment: "
-COUNTS = r"(\d+)/4 runs done · generations (\d+)/8 · conditions (\d+)/20"
+
+
+def totals() -> tuple[str, str, str]:
+    """Runs, generations and conditions of the experiment at the scale, as the line counts them."""
+    spec = load_shipped(NAME)
+    runs = len(spec.arms) * len(spec.seed_list("smoke"))
+    generations = spec.run_config(spec.arms[0].name, SCALE, 0).training.generations
+    return str(runs), str(runs * generations), str(runs * len(spec.conditions))
+
+
+RUNS, GENERATIONS, CONDITIONS = totals()
+COUNTS = (
+    rf"(\d+)/{RUNS} runs done · generations (\d+)/{GENERATIONS} · conditions (\d+)/{CONDITIONS}"
+)
 
 
 @pytest.fixture(scope="module")
@@ -81,15 +95,15 @@ def test_start_an_experiment_follow_it_and_load_its_run(
         seen.add(line)
         time.sleep(0.1)
     last = wait_for_line(page, PROGRESS, rf"finished: summary written · {COUNTS}")
-    assert last.groups() == ("4", "8", "20") and len(seen) >= 2
+    assert last.groups() == (RUNS, GENERATIONS, CONDITIONS) and len(seen) >= 2
     assert field(page, "Experiment").input_value() == NAME
-    verdicts = page.locator("table", has_text="Holm p").first
-    expect(verdicts).to_contain_text(re.compile(r"held|reversed|not shown"), timeout=TIMEOUT_MS)
+    verdicts = page.locator("table", has_text="a − b [interval]").first
+    expect(verdicts).to_contain_text(re.compile("|".join(VERDICTS)), timeout=TIMEOUT_MS)
     claims = len(load_shipped(NAME).comparisons)
     expect(verdicts.locator("tr")).to_have_count(1 + claims)  # a header and a row per claim
     assert page.locator(".u-legend", has_text="BS (n = 2)").count() >= 1
     smoke_cell = catalogue.locator("tr", has_text=NAME).locator("td").nth(1)
-    expect(smoke_cell).to_have_text("4/4", timeout=TIMEOUT_MS)  # the list is refreshed
+    expect(smoke_cell).to_have_text(f"{RUNS}/{RUNS}", timeout=TIMEOUT_MS)  # the list is refreshed
     assert listening(process.pid) == {"127.0.0.1"}  # the server and its Dask cluster
 
     # One of its runs on the stage.

@@ -29,13 +29,13 @@ from app.dashboard.plots import MAX_POINTS
 from app.experiments import runner
 from app.experiments.figures import mean_and_ci
 from app.experiments.progress import Counts
-from app.experiments.report import REPORT_SEED, analyse, format_number
+from app.experiments.report import analyse, format_number, interval_text
 from app.experiments.results import VERDICTS
 from app.experiments.spec import SHIPPED_PACKAGE, ExperimentSpec, load_shipped
 from app.experiments.summary import read_summary, write_summary
 
 NAME, SCALE = "ch3-bs-rl", "smoke"
-VERDICT = re.compile(r"\*\*(held|reversed|not shown)\*\* \|$", re.MULTILINE)
+VERDICT = re.compile(r"\*\*(" + "|".join(VERDICTS) + r")\*\* \|$", re.MULTILINE)
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +127,7 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
     assert view.count == ev.ScaleCount(4, 4) and not view.problems
     assert view.runs == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
     # The verdict table holds the report's own numbers and verdicts.
-    report = analyse(results, np.random.default_rng(REPORT_SEED))
+    report = analyse(results)
     rows = [line for line in view.verdicts.splitlines() if line.startswith("| ")][1:]
     assert len(rows) == len(spec.comparisons) == len(report.comparisons)
     for row, comparison in zip(rows, report.comparisons, strict=True):
@@ -138,6 +138,9 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
         assert cells[1] == f"{side} {format_number(comparison.stats.a.mean)} ± " + format_number(
             comparison.stats.a.sd
         )
+        difference = format_number(comparison.stats.difference)
+        assert cells[3] == f"{difference} {interval_text(comparison.claim)}"
+        assert cells[4] == ", ".join(map(str, comparison.claim.runs))
         assert cells[-1] == f"**{comparison.claim.verdict}**"
         assert comparison.claim.verdict in VERDICTS
     # Fitness: per arm the mean over seeds per generation and its 95% half-width.
