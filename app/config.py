@@ -272,6 +272,21 @@ def _schedules(settings: TrainingSettings | ImplementationSettings) -> tuple[Sch
     )
 
 
+CFrom = Literal["true", "observed"]
+"""What C of Eq. 2.7 is judged from: the true readings, or what the controller sees."""
+
+
+class RewardSettings(_Frozen):
+    """The reward of Eq. 2.7 (thesis §2.5.2)."""
+
+    c_from: CFrom = Field(
+        default="true",
+        description="readings C of Eq. 2.7 is judged from (C = 1 iff every reading < 1000 and "
+        "at least one > 100): the true readings, or those the controller sees (observed: "
+        "noise of Eq. 2.6, then faults)",
+    )
+
+
 class RunConfig(_Frozen):
     """Everything a run's results depend on (worker count excluded: results do not depend on it)."""
 
@@ -280,6 +295,7 @@ class RunConfig(_Frozen):
     evolution: EvolutionConfig = EvolutionConfig()
     training: TrainingSettings = TrainingSettings()
     implementation: ImplementationSettings = ImplementationSettings()
+    reward: RewardSettings = RewardSettings()
 
 
 def describe_problems(error: ValidationError, limit: int | None = None) -> str:

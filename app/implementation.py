@@ -26,7 +26,7 @@ import numpy as np
 
 import gnp
 import sim
-from app.config import ImplementationSettings
+from app.config import CFrom, ImplementationSettings
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
 from app.seeds import broken_sensor_draws, trial_seeds
@@ -132,8 +132,9 @@ def _live_trials(
     part: slice,
     record: bool,
     progress: Callable[[int], None],
+    c_from: CFrom = "true",
 ) -> _Part:
-    """The lives of trials `part` in one world."""
+    """The lives of trials `part` in one world, C of the reward judged as `c_from` says."""
     arena = sim.load_arena(settings.arena)
     trials = np.arange(part.start, part.stop)
     start_index = trials % len(arena.start_poses)
@@ -147,7 +148,9 @@ def _live_trials(
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
-    batch = Batch(world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds)
+    batch = Batch(
+        world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds, c_from
+    )
     steps = settings.steps
     recorder = TrajectoryRecorder(len(trials), steps, cfg) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)
@@ -191,6 +194,7 @@ def _live_all(
     recorded: int,
     workers: int,
     progress: StepProgress,
+    c_from: CFrom = "true",
 ) -> list[_Part]:
     """Every world's trials, in this process or shared out over `workers` processes."""
     total = parts[-1].stop * settings.steps
@@ -206,7 +210,9 @@ def _live_all(
 
             record = part.start == 0 and recorded > 0
             results.append(
-                _live_trials(cfg, individual, settings, seed, control_period, part, record, count)
+                _live_trials(
+                    cfg, individual, settings, seed, control_period, part, record, count, c_from
+                )
             )
         return results
     context = multiprocessing.get_context("spawn")
@@ -225,6 +231,7 @@ def _live_all(
                 part,
                 part.start == 0 and recorded > 0,
                 _count,  # a module function: each worker adds to the shared counter
+                c_from,
             )
             for part in parts
         ]
@@ -247,11 +254,13 @@ def run_implementation(
     generation: int,
     workers: int = 1,
     progress: StepProgress | None = None,
+    c_from: CFrom = "true",
 ) -> Implementation:
     """Implement a 1-individual population; returns the results (nothing is written).
 
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
-    process, such as a Dask worker); results are identical for any count.
+    process, such as a Dask worker); results are identical for any count. `c_from`: the
+    readings the reward's C is judged from, the run's `reward.c_from`.
     """
     arena = sim.load_arena(settings.arena)
     n_starts = len(arena.start_poses)
@@ -268,6 +277,7 @@ def run_implementation(
         recorded,
         workers,
         progress or (lambda done, total: None),
+        c_from,
     )
     steps = settings.steps
     after_steps = steps - min(settings.fault_step, steps)
@@ -330,6 +340,7 @@ def implement(
         cfg, individual = run.best_genome(generation)
         seed = settings.seed if settings.seed is not None else run.seed
         control_period = run.config.training.control_period
+        c_from = run.config.reward.c_from
     result = run_implementation(
         cfg,
         individual,
@@ -340,6 +351,7 @@ def implement(
         generation=generation,
         workers=workers,
         progress=progress,
+        c_from=c_from,
     )
     add_implementation(run_path, result)
     return result

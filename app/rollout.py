@@ -1,4 +1,4 @@
-"""The lab's loop: observe → controller → world → true readings → reward, for a batch of robots.
+"""The lab's loop: observe → controller → world → readings → reward, for a batch of robots.
 
 Every phase steps robots through this one loop: training lives, the implementation phase, the
 dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
@@ -9,11 +9,13 @@ with N controllers (a `gnp.Population` and its engine state); `rollout` advances
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import get_args
 
 import numpy as np
 
 import gnp
 import sim
+from app.config import CFrom
 from app.recording import TrajectoryRecorder
 
 
@@ -42,7 +44,10 @@ class Batch:
     """N robots in one world, each driven by its own controller (row i of `population`).
 
     The reward of a step is fed to the controllers at the next one (Sarsa's r_t); a new episode
-    resets it, with the controllers' walks, and keeps Q tables and random streams.
+    resets it, with the controllers' walks, and keeps Q tables and random streams. Its C
+    (Eq. 2.7) is judged from the readings after the step: the true ones (`c_from` "true"), or
+    what the controllers see there ("observed": noise, then faults; the same draws they see at
+    the next step).
     """
 
     def __init__(
@@ -51,6 +56,7 @@ class Batch:
         cfg: gnp.GnpConfig,
         population: gnp.Population,
         engine_seeds: np.ndarray,
+        c_from: CFrom = "true",
     ) -> None:
         if population.size != world.n:
             raise ValueError(f"{population.size} controllers for {world.n} robots")
@@ -58,7 +64,10 @@ class Batch:
         self.cfg = cfg
         self.population = population
         self.state = gnp.init_state(cfg, world.n, engine_seeds)
+        if c_from not in get_args(CFrom):
+            raise ValueError(f"c_from must be one of {get_args(CFrom)}, got {c_from!r}")
         self.reward = np.zeros(world.n)
+        self.c_from = c_from
 
     @property
     def size(self) -> int:
@@ -97,7 +106,8 @@ class Batch:
         commands, step_trace = result if isinstance(result, tuple) else (result, None)
         self.world.step(commands)
         readings = self.world.sense()
-        table = sim.reward_table(readings, commands)
+        judged = readings if self.c_from == "true" else self.world.observe()
+        table = sim.reward_table(judged, commands)
         self.reward = table[:, 0]
         return StepRecord(seen, commands, readings, table, step_trace)
 

@@ -29,7 +29,7 @@ import numpy as np
 
 import gnp
 import sim
-from app.config import RunConfig, TrainingSettings
+from app.config import CFrom, RunConfig, TrainingSettings
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
 from app.seeds import LifeSeeds, evolution_rng, init_rng, life_seeds, n_segments
@@ -79,15 +79,17 @@ def live(
     epsilon: float,
     alpha: float,
     record: bool = False,
+    c_from: CFrom = "true",
 ) -> tuple[Lives, Trajectory | None]:
     """Let N individuals live `steps` steps in `world`, learning online (Q tables in place).
 
     Each life starts at its first start pose; with `redraw_every` > 0 the robot is moved to its
     next start pose every `redraw_every` steps and the controller starts a new episode (its Q
-    tables, random stream and the world's streams carry on).
+    tables, random stream and the world's streams carry on). `c_from`: the readings the
+    reward's C is judged from (see `Batch`).
     """
     world.reset(world.arena.start_poses[seeds.starts[:, 0]], seeds=seeds.world)
-    batch = Batch(world, cfg, pop, seeds.engine)
+    batch = Batch(world, cfg, pop, seeds.engine, c_from)
     recorder = TrajectoryRecorder(pop.size, steps, cfg) if record else None
     outcome = rollout(
         batch,
@@ -171,6 +173,7 @@ class _Lives:
             training.redraw_every,
             epsilon,
             alpha,
+            c_from=self._config.reward.c_from,
         )
         return lives, learned
 
@@ -428,6 +431,7 @@ def _replay(
         epsilon,
         alpha,
         record=True,
+        c_from=config.reward.c_from,
     )
     assert trajectory is not None
     return trajectory

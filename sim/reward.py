@@ -6,9 +6,9 @@ import numpy as np
 from sim.khepera import MAX_COMMAND, N_SENSORS
 
 NEAR_WALL_MAX = 1000.0
-"""C = 0 if any true reading reaches this (touching a wall)."""
+"""C = 0 if any reading reaches this (touching a wall)."""
 NEAR_WALL_MIN = 100.0
-"""C = 0 unless some true reading exceeds this (a wall is near)."""
+"""C = 0 unless some reading exceeds this (a wall is near)."""
 
 TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall")
 """The named reward terms, in the order of `reward_table`'s columns (the store's order)."""
@@ -35,24 +35,25 @@ def _reward_kernel(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) 
 
 
 def reward_table(
-    true_readings: np.ndarray, commands: np.ndarray, out: np.ndarray | None = None
+    readings: np.ndarray, commands: np.ndarray, out: np.ndarray | None = None
 ) -> np.ndarray:
     """Eq. 2.7 for N robots as an (N, 4) table whose columns are `TERM_NAMES`.
 
     r = (vR + vL)/20 · (1 − sqrt(|vR − vL|/20)) · C, with the terms speed = (vR + vL)/20,
-    straightness = 1 − sqrt(|vR − vL|/20) and near_wall = C (1 iff every true reading < 1000
-    and at least one > 100).
+    straightness = 1 − sqrt(|vR − vL|/20) and near_wall = C (1 iff every reading < 1000 and at
+    least one > 100). The readings serve C alone; which readings judge it is the caller's choice.
 
     Args:
-        true_readings: (N, 8) true readings (``world.sense()``), not what the controller saw.
+        readings: (N, 8) readings C is judged from: the true readings (``world.sense()``) or
+            what the controller sees (``world.observe()``: noise, then faults).
         commands: (N, 2) left, right wheel commands of the step, clipped to −10..10 as the
             world applies them.
         out: an (N, 4) float64 array to write into (a new one by default).
     """
-    readings = np.ascontiguousarray(true_readings, dtype=np.float64)
+    readings = np.ascontiguousarray(readings, dtype=np.float64)
     cmd = np.ascontiguousarray(commands, dtype=np.float64)
     if readings.ndim != 2 or readings.shape[1] != N_SENSORS:
-        raise ValueError(f"true_readings must have shape (N, 8), got {readings.shape}")
+        raise ValueError(f"readings must have shape (N, 8), got {readings.shape}")
     if cmd.shape != (readings.shape[0], 2):
         raise ValueError(f"commands must have shape ({readings.shape[0]}, 2), got {cmd.shape}")
     shape = (readings.shape[0], len(TERM_NAMES))
@@ -64,8 +65,8 @@ def reward_table(
     return out
 
 
-def reward_terms(true_readings: np.ndarray, commands: np.ndarray) -> dict[str, np.ndarray]:
+def reward_terms(readings: np.ndarray, commands: np.ndarray) -> dict[str, np.ndarray]:
     """Eq. 2.7 as named (N,) arrays: ``reward``, ``reward/speed``, ``reward/straightness``,
-    ``reward/near_wall`` (see `reward_table`)."""
-    table = reward_table(true_readings, commands)
+    ``reward/near_wall``, C judged from `readings` (see `reward_table`)."""
+    table = reward_table(readings, commands)
     return {name: table[:, column] for column, name in enumerate(TERM_NAMES)}

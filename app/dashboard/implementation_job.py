@@ -60,6 +60,7 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         generation = run.generations_done - 1
         seed = run.seed
         control_period = run.config.training.control_period
+        c_from = run.config.reward.c_from
     return run_implementation(
         cfg,
         individual,
@@ -68,6 +69,7 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         control_period=control_period,
         name="dashboard",
         generation=generation,
+        c_from=c_from,
     )
 
 

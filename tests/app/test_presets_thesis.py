@@ -149,6 +149,7 @@ NOT_FROM_THE_THESIS = {
     "implementation.recorded_trials",
     "implementation.generation",  # "the best individual in the last generation" (l. 994): unset
     "implementation.seed",
+    "reward.c_from",  # which readings C of Eq. 2.7 reads: not said (docs/decisions.md)
     # Schedule fields that only matter for `schedule = "changing"` (ch. 4 checks them).
     "training.epsilon",
     "training.alpha",

@@ -57,7 +57,7 @@ def test_reward_is_batched_and_checks_shapes() -> None:
     np.testing.assert_array_equal(sim.reward_terms(true, commands)["reward"], [1.0, 0.0, 0.0])
     with pytest.raises(ValueError, match=r"commands must have shape \(3, 2\)"):
         sim.reward_terms(true, commands[:2])
-    with pytest.raises(ValueError, match=r"true_readings must have shape \(N, 8\)"):
+    with pytest.raises(ValueError, match=r"readings must have shape \(N, 8\)"):
         sim.reward_terms(true[:, :4], commands)
 
 
