@@ -12,6 +12,7 @@ from lab_fixtures import file_digest, tiny_config
 
 from app.cli import main
 from app.config import build_config
+from app.experiments.results import VERDICTS
 from app.experiments.runner import plan
 from app.experiments.spec import load_file
 from app.experiments.summary import read_summary
@@ -70,6 +71,16 @@ def test_bad_file(
         (["run", "ch3-bs-rl", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], 1, "drop it"),
         (["report", "ch3-bs-rl", "--scale", "smoke"], 1, "no runs of 'ch3-bs-rl'"),
         (["report", "ch3-bs-rl", "--format", "pdf"], 2, "--format"),
+        (["run", "ch3-bs-rl", "--adaptive", "--seeds", "4"], 1, "--adaptive takes --max-seeds"),
+        (["run", "ch3-bs-rl", "--max-seeds", "6"], 1, "go with --adaptive"),
+        (["run", "ch3-bs-rl", "--adaptive", "--max-seeds", "0"], 2, "--max-seeds"),
+        (["run", "ch3-bs-rl", "--adaptive", "--stage-seeds", "1"], 1, "at least 2 seeds"),
+        (
+            ["run", "ch3-bs-rl", "--adaptive", "--stage-seeds", "8", "--max-seeds", "4"],
+            1,
+            "at most --max-seeds",
+        ),
+        (["report", "ch3-bs-rl", "--from-values", "gone.csv"], 1, "cannot read values file"),
     ],
 )
 def test_bad_arguments(
@@ -79,6 +90,28 @@ def test_bad_arguments(
     assert main(["experiment", *argv, "--runs-dir", str(runs)]) == code
     _one_error_line(capsys, needle)
     assert not runs.exists() or not _files(runs)
+
+
+@pytest.mark.parametrize(
+    ("rows", "extra", "needle"),
+    [
+        ("arm,seed,metric\n", ["--format", "json"], "is not a values table"),
+        ("arm,seed,condition,metric,value\nCS,0,,final_best_fitness,1.0\n", ["--format", "json"],
+         "line 2: arm 'CS'"),
+        ("arm,seed,condition,metric,value\nBS,zero,,final_best_fitness,1.0\n",
+         ["--format", "json"], "line 2: not a row of values"),
+        ("arm,seed,condition,metric,value\nBS,0,,final_best_fitness,1.0\n", [], "give --out"),
+    ],
+)  # fmt: skip
+def test_bad_values_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: str, extra: list[str], needle: str
+) -> None:
+    values = tmp_path / "values.csv"
+    values.write_text(rows, encoding="utf-8")
+    argv = ["experiment", "report", "ch3-bs-rl", "--runs-dir", str(tmp_path / "runs")]
+    assert main([*argv, "--from-values", str(values), *extra]) == 1
+    _one_error_line(capsys, needle)
+    assert not (tmp_path / "runs").exists()
 
 
 def test_file_name_and_scale_must_match(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -218,4 +251,9 @@ def test_run_status_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
             values = results.scalar(comparison["metric"], arm, condition)
             assert comparison[side]["name"] == arm and comparison[side]["n"] == 2
             assert comparison[side]["mean"] == pytest.approx(values.mean(), rel=1e-12)
-        assert comparison["verdict"] in ("held", "reversed", "not shown")
+        assert comparison["verdict"] in VERDICTS
+    # The same report again from its values.csv alone (the run files not read)
+    values = tmp_path / "report" / "values.csv"
+    assert main(["experiment", "report", *common, "--from-values", str(values), "--format",
+                 "json"]) == 0  # fmt: skip
+    assert json.loads(capsys.readouterr().out)["comparisons"] == report["comparisons"]

@@ -134,7 +134,7 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
         cells = [cell.strip() for cell in row.strip("|").split(" | ")]
         assert cells[0].startswith(comparison.comparison.name)
         c = comparison.comparison
-        side = f"{c.a} ({c.condition})" if c.paired else c.a  # one arm in two conditions
+        side = f"{c.a} ({c.side_names()[0]})" if c.paired else c.a  # one arm, two sides
         assert cells[1] == f"{side} {format_number(comparison.stats.a.mean)} ± " + format_number(
             comparison.stats.a.sd
         )
