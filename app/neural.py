@@ -11,9 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import gnp
 import neuro
 import sim
 from app.recording import TraceLayout
+from app.rollout import Batch
+from app.store import RunReader
 
 
 @dataclass(frozen=True)
@@ -57,3 +60,40 @@ class NeuralControllers:
 
     def reset_episode(self) -> None:
         self.state[...] = 0.0
+
+
+# --- either family: what the phases handle without asking which brain it is -----------------
+
+#: The brain of one trained individual: a GNP config, or a net's.
+BrainConfig = gnp.GnpConfig | neuro.NetConfig
+#: One individual: a 1-individual `gnp.Population`, or one net's arrays (leading axis 1).
+Individual = gnp.Population | dict[str, np.ndarray]
+
+
+def copies(
+    world: sim.World, cfg: BrainConfig, individual: Individual, engine_seeds: np.ndarray
+) -> Batch:
+    """A batch driving each of `world`'s robots with its own copy of `individual` (GNP copies
+    learn apart, each from its own engine seed; nets ignore the seeds)."""
+    every = np.zeros(world.n, np.int64)
+    if isinstance(cfg, gnp.GnpConfig):
+        assert isinstance(individual, gnp.Population)
+        return Batch(world, cfg, gnp.take(individual, every), engine_seeds)
+    assert isinstance(individual, dict)
+    return Batch.driven_by(world, NeuralControllers(cfg, neuro.take(individual, every)))
+
+
+def recorded_trace(cfg: BrainConfig) -> gnp.GnpConfig | TraceLayout:
+    """What `TrajectoryRecorder` records of this brain's steps."""
+    return cfg if isinstance(cfg, gnp.GnpConfig) else trace_layout(cfg)
+
+
+def best_individual(run: RunReader, generation: int = -1) -> tuple[BrainConfig, Individual]:
+    """A generation's best of a run of either family (`RunReader.best_genome` for GNP)."""
+    settings = run.config.neuro
+    if settings is None:
+        return run.best_genome(generation)
+    net = settings.net_config()
+    arrays = run.best_genome_arrays(generation)
+    neuro.check_arrays(net, arrays)
+    return net, arrays

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,7 +17,13 @@ import pytest
 from lab_fixtures import assert_same_data, datasets, tiny_config
 
 import app.training as training
-from app.config import RunConfig, build_config, to_toml
+import neuro
+import sim
+from app.config import ImplementationSettings, RunConfig, build_config, to_toml
+from app.export import ExportError, export_replay, export_run
+from app.implementation import implement
+from app.neuro_training import live_nets
+from app.seeds import life_seeds
 from app.store import RunFileError, RunReader, list_runs
 from app.training import resume, train
 
@@ -117,3 +124,74 @@ def test_a_killed_neural_training_resumes_to_the_uninterrupted_run(tmp_path: Pat
         assert 3 <= run.generations_done < 12 and not run.finished
     resume(out, workers=1)
     assert_same_data(out, reference)
+
+
+@pytest.fixture(scope="module")
+def neat_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A finished tiny NEAT run (copy it before changing it)."""
+    return train(neural_config("neat"), tmp_path_factory.mktemp("neat") / "neat.h5", workers=1)
+
+
+def test_a_neural_run_is_implemented_the_same_on_any_worker_count(
+    tmp_path: Path, neat_run: Path
+) -> None:
+    settings = ImplementationSettings(
+        steps=80, repeats=2, fault_step=40, break_count=2, recorded_trials=2
+    )
+    results = []
+    for workers in (1, 2):
+        path = tmp_path / f"w{workers}.h5"
+        shutil.copy(neat_run, path)
+        results.append(implement(path, settings, name="two", workers=workers))
+        assert_same_data(path, tmp_path / "w1.h5")
+    one = results[0]
+    assert one.trial_mean_reward.shape == (20,)
+    assert one.trials.trace["activation"].shape == (2, 80, 34)  # 2 outputs + 32 hidden
+
+
+def test_an_exported_net_is_loaded_bit_identical_and_lives_the_elites_life(
+    tmp_path: Path, neat_run: Path
+) -> None:
+    folder = export_run(neat_run, tmp_path / "export")
+    net, arrays, about = neuro.load_net(folder / "controller.json")
+    with RunReader(neat_run) as run:
+        stored = run.best_genome_arrays()
+        elite = run.elite()
+        config = run.config
+        generation = run.generations_done - 1
+        best = int(run.history().best_index[-1])
+    assert elite is not None
+    assert about["brain"] == "neat" and about["generation"] == generation
+    assert sorted(arrays) == sorted(stored)
+    assert all(np.array_equal(arrays[k], stored[k]) for k in arrays)
+    training_settings = config.training
+    seeds = life_seeds(config.seed, generation, np.array([best]), 1, 10)
+    world = sim.World(
+        sim.load_arena(training_settings.arena),
+        n=1,
+        seed=config.seed,
+        noise_sigma=training_settings.noise_sigma,
+    )
+    _, life = live_nets(world, net, arrays, seeds, training_settings.steps, 0, record=True)
+    assert life is not None
+    assert np.array_equal(life.poses, elite.poses)
+    assert np.array_equal(life.trace["activation"], elite.trace["activation"])
+    with pytest.raises(ExportError, match="neural run"):
+        export_replay(neat_run, tmp_path / "replay")
+
+
+def test_the_cli_trains_a_brain_and_lists_it(tmp_path: Path) -> None:
+    command = [sys.executable, "-m", "app.cli", "train", "--brain", "cmaes", "--quiet"]
+    command += ["--population", "4", "--generations", "1", "--steps", "10", "--workers", "1"]
+    command += ["--runs-dir", str(tmp_path), "--set", "neuro.hidden=3"]
+    subprocess.run(command, check=True, capture_output=True)
+    listing = subprocess.run(
+        [sys.executable, "-m", "app.cli", "runs", "--runs-dir", str(tmp_path)],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    (line,) = listing.splitlines()[1:]
+    assert line.startswith("cmaes-seed0-") and " cmaes " in line and "finished" in line
+    with RunReader(next(tmp_path.glob("*.h5"))) as run:
+        assert run.config.neuro is not None and run.config.neuro.hidden == 3
