@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import gnp
 import sim
 from app.config import (
+    BRAINS,
     PRESET_NAMES,
     ConfigError,
     ImplementationSettings,
@@ -102,6 +103,11 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
     train.add_argument("--method", choices=gnp.METHODS, help="learning method")
+    train.add_argument(
+        "--brain",
+        choices=BRAINS,
+        help="gnp (default), or a neural net evolved by CMA-ES (Elman) or NEAT",
+    )
     fuzzy = train.add_mutually_exclusive_group()
     fuzzy.add_argument(
         "--fuzzy", dest="fuzzy", action="store_true", default=None, help="fuzzy judgment"
@@ -201,6 +207,7 @@ _CONFIG_OPTIONS = (
     "preset",
     "config",
     "method",
+    "brain",
     "fuzzy",
     "population",
     "generations",
@@ -227,6 +234,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         controller["method"] = args.method
     if args.fuzzy is not None:
         controller["fuzzy"] = args.fuzzy
+    if args.brain is not None:
+        options["neuro"] = None if args.brain == "gnp" else {"optimiser": args.brain}
     for option, key in (
         ("population", "population"),
         ("generations", "generations"),
@@ -419,7 +428,7 @@ def cmd_runs(args: argparse.Namespace) -> int:
         if s.error:
             print(f"{s.name:32} {'?':10} {'':>12} {'':>7}  unreadable: {s.error}")
             continue
-        kind = f"{s.method} {'fuzzy' if s.fuzzy else 'crisp'}"
+        kind = f"{s.method} {'fuzzy' if s.fuzzy else 'crisp'}" if s.brain == "gnp" else s.brain
         status = "finished" if s.finished else "running or interrupted"
         if s.implementations:
             status += f"; implementations: {', '.join(s.implementations)}"

@@ -14,11 +14,22 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationError,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 import gnp
+import neuro
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
+from neuro.neat_evolution import NeatParams
 from sim import IR_MAX, N_SENSORS, FaultMode
 
 ScheduleKind = Literal["fixed", "changing"]
@@ -287,6 +298,30 @@ class RewardSettings(_Frozen):
     )
 
 
+Optimiser = Literal["cmaes", "neat"]
+#: What drives the robots: GNP (the thesis), or a neural net evolved by CMA-ES or NEAT.
+Brain = Literal["gnp", "cmaes", "neat"]
+BRAINS: tuple[Brain, ...] = ("gnp", "cmaes", "neat")
+
+
+class NeuroSettings(_Frozen):
+    """A neural controller instead of GNP (issue #23): an Elman net evolved by CMA-ES (pycma),
+    or a NEAT net (neat-python). It does not learn online; training's ε/α are unused."""
+
+    optimiser: Optimiser = Field(description="CMA-ES on an Elman net's weights, or NEAT")
+    hidden: int = Field(default=8, ge=1, le=64, description="Elman hidden units (CMA-ES) [count]")
+    sigma0: float = Field(
+        default=0.5, gt=0.0, le=10.0, description="CMA-ES initial step size, from weights 0 [1]"
+    )
+    neat: NeatParams = NeatParams()
+
+    def net_config(self) -> neuro.NetConfig:
+        """The nets this optimiser evolves."""
+        if self.optimiser == "cmaes":
+            return neuro.ElmanConfig(hidden=self.hidden)
+        return self.neat.net_config()
+
+
 class RunConfig(_Frozen):
     """Everything a run's results depend on (worker count excluded: results do not depend on it)."""
 
@@ -296,6 +331,22 @@ class RunConfig(_Frozen):
     training: TrainingSettings = TrainingSettings()
     implementation: ImplementationSettings = ImplementationSettings()
     reward: RewardSettings = RewardSettings()
+    neuro: NeuroSettings | None = Field(
+        default=None, description="a neural controller instead of GNP; unset = GNP"
+    )
+
+    @property
+    def brain(self) -> Brain:
+        """ "gnp", or the neural optimiser."""
+        return "gnp" if self.neuro is None else self.neuro.optimiser
+
+    @model_serializer(mode="wrap")
+    def _gnp_as_before(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        # A GNP run's stored config stays what it was before neural brains existed.
+        data: dict[str, Any] = handler(self)
+        if self.neuro is None:
+            data.pop("neuro", None)
+        return data
 
 
 def describe_problems(error: ValidationError, limit: int | None = None) -> str:
@@ -406,19 +457,28 @@ def to_toml(config: RunConfig) -> str:
     """Render a config as TOML (unset optional values are left out), readable by `load_config`."""
     lines = [f"seed = {config.seed}"]
     for section, model in config:
-        if not isinstance(model, BaseModel):
-            continue
-        lines.append(f"\n[{section}]")
-        for key, value in model.model_dump().items():
-            if value is None:
-                continue
-            if isinstance(value, bool):
-                rendered = "true" if value else "false"
-            elif isinstance(value, str):
-                rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-            elif isinstance(value, tuple | list):
-                rendered = "[" + ", ".join(str(v) for v in value) + "]"
-            else:
-                rendered = repr(value)
-            lines.append(f"{key} = {rendered}")
+        if isinstance(model, BaseModel):
+            _toml_table(lines, section, model.model_dump())
     return "\n".join(lines) + "\n"
+
+
+def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
+    lines.append(f"\n[{name}]")
+    tables = []
+    for key, value in values.items():
+        if isinstance(value, dict):  # a nested model: its own table after this one's keys
+            tables.append((key, value))
+            continue
+        if value is None:
+            continue
+        if isinstance(value, bool):
+            rendered = "true" if value else "false"
+        elif isinstance(value, str):
+            rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        elif isinstance(value, tuple | list):
+            rendered = "[" + ", ".join(str(v) for v in value) + "]"
+        else:
+            rendered = repr(value)
+        lines.append(f"{key} = {rendered}")
+    for key, value in tables:
+        _toml_table(lines, f"{name}.{key}", value)

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-import gnp
 import sim
 from app.config import CFrom, ImplementationSettings
+from app.neural import BrainConfig, Individual, best_individual, copies, recorded_trace
 from app.recording import Trajectory, TrajectoryRecorder
-from app.rollout import Batch, rollout
+from app.rollout import rollout
 from app.seeds import broken_sensor_draws, trial_seeds
 from app.store import (
     Implementation,
@@ -124,8 +124,8 @@ class _Part:
 
 
 def _live_trials(
-    cfg: gnp.GnpConfig,
-    individual: gnp.Population,
+    cfg: BrainConfig,
+    individual: Individual,
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
@@ -148,11 +148,9 @@ def _live_trials(
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
-    batch = Batch(
-        world, cfg, gnp.take(individual, np.zeros(len(trials), np.int64)), engine_seeds, c_from
-    )
+    batch = copies(world, cfg, individual, engine_seeds, c_from)
     steps = settings.steps
-    recorder = TrajectoryRecorder(len(trials), steps, cfg) if record else None
+    recorder = TrajectoryRecorder(len(trials), steps, recorded_trace(cfg)) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)
     fault_step = min(settings.fault_step, steps)
     bounds = sorted({*range(0, steps, _PROGRESS_EVERY), fault_step, steps})
@@ -185,8 +183,8 @@ def _count(done: int) -> None:
 
 
 def _live_all(
-    cfg: gnp.GnpConfig,
-    individual: gnp.Population,
+    cfg: BrainConfig,
+    individual: Individual,
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
@@ -244,8 +242,8 @@ def _live_all(
 
 
 def run_implementation(
-    cfg: gnp.GnpConfig,
-    individual: gnp.Population,
+    cfg: BrainConfig,
+    individual: Individual,
     settings: ImplementationSettings,
     *,
     seed: int,
@@ -292,7 +290,9 @@ def run_implementation(
         per_step += result.step_reward_sums
     trajectory = results[0].trajectory if recorded else None
     if trajectory is None:
-        trajectory = TrajectoryRecorder(0, steps, cfg).trajectory(np.zeros(0, np.int64))
+        trajectory = TrajectoryRecorder(0, steps, recorded_trace(cfg)).trajectory(
+            np.zeros(0, np.int64)
+        )
     return Implementation(
         name=name,
         settings=settings,
@@ -337,7 +337,7 @@ def implement(
         generation = (
             settings.generation if settings.generation is not None else run.generations_done - 1
         )
-        cfg, individual = run.best_genome(generation)
+        cfg, individual = best_individual(run, generation)
         seed = settings.seed if settings.seed is not None else run.seed
         control_period = run.config.training.control_period
         c_from = run.config.reward.c_from

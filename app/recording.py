@@ -5,7 +5,9 @@ No HDF5 here: the store writes and reads `Trajectory` objects, the lab loop fill
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -22,7 +24,7 @@ class Trajectory:
     observations: np.ndarray  # (k, T, 8) what the controller saw before each step
     commands: np.ndarray  # (k, T, 2) left, right
     terms: dict[str, np.ndarray]  # term name -> (k, T)
-    trace: dict[str, np.ndarray]  # gnp.StepTrace field -> (k, T, ...)
+    trace: dict[str, np.ndarray]  # gnp.StepTrace field (or a net's activations) -> (k, T, ...)
     start_index: np.ndarray  # (k,) start pose of each trial (first segment in training)
 
     @property
@@ -31,14 +33,19 @@ class Trajectory:
         return self.terms["reward"]
 
 
+#: What a step's trace holds when it is not GNP's: field -> (shape per controller, dtype).
+TraceLayout = Mapping[str, tuple[tuple[int, ...], Any]]
+
+
 class TrajectoryRecorder:
     """Fills a `Trajectory` of the first k robots of a batch, one step at a time.
 
     Both phases record lives this way, so a stored elite and stored implementation trials have
-    the same arrays, dtypes and shapes.
+    the same arrays, dtypes and shapes. The trace's fields are `gnp.StepTrace`'s for a GNP
+    config, else the given layout's (read off the step's trace object by name).
     """
 
-    def __init__(self, k: int, steps: int, cfg: gnp.GnpConfig) -> None:
+    def __init__(self, k: int, steps: int, cfg: gnp.GnpConfig | TraceLayout) -> None:
         self.k = k
         self._t = 0  # the next step to record
         self._arrays = {
@@ -48,9 +55,13 @@ class TrajectoryRecorder:
             "commands": np.zeros((k, steps, 2)),
             "terms": np.zeros((k, steps, len(sim.TERM_NAMES))),
         }
+        layout = (
+            {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
+            if isinstance(cfg, gnp.GnpConfig)
+            else cfg
+        )
         self._trace = {
-            field: np.zeros((k, steps, *shape), gnp.TRACE_DTYPE)
-            for field, shape in gnp.trace_shapes(cfg).items()
+            field: np.zeros((k, steps, *shape), dtype) for field, (shape, dtype) in layout.items()
         }
 
     def record(
@@ -60,7 +71,7 @@ class TrajectoryRecorder:
         observations: np.ndarray,
         commands: np.ndarray,
         term_table: np.ndarray,
-        trace: gnp.StepTrace,
+        trace: Any,
     ) -> None:
         """The next step of the batch: arrays with a leading batch axis (`term_table`'s
         columns are `sim.TERM_NAMES`)."""

@@ -2,14 +2,15 @@
 
 Every phase steps robots through this one loop: training lives, the implementation phase, the
 dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
-with N controllers (a `gnp.Population` and its engine state); `rollout` advances it T steps with
-ε/α given per step, optionally recording the first robots' lives.
+with N controllers (`Controllers`: a `gnp.Population` and its engine state, or neural nets, see
+`app.neural`); `rollout` advances it T steps with ε/α given per step, optionally recording the
+first robots' lives.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import get_args
+from typing import Any, Protocol, get_args
 
 import numpy as np
 
@@ -27,7 +28,7 @@ class StepRecord:
     commands: np.ndarray  # (N, 2) left, right wheel commands
     readings: np.ndarray  # (N, 8) true readings after the step
     term_table: np.ndarray  # (N, len(sim.TERM_NAMES)) reward terms, columns as TERM_NAMES
-    trace: gnp.StepTrace | None  # what each controller visited, when traced
+    trace: Any  # what each controller did (gnp.StepTrace, app.neural.NeuralTrace), when traced
 
     @property
     def terms(self) -> dict[str, np.ndarray]:
@@ -40,6 +41,75 @@ class StepRecord:
         return self.term_table[:, 0]
 
 
+class Controllers(Protocol):
+    """N controllers, one per robot of a batch: the one place a brain family plugs in."""
+
+    @property
+    def size(self) -> int: ...
+
+    def act(
+        self,
+        observations: np.ndarray,
+        reward: np.ndarray,
+        epsilon: float,
+        alpha: float,
+        *,
+        learn: bool,
+        trace: bool,
+        second_stage: bool,
+    ) -> tuple[np.ndarray, Any]:
+        """(N, 2) wheel commands (left, right) for (N, 8) observations, given the (N,) reward
+        of the previous step; with the step's trace when `trace`, else None."""
+        ...
+
+    def reset_episode(self) -> None:
+        """Start a new episode (what a controller keeps across episodes is its own choice)."""
+        ...
+
+
+class GnpControllers:
+    """A `gnp.Population` and its engine state: online Sarsa, ε-greedy."""
+
+    def __init__(
+        self, cfg: gnp.GnpConfig, population: gnp.Population, engine_seeds: np.ndarray
+    ) -> None:
+        self.cfg = cfg
+        self.population = population
+        self.state = gnp.init_state(cfg, population.size, engine_seeds)
+
+    @property
+    def size(self) -> int:
+        return self.population.size
+
+    def act(
+        self,
+        observations: np.ndarray,
+        reward: np.ndarray,
+        epsilon: float,
+        alpha: float,
+        *,
+        learn: bool,
+        trace: bool,
+        second_stage: bool,
+    ) -> tuple[np.ndarray, gnp.StepTrace | None]:
+        result = gnp.step(
+            self.cfg,
+            self.population,
+            self.state,
+            observations,
+            reward,
+            epsilon,
+            alpha,
+            learn,
+            trace=trace,
+            second_stage=second_stage,
+        )
+        return result if isinstance(result, tuple) else (result, None)
+
+    def reset_episode(self) -> None:
+        gnp.reset_episode(self.state)
+
+
 class Batch:
     """N robots in one world, each driven by its own controller (row i of `population`).
 
@@ -47,7 +117,7 @@ class Batch:
     resets it, with the controllers' walks, and keeps Q tables and random streams. Its C
     (Eq. 2.7) is judged from the readings after the step: the true ones (`c_from` "true"), or
     what the controllers see there ("observed": noise, then faults; the same draws they see at
-    the next step).
+    the next step). `Batch.driven_by` drives the robots with any other `Controllers`.
     """
 
     def __init__(
@@ -60,12 +130,26 @@ class Batch:
     ) -> None:
         if population.size != world.n:
             raise ValueError(f"{population.size} controllers for {world.n} robots")
-        self.world = world
+        gnp_controllers = GnpControllers(cfg, population, engine_seeds)
+        self._drive(world, gnp_controllers, c_from)
         self.cfg = cfg
         self.population = population
-        self.state = gnp.init_state(cfg, world.n, engine_seeds)
+        self.state = gnp_controllers.state
+
+    @classmethod
+    def driven_by(cls, world: sim.World, controllers: Controllers, c_from: CFrom = "true") -> Batch:
+        """A batch whose robots `controllers` drive (one controller per robot)."""
+        batch = cls.__new__(cls)
+        batch._drive(world, controllers, c_from)
+        return batch
+
+    def _drive(self, world: sim.World, controllers: Controllers, c_from: CFrom) -> None:
+        if controllers.size != world.n:
+            raise ValueError(f"{controllers.size} controllers for {world.n} robots")
         if c_from not in get_args(CFrom):
             raise ValueError(f"c_from must be one of {get_args(CFrom)}, got {c_from!r}")
+        self.world = world
+        self.controllers = controllers
         self.reward = np.zeros(world.n)
         self.c_from = c_from
 
@@ -76,7 +160,7 @@ class Batch:
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
         self.world.place(poses)
-        gnp.reset_episode(self.state)
+        self.controllers.reset_episode()
         self.reward = np.zeros(self.size)
 
     def step(
@@ -91,19 +175,15 @@ class Batch:
         """One control step of every robot; `second_stage` off is the live ablation of
         `gnp.step` (BS: greedy branch connection, CS: no credit branch)."""
         seen = self.world.observe()
-        result = gnp.step(
-            self.cfg,
-            self.population,
-            self.state,
+        commands, step_trace = self.controllers.act(
             seen,
             self.reward,
             epsilon,
             alpha,
-            learn,
+            learn=learn,
             trace=trace,
             second_stage=second_stage,
         )
-        commands, step_trace = result if isinstance(result, tuple) else (result, None)
         self.world.step(commands)
         readings = self.world.sense()
         judged = readings if self.c_from == "true" else self.world.observe()

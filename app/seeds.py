@@ -16,6 +16,7 @@ import numpy as np
 
 # Purpose tags mixed into every SeedSequence so different uses never share a stream.
 _TAG_INIT, _TAG_LIFE, _TAG_EVOLVE, _TAG_TRIAL, _TAG_BROKEN = 1, 2, 3, 4, 5
+_TAG_OPTIMISER = 6
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,11 @@ def init_rng(seed: int) -> np.random.Generator:
 def evolution_rng(seed: int, generation: int) -> np.random.Generator:
     """The Generator evolution uses after `generation`."""
     return np.random.default_rng(np.random.SeedSequence([seed, _TAG_EVOLVE, generation]))
+
+
+def optimiser_seed(seed: int) -> int:
+    """The seed of a neural optimiser's own stream (pycma's sampler, NEAT's `random.Random`)."""
+    return int(np.random.SeedSequence([seed, _TAG_OPTIMISER]).generate_state(1, np.uint64)[0] >> 1)
 
 
 def trial_seeds(seed: int, trials: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

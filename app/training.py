@@ -34,6 +34,7 @@ from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
 from app.seeds import LifeSeeds, evolution_rng, init_rng, life_seeds, n_segments
 from app.store import (
+    RunReader,
     RunTemplate,
     RunWriter,
 )
@@ -466,6 +467,10 @@ def train(
         Interrupted: Ctrl-C / SIGTERM; the file holds every completed generation.
         TrainingError: a worker process died.
     """
+    if config.neuro is not None:  # a neural brain (CMA-ES, NEAT): app.neuro_training
+        from app.neuro_training import train_neural
+
+        return train_neural(config, out, workers=workers, progress=progress)
     sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
     _stop_requested.clear()
     # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
@@ -491,6 +496,12 @@ def resume(path: str | Path, *, workers: int = 1, progress: ProgressCallback | N
     Raises:
         RunFileError: not a resumable run.
     """
+    with RunReader(path) as run:
+        neural = run.config.neuro is not None
+    if neural:
+        from app.neuro_training import resume_neural
+
+        return resume_neural(path, workers=workers, progress=progress)
     _stop_requested.clear()
     with _stop_on_sigterm():
         writer, generation, arrays = RunWriter.resume(path)

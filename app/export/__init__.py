@@ -75,6 +75,9 @@ def _publish(out: Path, fill: Callable[[Path], object]) -> Path:
 def write_exports(reader: RunReader, generation: int, folder: Path) -> list[Path]:
     """Write controller.json, graph.dot, fitness.csv and the implementation tables into `folder`."""
     paths = [write_controller(reader, generation, folder / "controller.json")]
+    if reader.config.neuro is not None:  # a net: no GNP graph
+        paths.append(write_fitness(reader, folder / "fitness.csv"))
+        return paths + write_implementations(reader, folder)
     cfg, individual = reader.best_genome(generation)
     final = generation == reader.generations_done - 1
     elite = reader.elite() if final else None
@@ -119,6 +122,8 @@ def export_replay(run_path: Path, out: Path, generation: int | None = None) -> P
 
     with RunReader(run_path) as reader:
         final = check_run(reader, None)
+        if reader.config.neuro is not None:
+            raise ExportError(f"{reader.path.name} is a neural run; replays show GNP runs only")
         if generation is not None and check_run(reader, generation) != final:
             raise ExportError(
                 f"only the final elite's life (generation {final}) is recorded in "

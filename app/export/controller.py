@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import gnp
+import neuro
 from app.store import RunReader
 
 
@@ -33,6 +34,16 @@ def controller_settings(reader: RunReader, generation: int) -> dict[str, Any]:
 
 
 def write_controller(reader: RunReader, generation: int, path: Path) -> Path:
-    """Write the best individual of `generation` (Q tables included) as `path`."""
+    """Write the best individual of `generation` (Q tables included) as `path`; a neural run's
+    net as `neuro.save_net`'s document."""
+    settings = reader.config.neuro
+    if settings is not None:
+        net = settings.net_config()
+        arrays = reader.best_genome_arrays(generation)
+        about = controller_settings(reader, generation)
+        for gnp_only in ("method", "fuzzy", "epsilon", "alpha", "schedule"):
+            del about[gnp_only]  # a net learns nothing online
+        about["brain"] = settings.optimiser
+        return neuro.save_net(path, net, arrays, about)
     cfg, individual = reader.best_genome(generation)
     return gnp.save_controller(path, cfg, individual, controller_settings(reader, generation))

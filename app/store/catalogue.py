@@ -22,8 +22,9 @@ def run_name(config: RunConfig, now: datetime) -> str:
     """
     controller = config.controller
     judgment = "fuzzy" if controller.fuzzy else "crisp"
+    kind = f"{controller.method}-{judgment}" if config.neuro is None else config.brain
     stamp = now.astimezone(UTC).strftime("%Y%m%dT%H%M%SZ")
-    return f"{controller.method}-{judgment}-seed{config.seed}-{stamp}"
+    return f"{kind}-seed{config.seed}-{stamp}"
 
 
 def new_run_path(runs_dir: str | Path, config: RunConfig, now: datetime) -> Path:
@@ -66,6 +67,7 @@ class RunSummary:
     best_fitness: float = float("nan")
     implementations: tuple[str, ...] = ()
     error: str | None = None
+    brain: str = "gnp"  # or the neural optimiser (then `method` and `fuzzy` do not apply)
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:
@@ -92,6 +94,7 @@ def _summary(path: Path) -> RunSummary:
                 finished=run.finished,
                 best_fitness=best,
                 implementations=tuple(run.implementation_names()),
+                brain=run.config.brain,
             )
     except RunFileError as error:
         return RunSummary(name=name, path=path, error=str(error))

@@ -1,0 +1,255 @@
+"""NEAT with neat-python 2.x, its random draws isolated, its genomes run as dense batched nets.
+
+neat-python draws from Python's global `random` module (functions bound to its hidden shared
+instance). `NeatSearch` owns a `random.Random` state of its own and swaps it into the module for
+the duration of each neat-python call, then swaps the caller's state back, so NEAT neither
+disturbs nor depends on anyone else's draws. The search is single-threaded (the swap is not
+thread-safe). Its state — genomes, species, innovation numbers, stagnation records, that
+random state — is a function of (seed, parameters, the fitness of every generation told so far):
+`replay` rebuilds it from those plain arrays, so a run resumes without neat-python's pickled
+checkpoints (`neat.Checkpointer`).
+
+neat-python reads its parameters from an INI file; `ini_text` writes it from `NeatParams`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import random
+import tempfile
+from collections.abc import Iterator
+from typing import Any
+
+import neat
+import numpy as np
+from neat.graphs import required_for_output
+from pydantic import BaseModel, ConfigDict, Field
+
+from neuro.nets import N_INPUTS, N_OUTPUTS, NeuroError, RecurrentConfig, zeros
+
+
+class NeatParams(BaseModel):
+    """The NEAT settings we expose (the rest of the INI is fixed in `ini_text`).
+
+    Defaults follow neat-python's own examples (e.g. its XOR config), with 2 elites per species.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    max_hidden: int = Field(
+        default=32, ge=0, le=256, description="hidden nodes a genome may use (dense capacity)"
+    )
+    compatibility_threshold: float = Field(default=3.0, gt=0.0, le=100.0)
+    conn_add_prob: float = Field(default=0.5, ge=0.0, le=1.0)
+    conn_delete_prob: float = Field(default=0.5, ge=0.0, le=1.0)
+    node_add_prob: float = Field(default=0.2, ge=0.0, le=1.0)
+    node_delete_prob: float = Field(default=0.2, ge=0.0, le=1.0)
+    weight_mutate_rate: float = Field(default=0.8, ge=0.0, le=1.0)
+    weight_mutate_power: float = Field(default=0.5, ge=0.0, le=10.0)
+    elitism: int = Field(default=2, ge=0, le=1000, description="elites kept per species")
+    survival_threshold: float = Field(default=0.2, gt=0.0, le=1.0)
+    max_stagnation: int = Field(default=20, ge=1, le=100_000)
+    species_elitism: int = Field(default=2, ge=0, le=1000)
+
+    def net_config(self) -> RecurrentConfig:
+        """The dense net every genome of this search is run as."""
+        return RecurrentConfig(max_hidden=self.max_hidden)
+
+
+def ini_text(params: NeatParams, pop_size: int) -> str:
+    """neat-python's INI config: a recurrent net, 8 inputs, 2 tanh outputs, sum aggregation,
+    fully connected inputs → outputs at the start, no hidden nodes, response fixed at 1."""
+    p = params
+    return f"""[NEAT]
+fitness_criterion = max
+fitness_threshold = 1e300
+no_fitness_termination = True
+pop_size = {pop_size}
+reset_on_extinction = True
+
+[DefaultGenome]
+num_inputs = {N_INPUTS}
+num_outputs = {N_OUTPUTS}
+num_hidden = 0
+feed_forward = False
+initial_connection = full_direct
+compatibility_disjoint_coefficient = 1.0
+compatibility_weight_coefficient = 0.5
+conn_add_prob = {p.conn_add_prob!r}
+conn_delete_prob = {p.conn_delete_prob!r}
+node_add_prob = {p.node_add_prob!r}
+node_delete_prob = {p.node_delete_prob!r}
+single_structural_mutation = False
+structural_mutation_surer = default
+activation_default = tanh
+activation_options = tanh
+activation_mutate_rate = 0.0
+aggregation_default = sum
+aggregation_options = sum
+aggregation_mutate_rate = 0.0
+bias_init_mean = 0.0
+bias_init_stdev = 1.0
+bias_init_type = gaussian
+bias_max_value = 30.0
+bias_min_value = -30.0
+bias_mutate_power = {p.weight_mutate_power!r}
+bias_mutate_rate = 0.7
+bias_replace_rate = 0.1
+response_init_mean = 1.0
+response_init_stdev = 0.0
+response_init_type = gaussian
+response_max_value = 30.0
+response_min_value = -30.0
+response_mutate_power = 0.0
+response_mutate_rate = 0.0
+response_replace_rate = 0.0
+weight_init_mean = 0.0
+weight_init_stdev = 1.0
+weight_init_type = gaussian
+weight_max_value = 30.0
+weight_min_value = -30.0
+weight_mutate_power = {p.weight_mutate_power!r}
+weight_mutate_rate = {p.weight_mutate_rate!r}
+weight_replace_rate = 0.1
+enabled_default = True
+enabled_mutate_rate = 0.01
+
+[DefaultSpeciesSet]
+compatibility_threshold = {p.compatibility_threshold!r}
+
+[DefaultStagnation]
+species_fitness_func = max
+max_stagnation = {p.max_stagnation}
+species_elitism = {p.species_elitism}
+
+[DefaultReproduction]
+elitism = {p.elitism}
+survival_threshold = {p.survival_threshold!r}
+min_species_size = 2
+"""
+
+
+def neat_config(params: NeatParams, pop_size: int) -> neat.Config:
+    """neat-python's `Config`, read from `ini_text`'s INI (neat-python reads files only)."""
+    fd, name = tempfile.mkstemp(suffix=".ini", prefix="gnp-lab-neat-")
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(ini_text(params, pop_size))
+        return neat.Config(
+            neat.DefaultGenome,
+            neat.DefaultReproduction,
+            neat.DefaultSpeciesSet,
+            neat.DefaultStagnation,
+            name,
+        )
+    finally:
+        os.unlink(name)
+
+
+def encode(genome: Any, genome_config: Any, max_hidden: int) -> dict[str, np.ndarray]:
+    """One genome as the dense arrays of `RecurrentConfig(max_hidden)` (leading axis 1).
+
+    Units 0, 1 are the output nodes; then the hidden nodes with an enabled path to an output,
+    in key order. A node without enabled inputs is inactive (neat-python leaves it at 0), and
+    nodes with no path to an output are left out (they cannot change the outputs).
+
+    Raises:
+        NeuroError: the genome uses more than `max_hidden` hidden nodes.
+    """
+    outputs = list(genome_config.output_keys)
+    enabled = [cg.key for cg in genome.connections.values() if cg.enabled]
+    required = required_for_output(genome_config.input_keys, outputs, enabled)
+    hidden = sorted(k for k in required if k not in outputs)
+    if len(hidden) > max_hidden:
+        raise NeuroError(
+            f"a NEAT genome uses {len(hidden)} hidden nodes, more than max_hidden = {max_hidden}"
+        )
+    unit = {key: j for j, key in enumerate([*outputs, *hidden])}
+    arrays = zeros(RecurrentConfig(max_hidden=max_hidden), 1)
+    for cg in genome.connections.values():
+        i, o = cg.key
+        if not cg.enabled or o not in unit:
+            continue
+        column = -i - 1 if i < 0 else N_INPUTS + unit[i]
+        arrays["weights"][0, unit[o], column] = cg.weight
+        arrays["active"][0, unit[o]] = 1
+    for key, j in unit.items():
+        node = genome.nodes[key]
+        arrays["bias"][0, j] = node.bias
+        arrays["response"][0, j] = node.response
+    return arrays
+
+
+class NeatSearch:
+    """A neat-python `Population`, told one generation's fitness at a time.
+
+    Args:
+        params: the NEAT settings.
+        pop_size: genomes per generation.
+        seed: seed of the search's own `random.Random` state.
+    """
+
+    def __init__(self, params: NeatParams, pop_size: int, seed: int) -> None:
+        self.params = params
+        self.config = neat_config(params, pop_size)
+        self._random = random.Random(seed)
+        with self._draws():
+            self.population = neat.Population(self.config)
+
+    @contextlib.contextmanager
+    def _draws(self) -> Iterator[None]:
+        """Python's `random` module drawing from this search's state, for the block."""
+        outer = random.getstate()
+        random.setstate(self._random.getstate())
+        try:
+            yield
+        finally:
+            self._random.setstate(random.getstate())
+            random.setstate(outer)
+
+    @property
+    def generation(self) -> int:
+        """Generations told so far."""
+        return int(self.population.generation)
+
+    def random_state(self) -> tuple[Any, ...]:
+        """The search's `random` state (`random.Random.getstate`)."""
+        return self._random.getstate()
+
+    def genomes(self) -> list[tuple[int, Any]]:
+        """(key, genome) of the generation to evaluate, in the order fitness is told."""
+        return list(self.population.population.items())
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The generation to evaluate as dense nets (leading axis pop_size)."""
+        genome_config = self.config.genome_config
+        parts = [encode(g, genome_config, self.params.max_hidden) for _, g in self.genomes()]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    def tell(self, fitness: np.ndarray) -> None:
+        """Fitness (pop_size,) of `genomes()`, in order; then NEAT makes the next generation."""
+        genomes = self.genomes()
+        fitness = np.asarray(fitness, dtype=np.float64)
+        if fitness.shape != (len(genomes),) or not np.all(np.isfinite(fitness)):
+            raise NeuroError(
+                f"fitness must be ({len(genomes)},) finite values, got {fitness.shape}"
+            )
+
+        def assign(pairs: list[tuple[int, Any]], config: Any) -> None:
+            for (_, genome), value in zip(pairs, fitness.tolist(), strict=True):
+                genome.fitness = value
+
+        with self._draws():
+            self.population.run(assign, 1)
+        if len(self.population.population) != len(genomes):
+            raise NeuroError(
+                f"NEAT made {len(self.population.population)} genomes, not {len(genomes)}"
+            )
+
+
+def replay(params: NeatParams, pop_size: int, seed: int, fitness: np.ndarray) -> NeatSearch:
+    """The search after telling each row of `fitness` (g, pop_size) in turn, evaluating nothing."""
+    search = NeatSearch(params, pop_size, seed)
+    for row in np.asarray(fitness, dtype=np.float64):
+        search.tell(row)
+    return search

@@ -1,0 +1,46 @@
+"""The neural brain family changed nothing of a GNP run: its file, to the bit."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+from lab_fixtures import datasets, tiny_config
+
+from app.implementation import implement
+from app.training import train
+
+#: sha256 of a tiny CS run's datasets and config, trained and implemented by the code before
+#: the lab loop learnt to step neural controllers (commit 8a103b1). A change of the simulator
+#: that is meant to change results must update it, saying so.
+GNP_RUN_DIGEST = "0681512e7af645c803ad68703475b075b82f3769469b5b891411907065ba690f"
+
+
+#: Config sections added since that digest, with their defaults (which change no result).
+ADDED_SINCE = {"reward": {"c_from": "true"}}
+
+
+def run_digest(path: Path) -> str:
+    """sha256 over every dataset (name, dtype, shape, bytes) and the stored config, less the
+    sections added since the digest was taken (at their defaults)."""
+    digest = hashlib.sha256()
+    for name, values in sorted(datasets(path).items()):
+        array = np.ascontiguousarray(values)
+        digest.update(f"{name}|{array.dtype.str}|{array.shape}".encode())
+        digest.update(array.tobytes())
+    with h5py.File(path, "r", locking=False) as handle:
+        config = json.loads(str(handle.attrs["config"]))
+    for section, default in ADDED_SINCE.items():
+        assert config.pop(section) == default
+    digest.update(json.dumps(config, separators=(",", ":")).encode())
+    return digest.hexdigest()
+
+
+def test_a_gnp_runs_file_data_is_unchanged(tmp_path: Path) -> None:
+    config = tiny_config(generations=2)
+    path = train(config, tmp_path / "gnp.h5", workers=1)
+    implement(path, config.implementation, name="fault", workers=1)
+    assert run_digest(path) == GNP_RUN_DIGEST
