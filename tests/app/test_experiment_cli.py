@@ -253,7 +253,7 @@ def test_run_status_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
             assert comparison[side]["mean"] == pytest.approx(values.mean(), rel=1e-12)
         assert comparison["verdict"] in VERDICTS
     # The same report again from its values.csv alone (the run files not read)
-    values = tmp_path / "report" / "values.csv"
-    assert main(["experiment", "report", *common, "--from-values", str(values), "--format",
+    table = tmp_path / "report" / "values.csv"
+    assert main(["experiment", "report", *common, "--from-values", str(table), "--format",
                  "json"]) == 0  # fmt: skip
     assert json.loads(capsys.readouterr().out)["comparisons"] == report["comparisons"]

@@ -4,6 +4,7 @@ the summary file."""
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import os
 import signal
@@ -25,6 +26,7 @@ from app.experiments.results import ExperimentResults
 from app.experiments.runner import (
     NO_DASHBOARD,
     collect,
+    convergence_generation,
     inspect,
     plan,
     run_experiment,
@@ -74,6 +76,7 @@ def assert_same_results(a: ExperimentResults, b: ExperimentResults) -> None:
     for name in ("name", "description", "source", "scale", "arms", "seeds", "conditions"):
         assert getattr(a, name) == getattr(b, name), name
     assert a.comparisons == b.comparisons and a.thesis == b.thesis
+    assert (a.control, a.looks, a.steps_per_run) == (b.control, b.looks, b.steps_per_run)
     for table in ("scalars", "curves"):
         left, right = getattr(a, table), getattr(b, table)
         assert sorted(left) == sorted(right)
@@ -92,6 +95,12 @@ def test_results_are_the_run_files(spec: ExperimentSpec, reference: Path) -> Non
             history = run.history()
             assert len(history.best_fitness) == 14
             assert results.scalar("final_best_fitness", task.arm)[row] == history.best_fitness[-1]
+            best = np.asarray(history.best_fitness)
+            converged = int(results.scalar("convergence_generation", task.arm)[row])
+            assert (
+                best[converged - 1] >= 0.9 * best[-1]
+                and (best[: converged - 1] < 0.9 * best[-1]).all()
+            )
             assert np.array_equal(
                 results.curve("best_fitness_curve", task.arm)[row], history.best_fitness
             )
@@ -124,9 +133,18 @@ def test_results_are_the_run_files(spec: ExperimentSpec, reference: Path) -> Non
     assert_same_results(results, collect(spec, SCALE, reference))
 
 
+def test_convergence_is_the_first_generation_at_90_percent_of_the_last() -> None:
+    assert convergence_generation(np.array([1.0, 2.0, 5.0, 9.0, 10.0])) == 4.0  # 9 ≥ 0.9 · 10
+    assert convergence_generation(np.array([1.0, 8.9, 9.5, 8.0, 9.9])) == 3.0  # 9.5 ≥ 8.91
+    assert convergence_generation(np.array([0.0, 0.0])) == 1.0
+    assert convergence_generation(np.array([3.0])) == 1.0
+
+
 def test_summary_round_trip_and_partial_results(spec: ExperimentSpec, tmp_path: Path) -> None:
-    results = collect(spec, SCALE, tmp_path)  # nothing run yet: every value NaN
+    results = collect(spec, SCALE, tmp_path, looks=(1, 2))  # nothing run yet: every value NaN
     assert all(np.isnan(v).all() for v in results.scalars.values())
+    assert results.looks == (1, 2) and results.steps_per_run > 0
+    results = dataclasses.replace(results, control="no-fault")
     results.scalars[("final_best_fitness", "BS", "")][1] = 0.25
     path = write_summary(results, tmp_path / "summary.h5")
     back = read_summary(path)
