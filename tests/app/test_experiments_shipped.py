@@ -163,7 +163,7 @@ def test_loads_at_every_scale(name: str) -> None:
 def test_beyond_the_thesis_every_claim_is_ours(name: str) -> None:
     spec = load_shipped(name)
     assert spec.comparisons and not spec.thesis
-    assert {c.source for c in spec.comparisons} == {"hypothesis"}
+    assert all(c.source.startswith("hypothesis") for c in spec.comparisons)  # "hypothesis: why"
 
 
 @pytest.mark.parametrize("name", THESIS_SHIPPED)
