@@ -45,21 +45,31 @@ def test_rewriting_keeps_the_hand_written_text_and_lists_each_claim(tmp_path: Pa
     assert "old tables" not in page
     comparisons = report["comparisons"]
     assert isinstance(comparisons, list)
+    questions = page.split("## The thesis's questions")[1].split("## Within one arm")[0]
+    sanity = page.split("## Within one arm")[1]
     for comparison in comparisons:  # a row per claim, our means as the report has them
         claim = f"| {comparison['claim']} |"
-        row = next(line for line in page.splitlines() if line.startswith(claim))
+        section = questions if comparison["kind"] == "question" else sanity
+        row = next(line for line in section.splitlines() if line.startswith(claim))
+        if comparison["a"]["mean"] is None:  # a claim added after the report's runs
+            assert f"not run | **{comparison['verdict']}** (not run)" in row
+            continue
         assert f"{comparison['a']['mean']:.3f} vs {comparison['b']['mean']:.3f}" in row
-        assert f"**{comparison['verdict']}**" in row
+        runs = comparison["runs"]
+        assert f"**{comparison['verdict']}** ({runs[0]}" in row
     assert "Not run yet" in page  # the experiments without a report are named, not dropped
 
 
-def test_a_reversed_claim_shows_the_p_value_of_the_other_direction(tmp_path: Path) -> None:
+def test_an_undecided_claim_shows_the_seeds_it_would_need(tmp_path: Path) -> None:
     report = json.loads(REPORT.read_text())
-    first = report["comparisons"][0]
-    first.update(verdict="reversed", holm_p=1.0, holm_p_opposite=0.0123)
-    _copy_report(tmp_path, {"comparisons": [first]})
+    first, second = report["comparisons"][:2]
+    first.update(verdict="reversed", runs=[10, 9], need=None)
+    need = dict(power=0.8, seeds_per_arm_at_thesis_effect=123.0)
+    second.update(verdict="undecided", runs=[10, 10], need=need)
+    _copy_report(tmp_path, {"comparisons": [first, second]})
     page = write_page(tmp_path).read_text()
-    assert "**reversed** (p(other way) = 0.0123)" in page
+    assert "**reversed** (10 + 9 runs) |" in page
+    assert "**undecided** (10 + 10 runs; 80% power at the thesis's effect: 123 seeds" in page
 
 
 def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
@@ -74,7 +84,8 @@ def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
     rows = [line.removesuffix(" |") for line in section.splitlines() if line.startswith("| ")]
     claims = [row.split(" | ")[0].removeprefix("| ") for row in rows[1:]]
     assert isinstance(small["comparisons"], list)
-    assert claims == [c["claim"] for c in small["comparisons"]] + [extra["claim"]]
+    questions = [c["claim"] for c in small["comparisons"] if c["kind"] == "question"]
+    assert claims == [*questions, extra["claim"]]
     for row in rows[1:-1]:  # the same claim at both scales: the same numbers twice
         cells = row.split(" | ")
         assert cells[2] == cells[4] and cells[3] == cells[5]
