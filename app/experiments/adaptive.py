@@ -101,6 +101,8 @@ def run_adaptive(
                 say(f"stage {len(stages) + 1}: seeds 0-{n - 1} of {', '.join(arms)}")
                 errors += execute(tasks, client or own, quiet, echo, watch)
             results = collect(spec, scale, runs_dir, n, design.looks)
+            # After every look, so that `report` and `status` see the looks made so far.
+            write_summary(results, summary_path(runs_dir, spec.name, scale))
             if errors:
                 break
             report = analyse(results)
@@ -113,7 +115,6 @@ def run_adaptive(
             arms = needed_arms(spec, open_claims)
             if not arms:
                 break
-    write_summary(results, summary_path(runs_dir, spec.name, scale))
     if errors:
         raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}")
     return results, tuple(stages)
