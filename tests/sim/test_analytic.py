@@ -35,7 +35,7 @@ def tracks(
     faults: tuple[sim.Fault, ...] = (),
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per physics: (steps, N, 3) poses after each step and (steps, N, 8) observations."""
-    out = {}
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for physics in sim.PHYSICS:
         world = sim.World(arena, n=len(poses), seed=7, noise_sigma=sigma, physics=physics)
         world.reset(poses)
@@ -167,7 +167,11 @@ def test_an_analytic_robot_is_bit_identical_alone_and_in_a_batch() -> None:
     def run(part: slice) -> np.ndarray:
         world = sim.World(TRAINING, n=len(poses[part]), physics="analytic")
         world.reset(poses[part])
-        return np.array([(world.step(c[part]), world.poses)[1] for c in commands])
+        track = []
+        for command in commands:
+            world.step(command[part])
+            track.append(world.poses)
+        return np.array(track)
 
     batch = run(slice(0, n))
     for part in (slice(7, 8), slice(20, 60)):
