@@ -129,6 +129,7 @@ def _live_trials(
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
+    physics: sim.Physics,
     part: slice,
     record: bool,
     progress: Callable[[int], None],
@@ -144,6 +145,7 @@ def _live_trials(
         seed=seed,
         noise_sigma=settings.noise_sigma,
         control_period=control_period,
+        physics=physics,
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
@@ -187,6 +189,7 @@ def _live_all(
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
+    physics: sim.Physics,
     parts: list[slice],
     recorded: int,
     workers: int,
@@ -206,7 +209,9 @@ def _live_all(
 
             record = part.start == 0 and recorded > 0
             results.append(
-                _live_trials(cfg, individual, settings, seed, control_period, part, record, count)
+                _live_trials(
+                    cfg, individual, settings, seed, control_period, physics, part, record, count
+                )
             )
         return results
     context = multiprocessing.get_context("spawn")
@@ -222,6 +227,7 @@ def _live_all(
                 settings,
                 seed,
                 control_period,
+                physics,
                 part,
                 part.start == 0 and recorded > 0,
                 _count,  # a module function: each worker adds to the shared counter
@@ -247,6 +253,7 @@ def run_implementation(
     generation: int,
     workers: int = 1,
     progress: StepProgress | None = None,
+    physics: sim.Physics = "pymunk",
 ) -> Implementation:
     """Implement a 1-individual population; returns the results (nothing is written).
 
@@ -264,6 +271,7 @@ def run_implementation(
         settings,
         seed,
         control_period,
+        physics,
         parts,
         recorded,
         workers,
@@ -330,12 +338,14 @@ def implement(
         cfg, individual = run.best_genome(generation)
         seed = settings.seed if settings.seed is not None else run.seed
         control_period = run.config.training.control_period
+        physics = run.config.training.physics
     result = run_implementation(
         cfg,
         individual,
         settings,
         seed=seed,
         control_period=control_period,
+        physics=physics,
         name=name,
         generation=generation,
         workers=workers,
