@@ -34,7 +34,7 @@ COLLISION_BIAS = float(np.float32(1.0) - np.float32(0.1)) ** 60.0
 (1 − 0.1f)^60: 10% corrected per 1/60 s)."""
 COLLISION_PERSISTENCE = 3
 """Physics steps a contact's accumulated impulse is remembered after it ends (chipmunk's)."""
-MAX_REMEMBERED = 16
+MAX_REMEMBERED = 8
 """Contacts a robot remembers at once; more walls than this within a body radius in three
 substeps cannot happen in a room of straight walls (a point touches at most a few)."""
 
@@ -59,9 +59,12 @@ class AnalyticBodies:
         self.offset = np.asarray(offset, dtype=np.float64)
         copy = walls + self.offset  # the same float64 sums as the pymunk world's segments
         delta = copy[:, 1] - copy[:, 0]
-        first_cell = np.floor(copy.min(axis=1) / cell)  # the wall's lowest hash cell (i, j)
+        low, high = copy.min(axis=1), copy.max(axis=1)  # the wall's bounding box
+        first_cell = np.floor(low / cell)  # the wall's lowest hash cell (i, j)
         self.walls = np.ascontiguousarray(
-            np.column_stack([copy[:, 0], delta, np.einsum("ij,ij->i", delta, delta), first_cell])
+            np.column_stack(
+                [copy[:, 0], delta, np.einsum("ij,ij->i", delta, delta), first_cell, low, high]
+            )
         )
         self.cell = float(cell)
         self.iterations = iterations
@@ -139,8 +142,9 @@ def solve_discs(
     Args:
         state: (N, 9) x, y, heading, vx, vy, ω, bias vx, bias vy, bias ω (copy frame), updated.
         forces: (S, N, 3) fx, fy, τ for S substeps.
-        walls: (K, 7) ax, ay, ex, ey, |e|² of segments from a to a + e (copy frame), and the
-            (i, j) of the lowest hash cell each one's bounding box covers.
+        walls: (K, 11) ax, ay, ex, ey, |e|² of segments from a to a + e (copy frame), the
+            (i, j) of the lowest hash cell each one's bounding box covers, and that box (x and y
+            low, x and y high).
         cell: Hash cell side (mm).
         dt: Substep length (s).
         bias_coef: Fraction of the penetration beyond the slop corrected per substep.
@@ -182,6 +186,14 @@ def solve_discs(
             low_i = np.floor((x - radius) / cell)  # the robot's lowest hash cell
             low_j = np.floor((y - radius) / cell)
             for k in range(k_walls):
+                # chipmunk's broadphase: boxes that do not overlap hold no contact
+                if (
+                    walls[k, 7] > x + radius
+                    or walls[k, 9] < x - radius
+                    or walls[k, 8] > y + radius
+                    or walls[k, 10] < y - radius
+                ):
+                    continue
                 ax, ay, ex, ey = walls[k, 0], walls[k, 1], walls[k, 2], walls[k, 3]
                 t = (ex * (x - ax) + ey * (y - ay)) / walls[k, 4]
                 t = 0.0 if not t > 0.0 else (1.0 if not t < 1.0 else t)
@@ -246,31 +258,45 @@ def solve_discs(
                     vx = vx + (-jx) * m_inv
                     vy = vy + (-jy) * m_inv
                     w += i_inv * (c_r1[c, 0] * (-jy) - c_r1[c, 1] * (-jx))
-            # cpArbiterApplyImpulse, `iterations` passes
-            for _ in range(iterations):
-                for c in range(m):
-                    nx, ny = c_n[c, 0], c_n[c, 1]
-                    r1x, r1y = c_r1[c, 0], c_r1[c, 1]
-                    vbn = (0.0 - (bx + (-r1y) * bw)) * nx + (0.0 - (by + r1x * bw)) * ny
-                    vrn = (0.0 - (vx + (-r1y) * w)) * nx + (0.0 - (vy + r1x * w)) * ny
-                    jbn = (c_bias[c] - vbn) * c_mass[c]
-                    jb_old = c_jb[c]
-                    jb = jb_old + jbn
-                    c_jb[c] = jb if jb > 0.0 else 0.0
-                    jn = -vrn * c_mass[c]
-                    jn_old = c_jn[c]
-                    jn_new = jn_old + jn
-                    c_jn[c] = jn_new if jn_new > 0.0 else 0.0
-                    jx = nx * (c_jb[c] - jb_old)
-                    jy = ny * (c_jb[c] - jb_old)
-                    bx = bx + (-jx) * m_inv
-                    by = by + (-jy) * m_inv
-                    bw += i_inv * (r1x * (-jy) - r1y * (-jx))
-                    jx = nx * (c_jn[c] - jn_old)
-                    jy = ny * (c_jn[c] - jn_old)
-                    vx = vx + (-jx) * m_inv
-                    vy = vy + (-jy) * m_inv
-                    w += i_inv * (r1x * (-jy) - r1y * (-jx))
+            # cpArbiterApplyImpulse, `iterations` passes (one contact, the common case, in
+            # registers)
+            if m == 1:
+                nx, ny, r1x, r1y = c_n[0, 0], c_n[0, 1], c_r1[0, 0], c_r1[0, 1]
+                mass, bias, jb, jn = c_mass[0], c_bias[0], c_jb[0], c_jn[0]
+                for _ in range(iterations):
+                    jb_old, jn_old = jb, jn
+                    jb, jn, vx, vy, w, bx, by, bw = _impulse(
+                        nx, ny, r1x, r1y, mass, bias, jb, jn, vx, vy, w, bx, by, bw, m_inv, i_inv
+                    )
+                    if jb == jb_old and jn == jn_old:
+                        break  # a pass that changed nothing: the rest would change nothing
+                c_jn[0] = jn
+            else:
+                for _ in range(iterations):
+                    changed = False
+                    for c in range(m):
+                        jb_old, jn_old = c_jb[c], c_jn[c]
+                        c_jb[c], c_jn[c], vx, vy, w, bx, by, bw = _impulse(
+                            c_n[c, 0],
+                            c_n[c, 1],
+                            c_r1[c, 0],
+                            c_r1[c, 1],
+                            c_mass[c],
+                            c_bias[c],
+                            c_jb[c],
+                            c_jn[c],
+                            vx,
+                            vy,
+                            w,
+                            bx,
+                            by,
+                            bw,
+                            m_inv,
+                            i_inv,
+                        )
+                        changed |= c_jb[c] != jb_old or c_jn[c] != jn_old
+                    if not changed:
+                        break
             # Remember this substep's contacts; forget those untouched for `persistence` steps.
             for c in range(m):
                 slot = -1
@@ -291,6 +317,46 @@ def solve_discs(
         state[i, 0], state[i, 1], state[i, 2] = x, y, a
         state[i, 3], state[i, 4], state[i, 5] = vx, vy, w
         state[i, 6], state[i, 7], state[i, 8] = bx, by, bw
+
+
+@nb.njit(cache=True, inline="always")
+def _impulse(
+    nx: float,
+    ny: float,
+    r1x: float,
+    r1y: float,
+    mass: float,
+    bias: float,
+    jb_acc: float,
+    jn_acc: float,
+    vx: float,
+    vy: float,
+    w: float,
+    bx: float,
+    by: float,
+    bw: float,
+    m_inv: float,
+    i_inv: float,
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """One contact's bias and normal impulses (cpArbiterApplyImpulse, no friction): the new
+    accumulated impulses, velocity and bias velocity."""
+    vbn = (0.0 - (bx + (-r1y) * bw)) * nx + (0.0 - (by + r1x * bw)) * ny
+    vrn = (0.0 - (vx + (-r1y) * w)) * nx + (0.0 - (vy + r1x * w)) * ny
+    jb_new = jb_acc + (bias - vbn) * mass
+    jb_new = jb_new if jb_new > 0.0 else 0.0
+    jn_new = jn_acc + (-vrn) * mass
+    jn_new = jn_new if jn_new > 0.0 else 0.0
+    jx = nx * (jb_new - jb_acc)
+    jy = ny * (jb_new - jb_acc)
+    bx = bx + (-jx) * m_inv
+    by = by + (-jy) * m_inv
+    bw += i_inv * (r1x * (-jy) - r1y * (-jx))
+    jx = nx * (jn_new - jn_acc)
+    jy = ny * (jn_new - jn_acc)
+    vx = vx + (-jx) * m_inv
+    vy = vy + (-jy) * m_inv
+    w += i_inv * (r1x * (-jy) - r1y * (-jx))
+    return jb_new, jn_new, vx, vy, w, bx, by, bw
 
 
 @nb.njit(cache=True, inline="always")
