@@ -142,8 +142,7 @@ def main() -> None:
         rates = [count / best[name, physics] for physics in sim.PHYSICS]
         print(f"  {name:34} {rates[0]:12,.0f} {rates[1]:12,.0f}  {rates[1] / rates[0]:5.2f} ×")
     loop = {p: best["training loop, 1 worker", p] for p in sim.PHYSICS}
-    stepping = {p: best["loop's commands: step only", p] for p in sim.PHYSICS}
-    rest = loop["pymunk"] - stepping["pymunk"]
+    rest = loop["pymunk"] - best["loop's commands: step only", "pymunk"]
     print(
         f"  the loop without the physics: {loop_work / rest:,.0f} robot-steps/s, so the analytic "
         f"loop can be at most {loop['pymunk'] / rest:.2f} × pymunk's"
