@@ -136,6 +136,29 @@ def test_sensing_noise_and_faults_are_shared() -> None:
         np.testing.assert_array_equal(a, b)
 
 
+def test_robots_placed_mid_run_move_as_in_pymunk() -> None:
+    """Placing a robot pressed on a wall forgets its velocity and contacts in both worlds."""
+    n, steps = 40, 200
+    rng = np.random.default_rng(8)
+    poses = TRAINING.start_poses[rng.integers(0, 10, n)]
+    commands = held_commands(rng, steps, n)
+    again = TRAINING.start_poses[rng.integers(0, 10, n // 2)]
+    out = {}
+    for physics in sim.PHYSICS:
+        world = sim.World(TRAINING, n=n, physics=physics)
+        world.reset(poses)
+        track = []
+        for t, command in enumerate(commands):
+            if t == steps // 2:
+                pressed = BODY_RADIUS_MM - TRAINING.clearance(world.poses[: n // 2, :2]) > 0
+                assert np.count_nonzero(pressed) >= 3
+                world.place(again, robots=np.arange(n // 2))
+            world.step(command)
+            track.append(world.poses)
+        out[physics] = np.array(track)
+    np.testing.assert_array_equal(out["analytic"], out["pymunk"])
+
+
 @settings(max_examples=30, deadline=None)
 @given(
     arena=st.sampled_from(sim.ARENA_NAMES),
