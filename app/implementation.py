@@ -258,7 +258,8 @@ def run_implementation(
     """Implement a 1-individual population; returns the results (nothing is written).
 
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
-    process, such as a Dask worker); results are identical for any count.
+    process, such as a Dask worker); results are identical for any count. `physics` is the
+    worlds' physics (a run's `training.physics`).
     """
     arena = sim.load_arena(settings.arena)
     n_starts = len(arena.start_poses)
