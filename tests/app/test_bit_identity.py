@@ -6,8 +6,9 @@ the committed reports' values were computed by the code as it was. Two oracles:
   step of them. A trial's life depends only on (seed, trial index), so re-living trials 0..9
   for the first steps must give back exactly those poses, readings, observations, commands and
   reward terms (noise σ = 50 and a dead sensor included: the noise stream and the faults).
-- `fingerprints.json` holds digests (see `fingerprints.py`) of a small training run and implementation phase computed
-  by the code before the speed work (random faults, noise and several worlds per phase).
+- `fingerprints.json` holds digests (see `fingerprints.py`) of a small training run and
+  implementation phase computed by the code before the speed work (random faults, noise and
+  several worlds per phase).
 """
 
 from __future__ import annotations
