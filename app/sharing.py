@@ -38,6 +38,7 @@ def share_out(
     calls: Sequence[tuple[Any, ...]],
     workers: int,
     report: Callable[[int], None] = lambda done: None,
+    method: str | None = None,
 ) -> list[Any]:
     """`[function(*call, count) for call in calls]`, on this process and `workers` − 1 children.
 
@@ -47,11 +48,12 @@ def share_out(
         calls: Every call's other arguments (picklable, for a spawned child).
         workers: Processes in all, this one included.
         report: Called in this process with the work done so far, by every process.
+        method: The children's start method (default: `start_method()`).
 
     Raises:
         WorkerDied: a child process died; an exception in a call is raised again here.
     """
-    context: Any = multiprocessing.get_context(start_method())  # typeshed: BaseContext
+    context: Any = multiprocessing.get_context(method or start_method())  # typeshed: BaseContext
     tally = context.Value("q", 0)
     taken = context.Value("q", 0)
     results = context.Queue()
