@@ -5,7 +5,8 @@
 
 One life of `--robots` generation-0 controllers of the preset (σ = `--noise`) is recorded in the
 training arena; then each stage replays its share of that life alone, on the recorded inputs:
-- sensing: the 8 IR rays of every robot at the recorded poses (`sim.ir_readings`);
+- sensing: the 8 IR rays of every robot at the recorded poses (`sim.ir_readings`), and the
+  same with every wall tested for reach (`sim.kernels.ir_readings`, the kernel before the cull);
 - noise: what the controllers see (`World.observe`: Eq. 2.6 noise and faults) on those readings;
 - physics pymunk: `World.step` through the recorded commands (the same contacts);
 - controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
@@ -13,7 +14,9 @@ training arena; then each stage replays its share of that life alone, on the rec
 - loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn).
 The limit is what the loop's stages add up to (1 / Σ 1/rate); loop / limit below 1 is the loop's
 own overhead. Rates are robot-steps per CPU second of this process (best of `--rounds`,
-alternating, so a busy machine's drifts hit every stage alike): per-core throughput.
+alternating, so a busy machine's drifts hit every stage alike): per-core throughput. Worlds are
+built once, outside the timing (300 copies of an arena's walls take pymunk a few tenths of a
+second); each timed life starts with a reset (and fresh controllers): a small share of it.
 
 Another physics is one more line in STAGES, e.g.
     "physics analytic": lambda life: physics(life, physics="analytic"),
@@ -123,6 +126,18 @@ def sensing(life: Life) -> Timed:
     return run
 
 
+def sensing_every_wall(life: Life) -> Timed:
+    """The kernel before the grid cull (its reference): every wall tested for reach."""
+    table = life.arena.wall_table
+    out = np.empty((life.poses.shape[1], sim.N_SENSORS))
+
+    def run() -> None:
+        for poses in life.poses:
+            kernels.ir_readings(poses, table, out)
+
+    return run
+
+
 def noise(life: Life) -> Timed:
     world = life.world()
     mode = np.zeros(life.readings.shape[1:], np.int8)
@@ -138,8 +153,10 @@ def noise(life: Life) -> Timed:
 
 
 def physics(life: Life, **options: Any) -> Timed:
+    world = life.world(**options)
+
     def run() -> None:
-        world = life.world(**options)  # placing the robots is a tiny share of a life
+        world.reset(life.start, seeds=life.world_seeds)  # a world is built once: a big cost
         for commands in life.commands:
             world.step(commands)
 
@@ -171,9 +188,14 @@ def reward(life: Life) -> Timed:
 
 def loop(life: Life) -> Timed:
     eps, alpha = life.config.training.epsilon, life.config.training.alpha
+    batch = life.batch()
+    cfg = life.config.controller.gnp_config()
 
     def run() -> None:
-        batch = life.batch()
+        batch.world.reset(life.start, seeds=life.world_seeds)
+        batch.population = gnp.take(life.population, np.arange(life.population.size))
+        batch.state = gnp.init_state(cfg, batch.size, life.engine_seeds)
+        batch.reward = np.zeros(batch.size)
         for _ in range(len(life.commands)):
             batch.step(eps, alpha)
 
@@ -182,6 +204,7 @@ def loop(life: Life) -> Timed:
 
 STAGES: dict[str, Callable[[Life], Timed]] = {
     "sensing": sensing,
+    "sensing, every wall": sensing_every_wall,
     "noise": noise,
     "physics pymunk": physics,
     "controller": controller,
@@ -225,11 +248,11 @@ def main() -> None:
         f"{args.preset} ({method}, σ = {args.noise:g}), {args.robots} robots × {args.steps} "
         f"steps; robot-steps per CPU second, best of {args.rounds}"
     )
-    print(f"  {'stage':16} {'rate':>12} {'× loop':>8} {'share of limit':>15}")
+    print(f"  {'stage':20} {'rate':>12} {'× loop':>8} {'share of limit':>15}")
     for name in runs:
         share = f"{limit / rate[name]:14.0%}" if name in LOOP_STAGES else ""
-        print(f"  {name:16} {rate[name]:12,.0f} {rate[name] / rate['loop']:8.2f} {share:>15}")
-    print(f"  {'limit of loop':16} {limit:12,.0f} {limit / rate['loop']:8.2f}")
+        print(f"  {name:20} {rate[name]:12,.0f} {rate[name] / rate['loop']:8.2f} {share:>15}")
+    print(f"  {'limit of loop':20} {limit:12,.0f} {limit / rate['loop']:8.2f}")
     print(f"  loop / limit: {rate['loop'] / limit:.2f}")
 
 
