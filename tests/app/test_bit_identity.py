@@ -25,17 +25,26 @@ from app.store import RunReader
 
 DEMO = Path(__file__).parents[2] / "saved_runs" / "demo.h5"
 FINGERPRINTS = json.loads((Path(__file__).parent / "fingerprints.json").read_text())
-STEPS = 700  # past the demo's fault step (500)
+STEPS = 700  # past the demo's fault step (500), noise and faults both replayed
 
 
-@pytest.mark.parametrize("name", ["break-3-dead-fixed-noise50", "no-fault-fixed-noise50"])
+with RunReader(DEMO) as _demo:  # whichever implementations the committed demo stores
+    DEMO_IMPLEMENTATIONS = _demo.implementation_names()
+
+
+def test_the_demo_stores_implementations_to_replay() -> None:
+    assert DEMO_IMPLEMENTATIONS  # else the replay test below checks nothing
+
+
+@pytest.mark.parametrize("name", DEMO_IMPLEMENTATIONS)
 def test_demo_implementation_trials_replay_to_the_bit(name: str) -> None:
     with RunReader(DEMO) as run:
         stored = run.implementation(name)
         cfg, individual = run.best_genome(stored.generation)
         seed = stored.settings.seed if stored.settings.seed is not None else run.seed
         control_period = run.config.training.control_period
-    settings = stored.settings.model_copy(update={"repeats": 1, "steps": STEPS})
+    steps = min(STEPS, stored.settings.steps)
+    settings = stored.settings.model_copy(update={"repeats": 1, "steps": steps})
     again = run_implementation(
         cfg,
         individual,
@@ -47,11 +56,11 @@ def test_demo_implementation_trials_replay_to_the_bit(name: str) -> None:
     )
     old, new = stored.trials, again.trials
     for field in ("poses", "readings", "observations", "commands"):
-        assert np.array_equal(getattr(new, field), getattr(old, field)[:, :STEPS]), field
+        assert np.array_equal(getattr(new, field), getattr(old, field)[:, :steps]), field
     for term, values in old.terms.items():
-        assert np.array_equal(new.terms[term], values[:, :STEPS]), term
+        assert np.array_equal(new.terms[term], values[:, :steps]), term
     for key, values in old.trace.items():
-        assert np.array_equal(new.trace[key], values[:, :STEPS]), key
+        assert np.array_equal(new.trace[key], values[:, :steps]), key
 
 
 def test_a_small_training_run_reproduces_the_committed_fingerprints() -> None:
