@@ -13,14 +13,10 @@ from __future__ import annotations
 
 import itertools
 import math
-import multiprocessing
 import re
-import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -30,6 +26,7 @@ from app.neural import BrainConfig, Individual, best_individual, copies, recorde
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import rollout
 from app.seeds import broken_sensor_draws, trial_seeds
+from app.sharing import share_out
 from app.store import (
     Implementation,
     RunFileError,
@@ -130,10 +127,10 @@ def _live_trials(
     seed: int,
     control_period: float,
     physics: sim.Physics,
+    c_from: CFrom,
     part: slice,
     record: bool,
     progress: Callable[[int], None],
-    c_from: CFrom = "true",
 ) -> _Part:
     """The lives of trials `part` in one world, C of the reward judged as `c_from` says."""
     arena = sim.load_arena(settings.arena)
@@ -171,19 +168,6 @@ def _live_trials(
     )
 
 
-_progress_counter: Any = None  # a worker process's shared count of trial-steps done
-
-
-def _init_worker(counter: Any) -> None:
-    global _progress_counter
-    _progress_counter = counter
-
-
-def _count(done: int) -> None:
-    with _progress_counter.get_lock():
-        _progress_counter.value += done
-
-
 def _live_all(
     cfg: BrainConfig,
     individual: Individual,
@@ -197,59 +181,14 @@ def _live_all(
     progress: StepProgress,
     c_from: CFrom = "true",
 ) -> list[_Part]:
-    """Every world's trials, in this process or shared out over `workers` processes."""
+    """Every world's trials, in this process and `workers` − 1 more (see `app.sharing`)."""
     total = parts[-1].stop * settings.steps
-    if workers <= 1 or len(parts) == 1:
-        done = 0
-        results = []
-        for part in parts:
-
-            def count(steps: int) -> None:
-                nonlocal done
-                done += steps
-                progress(done, total)
-
-            record = part.start == 0 and recorded > 0
-            results.append(
-                _live_trials(
-                    cfg,
-                    individual,
-                    settings,
-                    seed,
-                    control_period,
-                    physics,
-                    part,
-                    record,
-                    count,
-                    c_from,
-                )
-            )
-        return results
-    context = multiprocessing.get_context("spawn")
-    counter = context.Value("q", 0)
-    with ProcessPoolExecutor(
-        min(workers, len(parts)), context, initializer=_init_worker, initargs=(counter,)
-    ) as pool:
-        futures = [
-            pool.submit(
-                _live_trials,
-                cfg,
-                individual,
-                settings,
-                seed,
-                control_period,
-                physics,
-                part,
-                part.start == 0 and recorded > 0,
-                _count,  # a module function: each worker adds to the shared counter
-                c_from,
-            )
-            for part in parts
-        ]
-        while not all(future.done() for future in futures):
-            time.sleep(0.1)
-            progress(int(counter.value), total)
-        results = [future.result() for future in futures]
+    calls = [
+        (cfg, individual, settings, seed, control_period, physics, c_from, part,
+         part.start == 0 and recorded > 0)
+        for part in parts
+    ]  # fmt: skip
+    results = share_out(_live_trials, calls, workers, lambda done: progress(done, total))
     progress(total, total)
     return results
 

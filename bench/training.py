@@ -14,12 +14,15 @@ Measures, alternating in rounds so that the machine's drifts hit every figure al
 - the implementation phase: the trained-config individual cloned into `--trials` trials of
   `--impl-steps` steps, on 1 and 2 workers.
 Figures are robot-steps per wall-clock second (the workers run in parallel) and each one's
-ratio to the bare world.
+ratio to the bare world. On a machine that other work keeps busy, a second worker finds no idle
+core: the last line estimates the implementation's 2-worker ratio on two idle cores from CPU
+seconds instead (each process's CPU time, the busiest one's bounding the wall time).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -94,6 +97,11 @@ def training_loop(population: int, steps: int, generations: int, workers: int) -
 
 def implementation(trials: int, steps: int, workers: int) -> float:
     """Seconds for the implementation phase of a generation-0 individual."""
+    return implementation_cpu(trials, steps, workers)[0]
+
+
+def implementation_cpu(trials: int, steps: int, workers: int) -> tuple[float, float, float]:
+    """(wall s, CPU s of this process, CPU s of its children) of the implementation phase."""
     config = load_preset("thesis-ch3")
     individual = initial_population(
         build_config(config.model_dump(), {"training": {"population": 2}})
@@ -101,6 +109,8 @@ def implementation(trials: int, steps: int, workers: int) -> float:
     settings = config.implementation.model_copy(
         update={"repeats": trials // 10, "steps": steps, "recorded_trials": 3}
     )
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = time.process_time()
     began = time.perf_counter()
     run_implementation(
         config.controller.gnp_config(),
@@ -112,7 +122,23 @@ def implementation(trials: int, steps: int, workers: int) -> float:
         generation=0,
         workers=workers,
     )
-    return time.perf_counter() - began
+    wall = time.perf_counter() - began
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    child_cpu = (after.ru_utime + after.ru_stime) - (children.ru_utime + children.ru_stime)
+    return wall, time.process_time() - cpu, child_cpu
+
+
+def idle_estimate(trials: int, steps: int, rounds: int) -> str:
+    """2 workers against 1 on two idle cores, from CPU seconds: the busiest process's CPU time
+    (this one, or its child) bounds the wall time when each has a core to itself."""
+    one = min(sum(implementation_cpu(trials, steps, 1)[1:]) for _ in range(rounds))
+    parts = [implementation_cpu(trials, steps, 2) for _ in range(rounds)]
+    busiest = min(max(parent, child) for _, parent, child in parts)
+    extra = min(parent + child for _, parent, child in parts) - one
+    return (
+        f"implementation, 2 workers on 2 idle cores (from CPU seconds): "
+        f"{one / busiest:.2f} × 1 worker; the second process costs {extra:+.2f} CPU s"
+    )
 
 
 def main() -> None:
@@ -161,6 +187,9 @@ def main() -> None:
     for name, (_, work) in cases.items():
         rate = work / best[name]
         print(f"  {name:28} {rate:12,.0f}   {rate / bare:5.2f} × bare world")
+    one, two = best["implementation, 1 worker"], best["implementation, 2 workers"]
+    print(f"  implementation, 2 workers / 1 worker: {one / two:.2f}×")
+    print("  " + idle_estimate(args.trials, args.impl_steps, args.rounds))
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
 from sim.khepera import BODY_RADIUS_MM, IR_MAX, IR_RANGE_MM, MAX_COMMAND, N_SENSORS
 from sim.reward import TERM_NAMES, reward_table, reward_terms
-from sim.sensors import sensor_rays
+from sim.sensors import WallGrid, ir_readings, sensor_rays
 from sim.world import FAULT_MODES, PHYSICS, Fault, FaultMode, Physics, World, WorldError
 
 __all__ = [
@@ -27,9 +27,11 @@ __all__ = [
     "Fault",
     "FaultMode",
     "Physics",
+    "WallGrid",
     "World",
     "WorldError",
     "check_world",
+    "ir_readings",
     "load_arena",
     "reward_table",
     "reward_terms",

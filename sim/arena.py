@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from sim import kernels
 from sim.khepera import BODY_RADIUS_MM
+from sim.sensors import WallGrid, wall_grid
 
 ARENA_NAMES: tuple[str, ...] = ("implementation", "training")
 N_START_POSES = 10
@@ -100,6 +101,11 @@ class Arena:
     def wall_table(self) -> np.ndarray:
         """The walls as ``sim.kernels.wall_table`` rows, for the numba kernels."""
         return kernels.wall_table(self.walls)
+
+    @cached_property
+    def wall_grid(self) -> WallGrid:
+        """The walls near each cell, for ``sim.sensors.ir_readings`` (built once per arena)."""
+        return wall_grid(self.walls)
 
 
 def _as_points(points: np.ndarray) -> np.ndarray:

@@ -274,7 +274,7 @@ class World:
         self.substeps = substeps
         self.noise_sigma = noise_sigma
         offsets, capacity, cell = _layout(arena, self.n)
-        self._wall_table = kernels.wall_table(arena.walls)
+        self._wall_grid = arena.wall_grid
         # Analytic: every robot in the first copy's frame (copies round alike), no spaces.
         self._analytic = (
             AnalyticBodies(arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell)
@@ -452,7 +452,10 @@ class World:
 
     def _update_readings(self) -> None:
         if not self._fresh:
-            kernels.ir_readings(self._poses, self._wall_table, self._readings)
+            grid = self._wall_grid  # the kernel itself: sensors.ir_readings without its checks
+            kernels.ir_readings_grid(
+                self._poses, grid.table, grid.frame, grid.starts, grid.members, self._readings
+            )
             self._fresh = True
 
     def observe(self) -> np.ndarray:

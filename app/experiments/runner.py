@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import signal
-import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -22,7 +21,7 @@ from typing import Any
 import numpy as np
 
 import sim
-from app.config import ImplementationSettings, RunConfig, build_config
+from app.config import ImplementationSettings, RunConfig
 from app.experiments.progress import TOPIC, Progress, outcome_line
 from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec, check_name, load_file
@@ -305,23 +304,16 @@ def run_task(task: Task) -> dict[str, Any]:
 # --- the client -----------------------------------------------------------------------------
 
 
-def warm_numba(tasks: list[Task]) -> None:
+def warm_numba(tasks: list[Task], client: Any = None) -> None:
     """Compile (or load) numba's cached kernels once, in this process, before fanning out:
-    several workers compiling the same cache at once can race (numba#4807)."""
-    from app.implementation import implement
-    from app.training import train
+    several workers compiling the same cache at once can race (numba#4807). Then, given a Dask
+    `client`, have every worker load them as it starts, not inside its first task."""
+    from app.experiments.warm import WarmWorkers, controllers, warm_up
 
-    controllers = {t.config.controller.model_dump_json(): t.config for t in tasks}
-    with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
-        for i, config in enumerate(controllers.values()):
-            tiny = build_config(
-                {"controller": config.controller.model_dump()},
-                {"training": {"population": 2, "generations": 1, "steps": 2, "noise_sigma": 1}},
-                {"implementation": {"steps": 2, "repeats": 1, "fault_step": 1, "break_count": 1}},
-            )
-            path = Path(folder) / f"warm{i}.h5"
-            train(tiny, path, workers=1)
-            implement(path, tiny.implementation, name="warm", workers=1)
+    configs = controllers([t.config for t in tasks])
+    warm_up(configs)
+    if client is not None:  # after the cache is written: the workers only read it
+        client.register_plugin(WarmWorkers(configs))
 
 
 def default_workers() -> int:
@@ -411,7 +403,7 @@ def execute(
         return []
     if not quiet:
         sys.stderr.write("warming numba's cache in this process (minutes the first time)...\n")
-    warm_numba(todo)
+    warm_numba(todo, client)
     progress = Progress(tasks, states, quiet=quiet)
     say = echo or progress.write
     client.subscribe_topic(TOPIC, progress.event)

@@ -20,7 +20,10 @@ GNP_RUN_DIGEST = "0681512e7af645c803ad68703475b075b82f3769469b5b891411907065ba69
 
 
 #: Config sections added since that digest, with their defaults (which change no result).
-ADDED_SINCE = {"reward": {"c_from": "true"}}
+ADDED_SINCE: dict[tuple[str, ...], object] = {
+    ("reward",): {"c_from": "true"},
+    ("training", "physics"): "pymunk",
+}
 
 
 def run_digest(path: Path) -> str:
@@ -33,8 +36,11 @@ def run_digest(path: Path) -> str:
         digest.update(array.tobytes())
     with h5py.File(path, "r", locking=False) as handle:
         config = json.loads(str(handle.attrs["config"]))
-    for section, default in ADDED_SINCE.items():
-        assert config.pop(section) == default
+    for (*parents, key), default in ADDED_SINCE.items():
+        where = config
+        for parent in parents:
+            where = where[parent]
+        assert where.pop(key) == default
     digest.update(json.dumps(config, separators=(",", ":")).encode())
     return digest.hexdigest()
 

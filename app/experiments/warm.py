@@ -1,0 +1,67 @@
+"""Warm Dask workers: numba's kernels loaded and the lab imported when a worker starts.
+
+A cold worker spends its first task's first seconds importing the lab and loading numba's
+compiled kernels (compiling them, if the cache is cold). `WarmWorkers`, registered on a client
+once the client process has filled numba's cache (`app.experiments.runner.warm_numba`; workers
+compiling the same cache at once can race, numba#4807), has every worker, present and future,
+live a tiny run of each controller at start, so no task pays for it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from distributed import WorkerPlugin
+
+from app.config import RunConfig, build_config
+
+
+def warm_up(configs: list[RunConfig]) -> None:
+    """Train and implement a tiny run of each config's controller in this process: every
+    kernel the lab's tasks call gets compiled (or loaded from numba's cache)."""
+    from app.implementation import implement
+    from app.training import train
+
+    with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
+        for i, config in enumerate(configs):
+            brain: dict[str, Any] = {"controller": config.controller.model_dump()}
+            if config.neuro is not None:
+                brain["neuro"] = config.neuro.model_dump()
+            tiny = build_config(
+                brain,
+                {"training": {"population": 4, "generations": 1, "steps": 2, "noise_sigma": 1,
+                              "physics": config.training.physics}},
+                {"implementation": {"steps": 2, "repeats": 1, "fault_step": 1, "break_count": 1}},
+            )  # fmt: skip
+            path = Path(folder) / f"warm{i}.h5"
+            train(tiny, path, workers=1)
+            implement(path, tiny.implementation, name="warm", workers=1)
+
+
+def _kernels(config: RunConfig) -> str:
+    """What decides which kernels a run calls: its brain and its physics."""
+    neuro = config.neuro.model_dump_json() if config.neuro is not None else ""
+    return config.controller.model_dump_json() + neuro + config.training.physics
+
+
+def controllers(configs: list[RunConfig]) -> list[RunConfig]:
+    """One config per distinct brain and physics (what decides which kernels run)."""
+    unique = {_kernels(c): c for c in configs}
+    return list(unique.values())
+
+
+class WarmWorkers(WorkerPlugin):
+    """A worker plugin: `warm_up(configs)` when a worker starts (or joins later)."""
+
+    def __init__(self, configs: list[RunConfig]) -> None:
+        self.configs = controllers(configs)
+        digest = hashlib.sha256("".join(_kernels(c) for c in self.configs).encode()).hexdigest()[
+            :12
+        ]
+        self.name = f"gnp-lab-warm-{digest}"  # one registration per set of controllers
+
+    def setup(self, worker: Any) -> None:
+        warm_up(self.configs)

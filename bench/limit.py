@@ -1,0 +1,260 @@
+"""What caps the loop: each stage's throughput per core, and the loop's ratio to their limit.
+
+    .venv/bin/python bench/limit.py [--preset thesis-ch3] [--noise 50] [--robots 300]
+                                    [--steps 500] [--rounds 3]
+
+One life of `--robots` generation-0 controllers of the preset (σ = `--noise`) is recorded in the
+training arena; then each stage replays its share of that life alone, on the recorded inputs:
+- sensing: the 8 IR rays of every robot at the recorded poses (`sim.ir_readings`), and the
+  same with every wall tested for reach (`sim.kernels.ir_readings`, the kernel before the cull);
+- noise: what the controllers see (`World.observe`: Eq. 2.6 noise and faults) on those readings;
+- physics pymunk: `World.step` through the recorded commands (the same contacts);
+- controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
+- reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
+- loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn).
+The limit is what the loop's stages add up to (1 / Σ 1/rate); loop / limit below 1 is the loop's
+own overhead. Rates are robot-steps per CPU second of this process (best of `--rounds`,
+alternating, so a busy machine's drifts hit every stage alike): per-core throughput. Worlds are
+built once, outside the timing (300 copies of an arena's walls take pymunk a few tenths of a
+second); each timed life starts with a reset (and fresh controllers): a small share of it.
+
+Another physics is one more line in STAGES (as "physics analytic" is), and it joins the table
+(not the loop's limit, which is the pymunk loop's: see LOOP_STAGES).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import gnp
+import sim
+from app.config import RunConfig, build_config, load_preset
+from app.rollout import Batch
+from app.seeds import life_seeds
+from app.training import initial_population
+from sim import kernels
+
+
+@dataclass(frozen=True)
+class Life:
+    """One recorded life: the inputs each stage replays (arrays (T, N, ...))."""
+
+    config: RunConfig
+    arena: sim.Arena
+    start: np.ndarray  # (N, 3) start poses
+    world_seeds: np.ndarray  # (N,)
+    engine_seeds: np.ndarray  # (N,)
+    population: gnp.Population  # before the life (Sarsa changes a copy)
+    poses: np.ndarray  # (T, N, 3) after each step (unwrapped, as the world holds them)
+    readings: np.ndarray  # (T, N, 8) true readings after each step
+    observations: np.ndarray  # (T, N, 8) what the controllers saw before each step
+    rewards: np.ndarray  # (T, N) the reward fed to the controllers at each step
+    commands: np.ndarray  # (T, N, 2)
+
+    @property
+    def work(self) -> int:
+        """Robot-steps of the life."""
+        return int(self.commands.shape[0] * self.commands.shape[1])
+
+    def world(self, **options: Any) -> sim.World:
+        """A world at the life's start (same robots, seeds and noise)."""
+        world = sim.World(
+            self.arena,
+            n=len(self.start),
+            seed=self.config.seed,
+            noise_sigma=self.config.training.noise_sigma,
+            **options,
+        )
+        world.reset(self.start, seeds=self.world_seeds)
+        return world
+
+    def batch(self) -> Batch:
+        """The lab's loop at the life's start, with fresh copies of the controllers."""
+        copy = gnp.take(self.population, np.arange(self.population.size))
+        return Batch(self.world(), self.config.controller.gnp_config(), copy, self.engine_seeds)
+
+
+def record(config: RunConfig, robots: int, steps: int) -> Life:
+    """Live `steps` steps of `robots` generation-0 controllers of `config` and keep the inputs."""
+    grown = build_config(config.model_dump(), {"training": {"population": robots}})
+    seeds = life_seeds(grown.seed, 0, np.arange(robots), 1, 10)
+    arena = sim.load_arena(grown.training.arena)
+    population = initial_population(grown)
+    life = Life(
+        config=grown,
+        arena=arena,
+        start=arena.start_poses[seeds.starts[:, 0]],
+        world_seeds=seeds.world,
+        engine_seeds=seeds.engine,
+        population=gnp.take(population, np.arange(robots)),
+        poses=np.zeros((steps, robots, 3)),
+        readings=np.zeros((steps, robots, sim.N_SENSORS)),
+        observations=np.zeros((steps, robots, sim.N_SENSORS)),
+        rewards=np.zeros((steps, robots)),
+        commands=np.zeros((steps, robots, 2)),
+    )
+    batch = Batch(life.world(), grown.controller.gnp_config(), population, seeds.engine)
+    eps, alpha = grown.training.epsilon, grown.training.alpha
+    for t in range(steps):
+        life.rewards[t] = batch.reward
+        step = batch.step(eps, alpha)
+        life.observations[t] = step.observations
+        life.commands[t] = step.commands
+        life.readings[t] = step.readings
+        life.poses[t] = batch.world._poses  # unwrapped: the bits the world senses from
+    return life
+
+
+Timed = Callable[[], None]
+
+
+def sensing(life: Life) -> Timed:
+    grid = life.arena.wall_grid
+    out = np.empty((life.poses.shape[1], sim.N_SENSORS))
+
+    def run() -> None:
+        for poses in life.poses:
+            sim.ir_readings(poses, grid, out)
+
+    return run
+
+
+def sensing_every_wall(life: Life) -> Timed:
+    """The kernel before the grid cull (its reference): every wall tested for reach."""
+    table = life.arena.wall_table
+    out = np.empty((life.poses.shape[1], sim.N_SENSORS))
+
+    def run() -> None:
+        for poses in life.poses:
+            kernels.ir_readings(poses, table, out)
+
+    return run
+
+
+def noise(life: Life) -> Timed:
+    world = life.world()
+    mode = np.zeros(life.readings.shape[1:], np.int8)
+    stuck = np.zeros(life.readings.shape[1:])
+    out = np.empty(life.readings.shape[1:])
+    keys = kernels.robot_keys(life.world_seeds)
+
+    def run() -> None:
+        for t, readings in enumerate(life.readings):  # World.observe's kernel, as it calls it
+            kernels.observe(readings, keys, np.uint64(t), world.noise_sigma, mode, stuck, out)
+
+    return run
+
+
+def physics(life: Life, **options: Any) -> Timed:
+    world = life.world(**options)
+
+    def run() -> None:
+        world.reset(life.start, seeds=life.world_seeds)  # a world is built once: a big cost
+        for commands in life.commands:
+            world.step(commands)
+
+    return run
+
+
+def controller(life: Life) -> Timed:
+    cfg = life.config.controller.gnp_config()
+    eps, alpha = life.config.training.epsilon, life.config.training.alpha
+
+    def run() -> None:
+        population = gnp.take(life.population, np.arange(life.population.size))
+        state = gnp.init_state(cfg, population.size, life.engine_seeds)
+        for seen, reward in zip(life.observations, life.rewards, strict=True):
+            gnp.step(cfg, population, state, seen, reward, eps, alpha, True)
+
+    return run
+
+
+def reward(life: Life) -> Timed:
+    out = np.empty((life.commands.shape[1], len(sim.TERM_NAMES)))
+
+    def run() -> None:
+        for readings, commands in zip(life.readings, life.commands, strict=True):
+            sim.reward_table(readings, commands, out)
+
+    return run
+
+
+def loop(life: Life) -> Timed:
+    eps, alpha = life.config.training.epsilon, life.config.training.alpha
+    batch = life.batch()
+    cfg = life.config.controller.gnp_config()
+
+    def run() -> None:
+        batch.world.reset(life.start, seeds=life.world_seeds)
+        batch.population = gnp.take(life.population, np.arange(life.population.size))
+        batch.state = gnp.init_state(cfg, batch.size, life.engine_seeds)
+        batch.reward = np.zeros(batch.size)
+        for _ in range(len(life.commands)):
+            batch.step(eps, alpha)
+
+    return run
+
+
+STAGES: dict[str, Callable[[Life], Timed]] = {
+    "sensing": sensing,
+    "sensing, every wall": sensing_every_wall,
+    "noise": noise,
+    "physics pymunk": physics,
+    "physics analytic": lambda life: physics(life, physics="analytic"),
+    "controller": controller,
+    "reward": reward,
+    "loop": loop,
+}
+"""Each stage's timed replay, built from the recorded life (one line adds a stage)."""
+LOOP_STAGES = ("sensing", "noise", "physics pymunk", "controller", "reward")
+"""The stages the loop runs in turn: their limit is what the loop could reach per core."""
+
+
+def cpu_seconds(run: Timed) -> float:
+    began = time.process_time()
+    run()
+    return time.process_time() - began
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--preset", default="thesis-ch3")
+    parser.add_argument("--noise", type=float, default=50.0)
+    parser.add_argument("--robots", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    config = build_config(
+        load_preset(args.preset).model_dump(), {"training": {"noise_sigma": args.noise}}
+    )
+    life = record(config, args.robots, args.steps)
+    runs = {name: build(life) for name, build in STAGES.items()}
+    for run in runs.values():  # numba's kernels loaded, caches filled
+        run()
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(args.rounds):
+        for name, run in runs.items():
+            best[name] = min(best[name], cpu_seconds(run))
+    rate = {name: life.work / seconds for name, seconds in best.items()}
+    limit = 1.0 / sum(1.0 / rate[name] for name in LOOP_STAGES)
+    method = config.controller.method
+    print(
+        f"{args.preset} ({method}, σ = {args.noise:g}), {args.robots} robots × {args.steps} "
+        f"steps; robot-steps per CPU second, best of {args.rounds}"
+    )
+    print(f"  {'stage':20} {'rate':>12} {'× loop':>8} {'share of limit':>15}")
+    for name in runs:
+        share = f"{limit / rate[name]:14.0%}" if name in LOOP_STAGES else ""
+        print(f"  {name:20} {rate[name]:12,.0f} {rate[name] / rate['loop']:8.2f} {share:>15}")
+    print(f"  {'limit of loop':20} {limit:12,.0f} {limit / rate['loop']:8.2f}")
+    print(f"  loop / limit: {rate['loop'] / limit:.2f}")
+
+
+if __name__ == "__main__":
+    main()
