@@ -356,6 +356,11 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_implement(args: argparse.Namespace) -> int:
     from app.implementation import implement
 
+    if args.break_count is not None and not 1 <= args.break_count <= sim.N_SENSORS:
+        raise UsageError(
+            f"--break-count must be 1..{sim.N_SENSORS}, got {args.break_count} "
+            "(for no fault, give --break none)"
+        )
     path = resolve_run(args.runs_dir, args.run)
     with RunReader(path) as run:
         stored = run.config.implementation
@@ -447,12 +452,7 @@ def _inspect(path: Path) -> int:
         for name in run.implementation_names():
             result = run.implementation(name)
             settings = result.settings
-            fault = (
-                f"sensors {','.join(map(str, settings.broken_sensors))} {settings.fault_mode} "
-                f"at step {settings.fault_step}"
-                if settings.broken_sensors
-                else "no fault"
-            )
+            fault = describe_fault(settings)
             print(
                 f"implementation {name}: {fault}, {len(result.trial_mean_reward)} trials "
                 f"x {settings.steps} steps: mean reward {result.mean_reward:.4f}, "
@@ -461,6 +461,17 @@ def _inspect(path: Path) -> int:
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
     return 0
+
+
+def describe_fault(settings: ImplementationSettings) -> str:
+    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
+    if not settings.has_fault:
+        return "no fault"
+    if settings.broken_sensors:
+        which = f"sensors {','.join(map(str, settings.broken_sensors))}"
+    else:
+        which = f"{settings.break_count} random sensor(s) per trial"
+    return f"{which} {settings.fault_mode} at step {settings.fault_step}"
 
 
 # --- serve ----------------------------------------------------------------------------------

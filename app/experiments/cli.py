@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from app.experiments.lock import experiment_lock
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import (
     SCALES,
@@ -161,17 +162,18 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 
     if args.scheduler and args.workers:
         raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
-    results = runner.run_experiment(
-        spec,
-        args.scale,
-        args.runs_dir,
-        seeds=args.seeds,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        quiet=args.quiet,
-        definition=Path(args.file).read_text(encoding="utf-8") if args.file else None,
-    )
     folder = runner.experiment_dir(args.runs_dir, spec.name)
+    with experiment_lock(folder):
+        results = runner.run_experiment(
+            spec,
+            args.scale,
+            args.runs_dir,
+            seeds=args.seeds,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            quiet=args.quiet,
+            definition=Path(args.file).read_text(encoding="utf-8") if args.file else None,
+        )
     print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
     print(_write_report(results, folder / f"report-{args.scale}"))
     return 0
