@@ -31,6 +31,7 @@ from app.config import (
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
+from app.store.space import is_disk_full
 
 if TYPE_CHECKING:
     from app.training import GenerationSummary
@@ -548,8 +549,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_ERROR
-    except OSError as error:
-        sys.stderr.write(f"{PROG}: error: {error}\n")
+    except (OSError, RuntimeError) as error:
+        if not (isinstance(error, OSError) or is_disk_full(error)):
+            raise
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        if is_disk_full(error):
+            text = f"no space left on the device: {text}"
+        sys.stderr.write(f"{PROG}: error: {text}\n")
+        if is_disk_full(error):
+            # HDF5 cannot close a file after a failed write: it would fail again at every
+            # flush and crash at exit. What was complete is on disk: end here.
+            sys.stderr.flush()
+            os._exit(EXIT_ERROR)
         return EXIT_ERROR
 
 

@@ -472,7 +472,7 @@ def train(
         try:
             writer.write_checkpoint(0, gnp.population_to_arrays(pop))
             writer.mark_done(0)
-        except KeyboardInterrupt:
+        except BaseException:  # Ctrl-C, a full disk: a file without its first checkpoint
             writer.close()
             Path(out).unlink(missing_ok=True)
             raise

@@ -368,7 +368,7 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
                 threads_per_worker=1,
                 processes=True,
                 host="127.0.0.1",
-                silence_logs=logging.ERROR,
+                silence_logs=logging.CRITICAL,  # a failed task is reported on one line
                 **NO_DASHBOARD,
             )
         with cluster, Client(cluster) as client:
@@ -533,7 +533,13 @@ def run_experiment(
         with connect(scheduler, workers) as own:
             errors = execute(tasks, own, quiet, echo, watch)
     results = collect(spec, scale, runs_dir, seeds)
-    write_summary(results, summary_path(runs_dir, spec.name, scale))
+    unwritten = ""
+    try:
+        write_summary(results, summary_path(runs_dir, spec.name, scale))
+    except ExperimentError as error:  # a full disk, say: not to hide why the runs failed
+        if not errors:
+            raise
+        unwritten = f"; the summary was not written either: {error}"
     if errors:
-        raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}")
+        raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}{unwritten}")
     return results
