@@ -30,6 +30,7 @@ from app.config import (
 )
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
+from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
 
@@ -191,6 +192,12 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
+    serve.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="allow a --host other machines can reach: the dashboard has no login and can "
+        "train, export and start experiments as you",
+    )
     experiment_cli.add_parser(commands)
     add_export_parser(commands)
     return parser
@@ -496,6 +503,17 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.run is not None:
         resolve_run(args.runs_dir, args.run)
     _check_host(args.host)
+    if not is_loopback(args.host):
+        if not args.allow_remote:
+            raise UsageError(
+                f"--host {args.host} lets other machines reach the dashboard, which has no "
+                "login and runs training, exports and experiments as you; keep 127.0.0.1 and "
+                "use an SSH tunnel (ssh -L 8080:127.0.0.1:8080 HOST), or add --allow-remote"
+            )
+        sys.stderr.write(
+            f"{PROG}: WARNING: the dashboard on {args.host} has no login: anyone who can "
+            "reach this port can train, export and start experiments as you\n"
+        )
     from app.dashboard import serve
 
     serve(host=args.host, port=args.port, runs_dir=args.runs_dir, run=args.run)

@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -163,13 +165,13 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     if args.scheduler and args.workers:
         raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
     folder = runner.experiment_dir(args.runs_dir, spec.name)
-    with experiment_lock(folder):
+    with experiment_lock(folder), _scheduler_client(args.scheduler) as client:
         results = runner.run_experiment(
             spec,
             args.scale,
             args.runs_dir,
             seeds=args.seeds,
-            scheduler=args.scheduler,
+            client=client,
             workers=args.workers,
             quiet=args.quiet,
             definition=Path(args.file).read_text(encoding="utf-8") if args.file else None,
@@ -177,6 +179,39 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
     print(_write_report(results, folder / f"report-{args.scale}"))
     return 0
+
+
+@contextmanager
+def _scheduler_client(address: str | None) -> Iterator[Any]:
+    """A client of the --scheduler asked for (checked and contacted even when every run is
+    done, so a wrong address is never silently ignored), or None for a local cluster."""
+    from app.experiments import runner
+    from app.security import AddressError, check_scheduler_address, plain_tcp_warning
+
+    if address is None:
+        yield None
+        return
+    try:
+        check_scheduler_address(address)
+    except AddressError as error:
+        raise ExperimentError(str(error)) from None
+    warning = plain_tcp_warning(address)
+    if warning:
+        sys.stderr.write(f"gnp-lab: {warning}\n")
+    try:
+        connection = runner.connect(address)
+        client = connection.__enter__()
+    except ExperimentError:
+        raise
+    except (ValueError, TypeError) as error:  # e.g. tls:// without certificates configured
+        raise ExperimentError(
+            f"cannot connect to the Dask scheduler {address}: {error} (for tls://, configure "
+            "the certificates: see docs/security.md)"
+        ) from None
+    try:
+        yield client
+    finally:
+        connection.__exit__(None, None, None)
 
 
 def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:

@@ -27,6 +27,7 @@ from app.experiments.progress import TOPIC, Progress, outcome_line
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec, check_name, load_file
 from app.experiments.summary import write_summary
+from app.security import local_cluster_security
 from app.store import RunFileError, RunReader
 from app.store.files import atomic_file
 
@@ -369,6 +370,7 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
                 processes=True,
                 host="127.0.0.1",
                 silence_logs=logging.CRITICAL,  # a failed task is reported on one line
+                security=local_cluster_security(),  # TLS: no other local user gets in
                 **NO_DASHBOARD,
             )
         with cluster, Client(cluster) as client:
