@@ -17,9 +17,11 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 import gnp
+from app.arenas import inline_arena, read_arena_paths, toml_arena
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from sim import IR_MAX, N_SENSORS, FaultMode
+from sim.arena import ArenaSpec
 
 ScheduleKind = Literal["fixed", "changing"]
 
@@ -80,7 +82,12 @@ class ControllerSettings(_Frozen):
 class TrainingSettings(_Frozen):
     """The training phase (thesis §2.5, 3.5, 4.5, 5.5)."""
 
-    arena: str = Field(default="training", min_length=1, description="arena name or JSON path")
+    arena: ArenaSpec = Field(
+        default="training",  # inlined by the validator
+        validate_default=True,
+        description="arena: a shipped name or a JSON file, stored inline",
+    )
+    _inline_arena = field_validator("arena", mode="before")(inline_arena)
     population: int = Field(default=300, ge=2, le=100_000, description="individuals [count]")
     generations: int = Field(default=1000, ge=1, le=1_000_000, description="generations G [count]")
     steps: int = Field(default=1000, ge=1, le=1_000_000, description="life time T [control steps]")
@@ -168,9 +175,12 @@ class LearningSettings:
 class ImplementationSettings(_Frozen):
     """The implementation phase: a trained individual in an unseen arena, sensors breaking."""
 
-    arena: str = Field(
-        default="implementation", min_length=1, description="arena name or JSON path"
+    arena: ArenaSpec = Field(
+        default="implementation",  # inlined by the validator
+        validate_default=True,
+        description="arena: a shipped name or a JSON file, stored inline",
     )
+    _inline_arena = field_validator("arena", mode="before")(inline_arena)
     steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
     repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
     noise_sigma: float = Field(
@@ -346,6 +356,7 @@ def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> R
     merged: dict[str, Any] = {}
     for layer in layers:
         merged = _merge(merged, layer)
+    merged = read_arena_paths(merged)  # user input: arena files are read here, and only here
     try:
         return RunConfig.model_validate(merged)
     except ValidationError as error:
@@ -396,7 +407,9 @@ def to_toml(config: RunConfig) -> str:
         for key, value in model.model_dump().items():
             if value is None:
                 continue
-            if isinstance(value, bool):
+            if key == "arena":
+                rendered = toml_arena(getattr(model, key))
+            elif isinstance(value, bool):
                 rendered = "true" if value else "false"
             elif isinstance(value, str):
                 rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -26,6 +26,7 @@ import numpy as np
 
 import gnp
 import sim
+from app.arenas import arena_of
 from app.config import ImplementationSettings
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
@@ -134,7 +135,7 @@ def _live_trials(
     progress: Callable[[int], None],
 ) -> _Part:
     """The lives of trials `part` in one world."""
-    arena = sim.load_arena(settings.arena)
+    arena = arena_of(settings.arena)
     trials = np.arange(part.start, part.stop)
     start_index = trials % len(arena.start_poses)
     world_seeds, engine_seeds = trial_seeds(seed, trials)
@@ -253,7 +254,7 @@ def run_implementation(
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
     process, such as a Dask worker); results are identical for any count.
     """
-    arena = sim.load_arena(settings.arena)
+    arena = arena_of(settings.arena)
     n_starts = len(arena.start_poses)
     trials = n_starts * settings.repeats
     recorded = min(settings.recorded_trials, trials)

@@ -29,6 +29,7 @@ import numpy as np
 
 import gnp
 import sim
+from app.arenas import arena_of
 from app.config import RunConfig, TrainingSettings
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
@@ -119,7 +120,7 @@ class Evaluator(Protocol):
 def _make_world(config: RunConfig, n: int) -> sim.World:
     training = config.training
     return sim.World(
-        sim.load_arena(training.arena),
+        arena_of(training.arena),
         n=n,
         seed=config.seed,
         noise_sigma=training.noise_sigma,
@@ -341,7 +342,7 @@ def _train_from(
     config = writer.config
     training = config.training
     cfg = config.controller.gnp_config()
-    arena = sim.load_arena(training.arena)
+    arena = arena_of(training.arena)
     segments = n_segments(training.steps, training.redraw_every)
     everyone = np.arange(training.population)
     evaluator = make_evaluator(config, workers)
@@ -462,7 +463,7 @@ def train(
         Interrupted: Ctrl-C / SIGTERM; the file holds every completed generation.
         TrainingError: a worker process died.
     """
-    sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
+    arena_of(config.training.arena)  # fail on a bad arena before creating the file
     _stop_requested.clear()
     # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
     # the file leaves no file (KeyboardInterrupt), after it a resumable one (Interrupted).

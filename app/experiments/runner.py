@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-import sim
 from app.config import ImplementationSettings, RunConfig, build_config
 from app.experiments.progress import TOPIC, Progress, outcome_line
 from app.experiments.results import ExperimentResults
@@ -30,6 +29,7 @@ from app.experiments.summary import write_summary
 from app.security import local_cluster_security
 from app.store import RunFileError, RunReader
 from app.store.files import atomic_file
+from sim.arena import ArenaSpec
 
 Echo = Callable[[str], None]
 Watch = Callable[[Progress], None]
@@ -142,12 +142,9 @@ def plan(
     return tasks
 
 
-def _start_poses(arena: str, known: dict[str, int]) -> int:
-    """How many start poses `arena` has, loading it once per `known` (a load validates the
-    geometry: 12 ms, too slow to repeat for every run and condition of an experiment)."""
-    if arena not in known:
-        known[arena] = len(sim.load_arena(arena).start_poses)
-    return known[arena]
+def _start_poses(arena: ArenaSpec, known: dict[str, int]) -> int:
+    """How many start poses `arena` (an inline spec, see `app.arenas`) has."""
+    return len(arena.start_poses)
 
 
 @dataclass(frozen=True)
