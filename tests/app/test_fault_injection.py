@@ -22,6 +22,7 @@ from app.cli import main
 from app.config import to_toml
 from app.experiments.runner import plan
 from app.experiments.spec import load_file
+from app.implementation import implement
 from app.store import RunReader
 from app.training import train
 
@@ -41,8 +42,13 @@ def _gnp_lab(*args: str | Path) -> subprocess.Popen[bytes]:
     )
 
 
-def _finish(process: subprocess.Popen[bytes]) -> tuple[int, str]:
-    _, err = process.communicate(timeout=300)
+def _finish(process: subprocess.Popen[bytes], timeout: float = 240) -> tuple[int, str]:
+    try:
+        _, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        _, err = process.communicate()
+        raise AssertionError(f"timed out: {err.decode()[-3000:]}") from None
     return process.returncode, err.decode()
 
 
@@ -179,7 +185,7 @@ def test_experiment_killed_at_ten_moments_resumes_to_identical_data(tmp_path: Pa
     spec = load_file(spec_file)
     reference, runs = tmp_path / "reference", tmp_path / "runs"
     run = ("experiment", "run", "--file", spec_file, "--scale", "smoke", "--quiet")
-    status, err = _finish(_gnp_lab(*run, "--runs-dir", reference, "--workers", "1"))
+    status, err = _finish(_gnp_lab(*run, "--runs-dir", reference, "--workers", "1"), 90)
     assert status == 0, err
     kills = sum(
         _kill_after(_gnp_lab(*run, "--runs-dir", runs, "--workers", "2"), moment)
@@ -367,3 +373,32 @@ def test_a_run_file_naming_a_path_is_refused_without_reading_it(
         handle.attrs["config"] = text.replace(arena, '"/dev/zero"')
     assert main(["implement", "run", "--runs-dir", str(tmp_path), "--quiet"]) == 1
     _one_error_line(capsys.readouterr().err, "invalid config", "/dev/zero", "inline")
+
+
+def test_an_old_run_file_naming_shipped_arenas_loads_them_inline(
+    tmp_path: Path, finished_run: Path
+) -> None:
+    """Run files written before arenas were inline stored their names: these resolve to the
+    shipped arenas, so the config equals the one a new run of it stores."""
+    import h5py
+
+    from app.arenas import shipped_spec
+
+    path = tmp_path / "old.h5"
+    shutil.copy(finished_run, path)
+    with RunReader(finished_run) as run:
+        config = run.config
+    with h5py.File(path, "r+") as handle:
+        text = str(handle.attrs["config"])
+        for phase in ("training", "implementation"):
+            spec_json = getattr(config, phase).arena.model_dump_json()
+            assert spec_json in text
+            text = text.replace(spec_json, f'"{phase}"')
+        assert '"arena":"training"' in text  # as an old gnp-lab wrote it
+        handle.attrs["config"] = text
+    with RunReader(path) as run:
+        assert run.config == config
+        assert run.config.training.arena == shipped_spec("training")
+        assert run.config.implementation.arena == shipped_spec("implementation")
+    result = implement(path, config.implementation.model_copy(update={"repeats": 1}), name="x")
+    assert result.trial_mean_reward.shape == (10,)
