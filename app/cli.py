@@ -31,7 +31,9 @@ from app.config import (
 )
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
+from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
+from app.store.space import is_disk_full
 
 if TYPE_CHECKING:
     from app.training import GenerationSummary
@@ -196,6 +198,12 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
     serve.add_argument("--run", metavar="NAME", help="run to open first")
+    serve.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="allow a --host other machines can reach: the dashboard has no login and can "
+        "train, export and start experiments as you",
+    )
     experiment_cli.add_parser(commands)
     add_export_parser(commands)
     return parser
@@ -365,6 +373,11 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_implement(args: argparse.Namespace) -> int:
     from app.implementation import implement
 
+    if args.break_count is not None and not 1 <= args.break_count <= sim.N_SENSORS:
+        raise UsageError(
+            f"--break-count must be 1..{sim.N_SENSORS}, got {args.break_count} "
+            "(for no fault, give --break none)"
+        )
     path = resolve_run(args.runs_dir, args.run)
     with RunReader(path) as run:
         stored = run.config.implementation
@@ -456,12 +469,7 @@ def _inspect(path: Path) -> int:
         for name in run.implementation_names():
             result = run.implementation(name)
             settings = result.settings
-            fault = (
-                f"sensors {','.join(map(str, settings.broken_sensors))} {settings.fault_mode} "
-                f"at step {settings.fault_step}"
-                if settings.broken_sensors
-                else "no fault"
-            )
+            fault = describe_fault(settings)
             print(
                 f"implementation {name}: {fault}, {len(result.trial_mean_reward)} trials "
                 f"x {settings.steps} steps: mean reward {result.mean_reward:.4f}, "
@@ -470,6 +478,17 @@ def _inspect(path: Path) -> int:
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
     return 0
+
+
+def describe_fault(settings: ImplementationSettings) -> str:
+    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
+    if not settings.has_fault:
+        return "no fault"
+    if settings.broken_sensors:
+        which = f"sensors {','.join(map(str, settings.broken_sensors))}"
+    else:
+        which = f"{settings.break_count} random sensor(s) per trial"
+    return f"{which} {settings.fault_mode} at step {settings.fault_step}"
 
 
 # --- serve ----------------------------------------------------------------------------------
@@ -493,6 +512,17 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.run is not None:
         resolve_run(args.runs_dir, args.run)
     _check_host(args.host)
+    if not is_loopback(args.host):
+        if not args.allow_remote:
+            raise UsageError(
+                f"--host {args.host} lets other machines reach the dashboard, which has no "
+                "login and runs training, exports and experiments as you; keep 127.0.0.1 and "
+                "use an SSH tunnel (ssh -L 8080:127.0.0.1:8080 HOST), or add --allow-remote"
+            )
+        sys.stderr.write(
+            f"{PROG}: WARNING: the dashboard on {args.host} has no login: anyone who can "
+            "reach this port can train, export and start experiments as you\n"
+        )
     from app.dashboard import serve
 
     serve(host=args.host, port=args.port, runs_dir=args.runs_dir, run=args.run)
@@ -546,8 +576,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_ERROR
-    except OSError as error:
-        sys.stderr.write(f"{PROG}: error: {error}\n")
+    except (OSError, RuntimeError) as error:
+        if not (isinstance(error, OSError) or is_disk_full(error)):
+            raise
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        if is_disk_full(error):
+            text = f"no space left on the device: {text}"
+        sys.stderr.write(f"{PROG}: error: {text}\n")
+        if is_disk_full(error):
+            # HDF5 cannot close a file after a failed write: it would fail again at every
+            # flush and crash at exit. What was complete is on disk: end here.
+            sys.stderr.flush()
+            os._exit(EXIT_ERROR)
         return EXIT_ERROR
 
 

@@ -27,10 +27,12 @@ from pydantic import (
 
 import gnp
 import neuro
+from app.arenas import inline_arena, read_arena_paths, toml_arena
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
 from sim import IR_MAX, N_SENSORS, FaultMode, Physics
+from sim.arena import ArenaSpec
 
 ScheduleKind = Literal["fixed", "changing"]
 
@@ -91,7 +93,12 @@ class ControllerSettings(_Frozen):
 class TrainingSettings(_Frozen):
     """The training phase (thesis §2.5, 3.5, 4.5, 5.5)."""
 
-    arena: str = Field(default="training", min_length=1, description="arena name or JSON path")
+    arena: ArenaSpec = Field(
+        default="training",  # inlined by the validator
+        validate_default=True,
+        description="arena: a shipped name or a JSON file, stored inline",
+    )
+    _inline_arena = field_validator("arena", mode="before")(inline_arena)
     population: int = Field(default=300, ge=2, le=100_000, description="individuals [count]")
     generations: int = Field(default=1000, ge=1, le=1_000_000, description="generations G [count]")
     steps: int = Field(default=1000, ge=1, le=1_000_000, description="life time T [control steps]")
@@ -184,9 +191,12 @@ class LearningSettings:
 class ImplementationSettings(_Frozen):
     """The implementation phase: a trained individual in an unseen arena, sensors breaking."""
 
-    arena: str = Field(
-        default="implementation", min_length=1, description="arena name or JSON path"
+    arena: ArenaSpec = Field(
+        default="implementation",  # inlined by the validator
+        validate_default=True,
+        description="arena: a shipped name or a JSON file, stored inline",
     )
+    _inline_arena = field_validator("arena", mode="before")(inline_arena)
     steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
     repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
     noise_sigma: float = Field(
@@ -418,6 +428,7 @@ def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> R
     merged: dict[str, Any] = {}
     for layer in layers:
         merged = _merge(merged, layer)
+    merged = read_arena_paths(merged)  # user input: arena files are read here, and only here
     try:
         return RunConfig.model_validate(merged)
     except ValidationError as error:
@@ -463,8 +474,15 @@ def to_toml(config: RunConfig) -> str:
     lines = [f"seed = {config.seed}"]
     for section, model in config:
         if isinstance(model, BaseModel):
-            _toml_table(lines, section, model.model_dump())
+            values = model.model_dump()
+            if "arena" in values:  # a shipped arena's name, else an inline table
+                values["arena"] = _Rendered(toml_arena(model.arena))  # type: ignore[attr-defined]
+            _toml_table(lines, section, values)
     return "\n".join(lines) + "\n"
+
+
+class _Rendered(str):
+    """A value already written as TOML."""
 
 
 def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
@@ -476,7 +494,9 @@ def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
             continue
         if value is None:
             continue
-        if isinstance(value, bool):
+        if isinstance(value, _Rendered):
+            rendered = str(value)
+        elif isinstance(value, bool):
             rendered = "true" if value else "false"
         elif isinstance(value, str):
             rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import sim
+from app.arenas import arena_of
 from app.config import CFrom, ImplementationSettings
 from app.neural import BrainConfig, Individual, best_individual, copies, recorded_trace
 from app.recording import Trajectory, TrajectoryRecorder
@@ -133,7 +134,7 @@ def _live_trials(
     progress: Callable[[int], None],
 ) -> _Part:
     """The lives of trials `part` in one world, C of the reward judged as `c_from` says."""
-    arena = sim.load_arena(settings.arena)
+    arena = arena_of(settings.arena)
     trials = np.arange(part.start, part.stop)
     start_index = trials % len(arena.start_poses)
     world_seeds, engine_seeds = trial_seeds(seed, trials)
@@ -214,7 +215,7 @@ def run_implementation(
     readings the reward's C is judged from, the run's `reward.c_from`; `physics` is the
     worlds' physics (a run's `training.physics`).
     """
-    arena = sim.load_arena(settings.arena)
+    arena = arena_of(settings.arena)
     n_starts = len(arena.start_poses)
     trials = n_starts * settings.repeats
     recorded = min(settings.recorded_trials, trials)

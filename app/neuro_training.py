@@ -24,6 +24,7 @@ import numpy as np
 
 import neuro
 import sim
+from app.arenas import arena_of
 from app.config import RunConfig
 from app.neural import NeuralControllers, trace_layout
 from app.recording import Trajectory, TrajectoryRecorder
@@ -234,7 +235,7 @@ def _train_from(
     assert config.neuro is not None
     training = config.training
     net = config.neuro.net_config()
-    n_starts = len(sim.load_arena(training.arena).start_poses)
+    n_starts = len(arena_of(training.arena).start_poses)
     segments = n_segments(training.steps, training.redraw_every)
     everyone = np.arange(training.population)
     evaluator = _Evaluator(config, workers)
@@ -303,7 +304,7 @@ def train_neural(
     progress: ProgressCallback | None = None,
 ) -> Path:
     """`app.training.train` for a config with a `neuro` section (same errors)."""
-    sim.load_arena(config.training.arena)
+    arena_of(config.training.arena)
     _stop_requested.clear()
     with _stop_on_sigterm():
         optimiser = make_optimiser(config)

@@ -29,6 +29,7 @@ import numpy as np
 
 import gnp
 import sim
+from app.arenas import arena_of
 from app.config import CFrom, RunConfig, TrainingSettings
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import Batch, rollout
@@ -122,7 +123,7 @@ class Evaluator(Protocol):
 def _make_world(config: RunConfig, n: int) -> sim.World:
     training = config.training
     return sim.World(
-        sim.load_arena(training.arena),
+        arena_of(training.arena),
         n=n,
         seed=config.seed,
         noise_sigma=training.noise_sigma,
@@ -346,7 +347,7 @@ def _train_from(
     config = writer.config
     training = config.training
     cfg = config.controller.gnp_config()
-    arena = sim.load_arena(training.arena)
+    arena = arena_of(training.arena)
     segments = n_segments(training.steps, training.redraw_every)
     everyone = np.arange(training.population)
     evaluator = make_evaluator(config, workers)
@@ -472,7 +473,7 @@ def train(
         from app.neuro_training import train_neural
 
         return train_neural(config, out, workers=workers, progress=progress)
-    sim.load_arena(config.training.arena)  # fail on a bad arena before creating the file
+    arena_of(config.training.arena)  # fail on a bad arena before creating the file
     _stop_requested.clear()
     # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
     # the file leaves no file (KeyboardInterrupt), after it a resumable one (Interrupted).
@@ -482,7 +483,7 @@ def train(
         try:
             writer.write_checkpoint(0, gnp.population_to_arrays(pop))
             writer.mark_done(0)
-        except KeyboardInterrupt:
+        except BaseException:  # Ctrl-C, a full disk: a file without its first checkpoint
             writer.close()
             Path(out).unlink(missing_ok=True)
             raise

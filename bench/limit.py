@@ -34,6 +34,7 @@ import numpy as np
 
 import gnp
 import sim
+from app.arenas import arena_of
 from app.config import RunConfig, build_config, load_preset
 from app.rollout import Batch
 from app.seeds import life_seeds
@@ -84,7 +85,7 @@ def record(config: RunConfig, robots: int, steps: int) -> Life:
     """Live `steps` steps of `robots` generation-0 controllers of `config` and keep the inputs."""
     grown = build_config(config.model_dump(), {"training": {"population": robots}})
     seeds = life_seeds(grown.seed, 0, np.arange(robots), 1, 10)
-    arena = sim.load_arena(grown.training.arena)
+    arena = arena_of(grown.training.arena)
     population = initial_population(grown)
     life = Life(
         config=grown,

@@ -21,6 +21,10 @@ N_START_POSES = 10
 MAX_EXTENT_MM = 3000.0
 """Largest arena side: each robot gets its own copy of the arena in a space (see ``sim.world``)."""
 _EPS = 1e-9
+# Bounds on an arena's size: its checks are quadratic in its segments, and an arena can come
+# inline from a run file someone sent.
+MAX_POINTS = 1000
+MAX_OBSTACLES = 100
 
 
 class ArenaError(ValueError):
@@ -41,7 +45,7 @@ class StartPoseSpec(_Spec):
 class ObstacleSpec(_Spec):
     name: str = Field(min_length=1)
     shape: Literal["polygon", "polyline"]
-    points: list[tuple[float, float]] = Field(min_length=2)
+    points: list[tuple[float, float]] = Field(min_length=2, max_length=MAX_POINTS)
 
 
 class ArenaSpec(_Spec):
@@ -49,9 +53,9 @@ class ArenaSpec(_Spec):
 
     name: str = Field(min_length=1)
     description: str = ""
-    outer_wall: list[tuple[float, float]] = Field(min_length=4)
+    outer_wall: list[tuple[float, float]] = Field(min_length=4, max_length=MAX_POINTS)
     """A closed polyline: the last point repeats the first."""
-    obstacles: list[ObstacleSpec] = []
+    obstacles: list[ObstacleSpec] = Field(default=[], max_length=MAX_OBSTACLES)
     start_poses: list[StartPoseSpec] = Field(min_length=N_START_POSES, max_length=N_START_POSES)
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from app.experiments import runner
+from app.experiments.lock import experiment_lock
 from app.experiments.progress import Counts, Progress
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
@@ -142,15 +143,16 @@ class ExperimentJob:
             else:
                 client, self._detail = None, "every run is done: writing the summary"
             self._phase = "running"
-            self.results = runner.run_experiment(
-                self.spec,
-                self.scale,
-                self.runs_dir,
-                client=client,
-                quiet=True,
-                echo=self._echo,
-                watch=self._watch,
-            )
+            with experiment_lock(runner.experiment_dir(self.runs_dir, self.spec.name)):
+                self.results = runner.run_experiment(
+                    self.spec,
+                    self.scale,
+                    self.runs_dir,
+                    client=client,
+                    quiet=True,
+                    echo=self._echo,
+                    watch=self._watch,
+                )
             self._phase, self._detail = "finished", "summary written"
         except BaseException as error:  # the job's end, whatever it is, belongs on the page
             if self._stopping.is_set():

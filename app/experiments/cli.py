@@ -9,10 +9,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
+from app.experiments.lock import experiment_lock
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import (
     SCALES,
@@ -188,39 +191,37 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     if args.scheduler and args.workers:
         raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
     definition = Path(args.file).read_text(encoding="utf-8") if args.file else None
-    if args.adaptive:
-        if args.seeds:
-            raise ExperimentError("--seeds fixes the seed count; --adaptive takes --max-seeds")
-        from app.experiments.adaptive import run_adaptive
-
-        results, _ = run_adaptive(
-            spec,
-            args.scale,
-            args.runs_dir,
-            stage_seeds=args.stage_seeds or DEFAULT_STAGE_SEEDS,
-            max_seeds=args.max_seeds or DEFAULT_MAX_SEEDS,
-            scheduler=args.scheduler,
-            workers=args.workers,
-            quiet=args.quiet,
-            definition=definition,
-        )
-        folder = runner.experiment_dir(args.runs_dir, spec.name)
-        print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
-        print(_write_report(results, folder / f"report-{args.scale}"))
-        return 0
-    if args.max_seeds or args.stage_seeds:
+    if args.adaptive and args.seeds:
+        raise ExperimentError("--seeds fixes the seed count; --adaptive takes --max-seeds")
+    if not args.adaptive and (args.max_seeds or args.stage_seeds):
         raise ExperimentError("--max-seeds and --stage-seeds go with --adaptive")
-    results = runner.run_experiment(
-        spec,
-        args.scale,
-        args.runs_dir,
-        seeds=args.seeds,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        quiet=args.quiet,
-        definition=definition,
-    )
     folder = runner.experiment_dir(args.runs_dir, spec.name)
+    with experiment_lock(folder), _scheduler_client(args.scheduler) as client:
+        if args.adaptive:
+            from app.experiments.adaptive import run_adaptive
+
+            results, _ = run_adaptive(
+                spec,
+                args.scale,
+                args.runs_dir,
+                stage_seeds=args.stage_seeds or DEFAULT_STAGE_SEEDS,
+                max_seeds=args.max_seeds or DEFAULT_MAX_SEEDS,
+                client=client,
+                workers=args.workers,
+                quiet=args.quiet,
+                definition=definition,
+            )
+        else:
+            results = runner.run_experiment(
+                spec,
+                args.scale,
+                args.runs_dir,
+                seeds=args.seeds,
+                client=client,
+                workers=args.workers,
+                quiet=args.quiet,
+                definition=definition,
+            )
     print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
     print(_write_report(results, folder / f"report-{args.scale}"))
     return 0
@@ -251,6 +252,39 @@ def _print_json(results: ExperimentResults) -> int:
     json.dump(to_json(analyse(results)), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
     sys.stdout.write("\n")
     return 0
+
+
+@contextmanager
+def _scheduler_client(address: str | None) -> Iterator[Any]:
+    """A client of the --scheduler asked for (checked and contacted even when every run is
+    done, so a wrong address is never silently ignored), or None for a local cluster."""
+    from app.experiments import runner
+    from app.security import AddressError, check_scheduler_address, plain_tcp_warning
+
+    if address is None:
+        yield None
+        return
+    try:
+        check_scheduler_address(address)
+    except AddressError as error:
+        raise ExperimentError(str(error)) from None
+    warning = plain_tcp_warning(address)
+    if warning:
+        sys.stderr.write(f"gnp-lab: {warning}\n")
+    try:
+        connection = runner.connect(address)
+        client = connection.__enter__()
+    except ExperimentError:
+        raise
+    except (ValueError, TypeError) as error:  # e.g. tls:// without certificates configured
+        raise ExperimentError(
+            f"cannot connect to the Dask scheduler {address}: {error} (for tls://, configure "
+            "the certificates: see docs/security.md)"
+        ) from None
+    try:
+        yield client
+    finally:
+        connection.__exit__(None, None, None)
 
 
 def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:

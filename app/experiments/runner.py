@@ -20,14 +20,15 @@ from typing import Any
 
 import numpy as np
 
-import sim
 from app.config import ImplementationSettings, RunConfig
 from app.experiments.progress import TOPIC, Progress, outcome_line
 from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec, check_name, load_file
 from app.experiments.summary import write_summary
+from app.security import local_cluster_security
 from app.store import RunFileError, RunReader
 from app.store.files import atomic_file
+from sim.arena import ArenaSpec
 
 Echo = Callable[[str], None]
 Watch = Callable[[Progress], None]
@@ -140,12 +141,9 @@ def plan(
     return tasks
 
 
-def _start_poses(arena: str, known: dict[str, int]) -> int:
-    """How many start poses `arena` has, loading it once per `known` (a load validates the
-    geometry: 12 ms, too slow to repeat for every run and condition of an experiment)."""
-    if arena not in known:
-        known[arena] = len(sim.load_arena(arena).start_poses)
-    return known[arena]
+def _start_poses(arena: ArenaSpec, known: dict[str, int]) -> int:
+    """How many start poses `arena` (an inline spec, see `app.arenas`) has."""
+    return len(arena.start_poses)
 
 
 @dataclass(frozen=True)
@@ -360,7 +358,8 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
                 threads_per_worker=1,
                 processes=True,
                 host="127.0.0.1",
-                silence_logs=logging.ERROR,
+                silence_logs=logging.CRITICAL,  # a failed task is reported on one line
+                security=local_cluster_security(),  # TLS: no other local user gets in
                 **NO_DASHBOARD,
             )
         with cluster, Client(cluster) as client:
@@ -569,7 +568,13 @@ def run_experiment(
         with connect(scheduler, workers) as own:
             errors = execute(tasks, own, quiet, echo, watch)
     results = collect(spec, scale, runs_dir, seeds)
-    write_summary(results, summary_path(runs_dir, spec.name, scale))
+    unwritten = ""
+    try:
+        write_summary(results, summary_path(runs_dir, spec.name, scale))
+    except ExperimentError as error:  # a full disk, say: not to hide why the runs failed
+        if not errors:
+            raise
+        unwritten = f"; the summary was not written either: {error}"
     if errors:
-        raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}")
+        raise ExperimentError(f"{len(errors)} run(s) failed; the first: {errors[0]}{unwritten}")
     return results

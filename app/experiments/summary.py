@@ -35,6 +35,7 @@ from app.experiments.results import (
 )
 from app.experiments.spec import ExperimentError
 from app.store import package_version
+from app.store.space import DiskFullError, require_space
 
 FORMAT = "gnp-lab-experiment-summary"
 SCHEMA_VERSION = 1
@@ -60,6 +61,11 @@ def write_summary(results: ExperimentResults, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tables = (*results.scalars.values(), *results.curves.values())
+    try:
+        require_space(path.parent, sum(np.asarray(v).nbytes for v in tables), str(path.name))
+    except DiskFullError as error:
+        raise SummaryError(str(error)) from None
     try:
         with h5py.File(tmp, "w") as handle:
             attrs = handle.attrs

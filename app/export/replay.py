@@ -19,6 +19,7 @@ import viser
 
 import gnp
 import sim
+from app.arenas import arena_of
 from app.dashboard import geometry as geo
 from app.dashboard.genome import genome_view
 from app.dashboard.scene import ArenaView, GraphView
@@ -178,7 +179,7 @@ def _implementation_life(reader: RunReader, result: Implementation) -> Life:
         f"{int(result.start_index[trial])})",
         cfg=cfg,
         individual=individual,
-        arena=sim.load_arena(settings.arena),
+        arena=arena_of(settings.arena),
         lives=result.trials,
         row=0,
         segment=0,
@@ -200,7 +201,7 @@ def replay_lives(reader: RunReader) -> list[Life]:
             f"{reader.generations_done - 1}), {cfg.method} {'fuzzy' if cfg.fuzzy else 'crisp'}",
             cfg=cfg,
             individual=individual,
-            arena=sim.load_arena(training.arena),
+            arena=arena_of(training.arena),
             lives=elite,
             row=0,
             segment=training.redraw_every,

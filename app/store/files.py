@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import glob
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO
 
 import h5py
 
@@ -58,31 +60,94 @@ class WriterLock:
     """An advisory lock (`.NAME.h5.lock` beside the run) held by whoever writes the run.
 
     Readers never take it. The kernel drops it when its holder dies, even by SIGKILL, so a
-    killed run can be resumed while a live (or paused) one cannot get a second writer.
+    killed run can be resumed while a live (or paused) one cannot get a second writer. The
+    holder removes the lock file when it releases the lock, and clears the temporary files
+    (`.NAME.h5.PID.tmp`) that a killed writer of the same run left (only a lock holder writes
+    them, so while it holds the lock no other one is in use).
 
     Raises:
         RunFileError: another process holds the lock, or the folder cannot be written.
     """
 
     def __init__(self, path: Path) -> None:
-        lock_path = path.with_name(f".{path.name}.lock")
+        self._path = path.with_name(f".{path.name}.lock")
         try:
-            self._handle = lock_path.open("a")
+            handle = take_lock(self._path)
         except OSError as error:
-            raise RunFileError(f"cannot write beside {path}: {error}") from None
-        try:
-            fcntl.flock(self._handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._handle.close()
+            raise RunFileError(f"cannot write beside {path}: {error.strerror}") from None
+        if handle is None:
             raise RunFileError(
                 f"{path.name} is being written by another gnp-lab process (training, resume "
                 "or implementation); wait for it to finish or stop it"
-            ) from None
+            )
+        self._handle = handle
+        remove_temporaries(path, keep_pid=os.getpid())
 
     def release(self) -> None:
-        if not self._handle.closed:
-            fcntl.flock(self._handle, fcntl.LOCK_UN)
-            self._handle.close()
+        release_lock(self._path, self._handle)
+
+
+def take_lock(lock_path: Path) -> IO[str] | None:
+    """Open `lock_path` and take its exclusive advisory lock without waiting: the open file,
+    or None when another holds it. Retries while the file was removed between the open and
+    the lock (its holder released it), so two processes never hold different files.
+
+    Raises:
+        OSError: the file cannot be created.
+    """
+    while True:
+        handle = lock_path.open("a+")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            return None
+        try:
+            same = os.path.samestat(os.fstat(handle.fileno()), os.stat(lock_path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            return handle
+        handle.close()
+
+
+def release_lock(lock_path: Path, handle: IO[str]) -> None:
+    """Remove the lock file, then release its lock (no lock file is left behind)."""
+    if handle.closed:
+        return
+    # Unlinked while still locked: whoever opened it meanwhile finds it gone once it gets the
+    # lock, and starts over on a new file (see `take_lock`).
+    with contextlib.suppress(FileNotFoundError):
+        lock_path.unlink()
+    fcntl.flock(handle, fcntl.LOCK_UN)
+    handle.close()
+
+
+def remove_temporaries(path: Path, keep_pid: int | None = None) -> list[Path]:
+    """Remove the temporary files (`.NAME.PID.tmp`, see `atomic_file`) that writers of `path`
+    left when they were killed: those of processes that no longer run, or, for the holder of
+    `path`'s writer lock (`keep_pid`, its own pid), all others. Returns what was removed."""
+    removed = []
+    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+        pid_text = tmp.name[len(path.name) + 2 : -len(".tmp")]
+        if not pid_text.isdigit() or int(pid_text) == keep_pid:
+            continue
+        if keep_pid is None and _alive(int(pid_text)):
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+            removed.append(tmp)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def open_for_read(path: Path) -> h5py.File:

@@ -11,9 +11,10 @@ from typing import TypeVar
 
 import h5py
 import numpy as np
+from pydantic import ValidationError
 
 import gnp
-from app.config import ImplementationSettings, stored_config
+from app.config import ImplementationSettings, describe_problems, stored_config
 from app.recording import Trajectory
 from app.store.files import RunFileError, open_for_read
 from app.store.schema import FORMAT, SCHEMA_VERSION
@@ -93,6 +94,9 @@ class RunReader:
             )
         try:
             self.config = stored_config(attrs["config"])
+        except ValidationError as error:
+            problems = describe_problems(error, limit=3)
+            raise RunFileError(f"{self.path} holds an invalid config: {problems}") from None
         except ValueError as error:
             raise RunFileError(f"{self.path} holds an invalid config: {error}") from None
         self.seed = int(attrs["seed"])

@@ -14,7 +14,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from app.config import RunConfig
 from app.recording import Trajectory
 from app.store.files import RunFileError, WriterLock, atomic_file, create_file
 from app.store.reader import Implementation, RunReader
@@ -25,18 +24,22 @@ from app.store.schema import (
     create_datasets,
     implementation_dims,
 )
+from app.store.space import file_size, require_space, run_growth
 from sim import TERM_NAMES
 
 
 class RunWriter:
     """The single writer of a run file, in SWMR mode for the whole training."""
 
-    def __init__(self, path: Path, handle: h5py.File, config: RunConfig, lock: WriterLock) -> None:
+    def __init__(
+        self, path: Path, handle: h5py.File, template: RunTemplate, lock: WriterLock
+    ) -> None:
         self.path = path
-        self.config = config
+        self.config = template.config
         self._file = handle
         self._lock = lock
         self._next_slot = 0
+        self._growth = run_growth(template)
 
     @classmethod
     def create(cls, path: str | Path, template: RunTemplate) -> RunWriter:
@@ -55,6 +58,8 @@ class RunWriter:
             raise RunFileError(f"cannot create {path}: {error}") from None
         lock = WriterLock(path)
         try:
+            # The file and its first checkpoint (`train` writes it at once).
+            require_space(path.parent, run_growth(template).slot, f"a new run {path.name}")
             try:
                 handle = _publish(path, template, overwrite=False)
             except FileExistsError:
@@ -64,7 +69,7 @@ class RunWriter:
         except BaseException:
             lock.release()
             raise
-        return cls(path, handle, template.config, lock)
+        return cls(path, handle, template, lock)
 
     @classmethod
     def resume(cls, path: str | Path) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
@@ -90,6 +95,7 @@ class RunWriter:
         with RunReader(path) as run:
             if run.finished:
                 raise RunFileError(f"{path} is a finished run; there is nothing to resume")
+            require_space(path.parent, file_size(path), f"a resumed copy of {path.name}")
             point = run.checkpoint()
             if point is None:
                 raise RunFileError(f"{path} has no checkpoint yet; start the run again")
@@ -105,7 +111,7 @@ class RunWriter:
                 handle["progress/generations_done"][()] = generation
 
             handle = _publish(path, template, overwrite=True, fill=restore)
-        writer = cls(path, handle, template.config, lock)
+        writer = cls(path, handle, template, lock)
         slot = int(handle["progress/checkpoint"][0])
         writer._next_slot = 1 - slot
         return writer, generation, population
@@ -133,7 +139,19 @@ class RunWriter:
         alpha: float,
         best_genome: Mapping[str, np.ndarray],
     ) -> None:
-        """Record one evaluated generation (not yet counted as done)."""
+        """Record one evaluated generation (not yet counted as done).
+
+        Raises:
+            DiskFullError: the disk cannot hold this generation (nothing of it was written;
+                the file holds the generations before it).
+        """
+        growth = self._growth
+        last = generation + 1 == self.config.training.generations
+        self._require(
+            growth.generation(generation) + (growth.elite if last else self._slot_growth()),
+            f"generation {generation}",
+            generation,
+        )
         gens = self._file["generations"]
         best = int(np.argmax(fitness))
         gens["fitness"][generation] = fitness
@@ -151,6 +169,7 @@ class RunWriter:
 
     def write_checkpoint(self, next_generation: int, population: Mapping[str, np.ndarray]) -> None:
         """Store the population to evaluate next in the free slot, then point at it."""
+        self._require(self._slot_growth(), "a checkpoint", next_generation - 1)
         slot = self._next_slot
         group = self._file[f"checkpoint/slot{slot}"]
         for name, values in population.items():
@@ -158,6 +177,19 @@ class RunWriter:
         self._file.flush()  # the slot is complete on disk before the pointer names it
         self._file["progress/checkpoint"][...] = [slot, next_generation]
         self._next_slot = 1 - slot
+
+    def _slot_growth(self) -> int:
+        """Bytes the next checkpoint adds: a slot's storage is allocated at its first write."""
+        unwritten = self._file[f"checkpoint/slot{self._next_slot}"].values()
+        return self._growth.slot if any(d.id.get_storage_size() == 0 for d in unwritten) else 0
+
+    def _require(self, need: int, what: str, done: int) -> None:
+        require_space(
+            self.path.parent,
+            need,
+            f"{what} of {self.path.name} (it holds {max(done, 0)} generations; free some space, "
+            f"then resume it: gnp-lab train --resume {self.path})",
+        )
 
     def mark_done(self, generations_done: int) -> None:
         """Publish generations 0..generations_done−1 to readers (written last, then flushed)."""
@@ -239,6 +271,8 @@ def add_implementation(path: str | Path, result: Implementation) -> None:
         with RunReader(path) as run:
             if not run.finished:
                 raise RunFileError(f"{path.name} has not finished training")
+            need = file_size(path) + _implementation_bytes(result)
+            require_space(path.parent, need, f"implementation {result.name!r} of {path.name}")
             if result.name in run.implementation_names():
                 raise RunFileError(
                     f"{path.name} already has an implementation named {result.name!r}; "
@@ -255,6 +289,25 @@ def add_implementation(path: str | Path, result: Implementation) -> None:
         raise RunFileError(f"cannot write {path}: {error}") from None
     finally:
         lock.release()
+
+
+def _implementation_bytes(result: Implementation) -> int:
+    """Uncompressed bytes of an implementation's arrays: a bound of what storing it adds."""
+    trials = result.trials
+    arrays = [
+        result.reward_per_step,
+        result.trial_mean_reward,
+        result.trial_mean_after_fault,
+        result.start_index,
+        result.recorded,
+        trials.poses,
+        trials.readings,
+        trials.observations,
+        trials.commands,
+        *trials.terms.values(),
+        *trials.trace.values(),
+    ]
+    return sum(int(np.asarray(a).nbytes) for a in arrays)
 
 
 def _store_implementation(handle: h5py.File, result: Implementation) -> None:

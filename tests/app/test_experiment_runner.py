@@ -398,4 +398,4 @@ def test_the_cluster_it_starts_listens_on_loopback_only() -> None:
         ]
         assert listening, "the cluster listens somewhere"
         assert all(addr.ip == "127.0.0.1" for addr in listening), listening
-        assert client.scheduler.address.startswith("tcp://127.0.0.1:")
+        assert client.scheduler.address.startswith("tls://127.0.0.1:")  # and TLS (#21)

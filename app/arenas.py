@@ -1,0 +1,139 @@
+"""Arenas in configs: carried inline, so that a run file never makes gnp-lab read another file.
+
+A config's `training.arena` / `implementation.arena` is always an inline `sim.ArenaSpec` once
+validated: a shipped arena's name becomes its spec (this is how old run files, which stored
+names, still load), and a dict is validated as a spec. A path is read only where the user gives
+it (command line, a config or experiment file: `read_arena_paths`), as a regular file of at most
+`MAX_ARENA_BYTES`; a path in a stored config is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from functools import cache, lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import sim
+from sim.arena import ArenaSpec, arena_from_spec
+
+MAX_ARENA_BYTES = 256 * 1024
+"""Largest arena file read (the shipped ones are about 2 KiB)."""
+
+PHASES = ("training", "implementation")
+
+
+@cache
+def shipped_spec(name: str) -> ArenaSpec:
+    """The spec of a shipped arena (see `sim.ARENA_NAMES`)."""
+    text = (resources.files("sim") / "arenas" / f"{name}.json").read_text(encoding="utf-8")
+    return ArenaSpec.model_validate_json(text)
+
+
+def inline_arena(value: Any) -> Any:
+    """A config's arena as an inline spec: a shipped name becomes its spec, a spec or dict is
+    left to validation; any other string (a path) is refused (pydantic "before" validator)."""
+    if isinstance(value, str):
+        if value in sim.ARENA_NAMES:
+            return shipped_spec(value)
+        raise ValueError(
+            f"{value!r} is not a shipped arena ({', '.join(sim.ARENA_NAMES)}); an arena file is "
+            "read only when given on the command line or in a config file, and runs carry "
+            "their arenas inline"
+        )
+    return value
+
+
+def read_arena_file(path: str | Path) -> dict[str, Any]:
+    """An arena file given by the user, checked: a regular file of at most `MAX_ARENA_BYTES`
+    holding a valid arena (its geometry too). Returns its JSON object.
+
+    Raises:
+        sim.ArenaError: naming the file and the problem.
+    """
+    path = Path(path)
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused just below.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise sim.ArenaError(f"{path}: arena file not found") from None
+    except OSError as error:
+        raise sim.ArenaError(f"{path}: cannot read arena file: {error.strerror}") from None
+    with os.fdopen(fd, "rb") as handle:
+        info = os.fstat(handle.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise sim.ArenaError(f"{path}: an arena file must be a regular file")
+        if info.st_size > MAX_ARENA_BYTES:
+            raise sim.ArenaError(
+                f"{path}: arena file of {info.st_size} bytes, more than the "
+                f"{MAX_ARENA_BYTES // 1024} KiB an arena file may have"
+            )
+        data = handle.read(MAX_ARENA_BYTES + 1)
+    if len(data) > MAX_ARENA_BYTES:  # it grew meanwhile
+        raise sim.ArenaError(f"{path}: arena file larger than {MAX_ARENA_BYTES // 1024} KiB")
+    try:
+        raw = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise sim.ArenaError(f"{path}: not a JSON arena file: {error}") from None
+    try:
+        spec = ArenaSpec.model_validate(raw)
+    except ValueError as error:
+        problems = str(error).splitlines()
+        raise sim.ArenaError(f"{path}: invalid arena: {' '.join(problems[:3])}") from None
+    arena_from_spec(spec, str(path))  # the geometry: raises ArenaError
+    return spec.model_dump()
+
+
+def read_arena_paths(layer: dict[str, Any]) -> dict[str, Any]:
+    """`layer` (user settings) with each arena given as a path replaced by the file's arena.
+
+    Raises:
+        sim.ArenaError: a named file is missing, too large, not a file or not a valid arena.
+    """
+    out = dict(layer)
+    for phase in PHASES:
+        section = out.get(phase)
+        if not isinstance(section, dict):
+            continue
+        value = section.get("arena")
+        if isinstance(value, str | Path) and str(value) not in sim.ARENA_NAMES:
+            out[phase] = {**section, "arena": read_arena_file(value)}
+    return out
+
+
+def arena_of(spec: ArenaSpec) -> sim.Arena:
+    """The world's arena of an inline spec (geometry validated; built once per spec)."""
+    return _build(spec.model_dump_json())
+
+
+@lru_cache(maxsize=16)
+def _build(spec_json: str) -> sim.Arena:
+    spec = ArenaSpec.model_validate_json(spec_json)
+    return arena_from_spec(spec, f"arena {spec.name!r}")
+
+
+def arena_label(spec: ArenaSpec) -> str:
+    """A short name for messages: the shipped name, or `NAME (inline)`."""
+    if spec.name in sim.ARENA_NAMES and spec == shipped_spec(spec.name):
+        return spec.name
+    return f"{spec.name} (inline)"
+
+
+def toml_arena(spec: ArenaSpec) -> str:
+    """An arena as a TOML value: a shipped arena's name, else an inline table."""
+    if spec.name in sim.ARENA_NAMES and spec == shipped_spec(spec.name):
+        return json.dumps(spec.name)
+    return _toml(spec.model_dump())
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)  # a JSON string is a TOML basic string
+    return repr(float(value)) if isinstance(value, float) else repr(value)

@@ -1,0 +1,65 @@
+"""One `experiment run` per experiment folder at a time.
+
+The lock is `experiments/NAME/.run.lock`, an advisory lock holding the holder's pid. The
+kernel drops it when its holder dies (even by SIGKILL); the holder removes the file when it
+ends. Taking it also clears the temporary files (`.*.PID.tmp`) that killed runs left in the
+folder.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from app.experiments.spec import ExperimentError
+from app.store.files import release_lock, remove_temporaries, take_lock
+
+LOCK_NAME = ".run.lock"
+
+
+@contextmanager
+def experiment_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the lock of the experiment folder `folder` (created if missing) meanwhile.
+
+    Raises:
+        ExperimentError: another process runs this experiment ("already running (pid N)"), or
+            the folder cannot be written.
+    """
+    folder = Path(folder)
+    path = folder / LOCK_NAME
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle = take_lock(path)
+    except OSError as error:
+        raise ExperimentError(f"cannot write in {folder}: {error.strerror}") from None
+    if handle is None:
+        raise ExperimentError(
+            f"experiment {folder.name!r} is already running ({_holder(path)}); wait for it to "
+            "finish or stop it, then run the same command to go on"
+        )
+    try:
+        handle.truncate(0)
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        for scale_dir in (folder, *(p for p in folder.iterdir() if p.is_dir())):
+            for leftover in scale_dir.glob(".*.tmp"):
+                remove_temporaries(leftover.with_name(_target_name(leftover.name)))
+        yield
+    finally:
+        release_lock(path, handle)
+
+
+def _holder(path: Path) -> str:
+    """`pid N` of the lock's holder, as it wrote it (it may not have written it yet)."""
+    try:
+        text = path.read_text(encoding="utf-8").strip()
+    except OSError:
+        text = ""
+    return f"pid {text}" if text.isdigit() else "pid not yet written"
+
+
+def _target_name(tmp_name: str) -> str:
+    """The file a temporary `.NAME.PID.tmp` was to become: NAME."""
+    return tmp_name[1:].removesuffix(".tmp").rpartition(".")[0]
