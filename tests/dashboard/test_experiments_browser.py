@@ -167,6 +167,8 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
     for table, kind in zip((verdicts.nth(0), verdicts.nth(1)), ("question", "sanity"), strict=True):
         claims = report.of_kind(kind)
         expect(table.locator("tr")).to_have_count(1 + len(claims))
+        box = table.bounding_box()  # it fits the side panel: nothing off the page's right edge
+        assert box is not None and box["x"] + box["width"] <= page.viewport_size["width"]
         cells = table.locator("tr td:nth-child(4)").all_inner_texts()
         assert [cell.splitlines()[0] for cell in cells] == [c.claim.verdict for c in claims]
     page.get_by_text("Stages").first.evaluate(
