@@ -30,7 +30,7 @@ import neuro
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import IR_MAX, N_SENSORS, FaultMode
+from sim import IR_MAX, N_SENSORS, FaultMode, Physics
 
 ScheduleKind = Literal["fixed", "changing"]
 
@@ -102,6 +102,11 @@ class TrainingSettings(_Frozen):
         default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
     )
     control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
+    physics: Physics = Field(
+        default="pymunk",
+        description="the world's physics in both phases, like control_period: pymunk (the "
+        "reference) or analytic (the same contacts in numba, faster, for sweeps)",
+    )
     schedule: ScheduleKind = Field(
         default="fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2"
     )

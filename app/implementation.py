@@ -129,6 +129,7 @@ def _live_trials(
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
+    physics: sim.Physics,
     part: slice,
     record: bool,
     progress: Callable[[int], None],
@@ -145,6 +146,7 @@ def _live_trials(
         seed=seed,
         noise_sigma=settings.noise_sigma,
         control_period=control_period,
+        physics=physics,
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
@@ -188,6 +190,7 @@ def _live_all(
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
+    physics: sim.Physics,
     parts: list[slice],
     recorded: int,
     workers: int,
@@ -209,7 +212,16 @@ def _live_all(
             record = part.start == 0 and recorded > 0
             results.append(
                 _live_trials(
-                    cfg, individual, settings, seed, control_period, part, record, count, c_from
+                    cfg,
+                    individual,
+                    settings,
+                    seed,
+                    control_period,
+                    physics,
+                    part,
+                    record,
+                    count,
+                    c_from,
                 )
             )
         return results
@@ -226,6 +238,7 @@ def _live_all(
                 settings,
                 seed,
                 control_period,
+                physics,
                 part,
                 part.start == 0 and recorded > 0,
                 _count,  # a module function: each worker adds to the shared counter
@@ -253,12 +266,14 @@ def run_implementation(
     workers: int = 1,
     progress: StepProgress | None = None,
     c_from: CFrom = "true",
+    physics: sim.Physics = "pymunk",
 ) -> Implementation:
     """Implement a 1-individual population; returns the results (nothing is written).
 
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
     process, such as a Dask worker); results are identical for any count. `c_from`: the
-    readings the reward's C is judged from, the run's `reward.c_from`.
+    readings the reward's C is judged from, the run's `reward.c_from`; `physics` is the
+    worlds' physics (a run's `training.physics`).
     """
     arena = sim.load_arena(settings.arena)
     n_starts = len(arena.start_poses)
@@ -271,6 +286,7 @@ def run_implementation(
         settings,
         seed,
         control_period,
+        physics,
         parts,
         recorded,
         workers,
@@ -341,12 +357,14 @@ def implement(
         seed = settings.seed if settings.seed is not None else run.seed
         control_period = run.config.training.control_period
         c_from = run.config.reward.c_from
+        physics = run.config.training.physics
     result = run_implementation(
         cfg,
         individual,
         settings,
         seed=seed,
         control_period=control_period,
+        physics=physics,
         name=name,
         generation=generation,
         workers=workers,

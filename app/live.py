@@ -16,8 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import gnp
+import neuro
 import sim
 from app.config import LearningSettings
+from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
 from app.rollout import Batch
 from sim import FAULT_MODES, IR_MAX, N_SENSORS, FaultMode
 
@@ -64,7 +66,7 @@ class RobotSnapshot:
     """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
 
     label: str
-    method: gnp.Method
+    method: str  # GNP's method, or `brain_name` of a net
     fuzzy: bool
     t: int
     pose: np.ndarray  # (3,) x mm, y mm, heading rad
@@ -85,15 +87,33 @@ class RobotSnapshot:
     mean_reward: float  # over the reward history
     node_visits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     # (n_nodes,) visits to each node in this life (the simplified graph hides the others)
+    commands: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) of the last step
+    activation: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # a net's (units,) state after the last step (GNP: empty)
+    context: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # a net's (units,) state before it: what its recurrent weights read (GNP: empty)
+
+
+def is_net(cfg: BrainConfig) -> bool:
+    """Whether a brain is a neural net (else GNP)."""
+    return not isinstance(cfg, gnp.GnpConfig)
+
+
+def brain_name(cfg: BrainConfig) -> str:
+    """GNP's method (`CS`), or a net's family (`Elman`, `NEAT`)."""
+    if isinstance(cfg, gnp.GnpConfig):
+        return cfg.method
+    return "Elman" if isinstance(cfg, neuro.ElmanConfig) else "NEAT"
 
 
 @dataclass
 class LiveRobot:
-    """One robot on show and its controller; `population` holds one individual."""
+    """One robot on show and its controller; `population` holds one individual (a GNP
+    population, or a net's arrays with a leading axis of 1)."""
 
     label: str
-    cfg: gnp.GnpConfig
-    population: gnp.Population
+    cfg: BrainConfig
+    population: Individual
     world: sim.World
     seed: int
     trajectory_capacity: int = 600
@@ -112,12 +132,23 @@ class LiveRobot:
         self._rewards = Ring(self.history_capacity)
         self._broken_counts = Ring(self.history_capacity, (), np.int64)
         self._visits = Ring(self.visit_capacity, (len(VISIT_FIELDS),), np.int64)
-        self._batch = Batch(self.world, self.cfg, self.population, np.array([self.seed]))
+        if isinstance(self.cfg, gnp.GnpConfig):
+            assert isinstance(self.population, gnp.Population)
+            self._batch = Batch(self.world, self.cfg, self.population, np.array([self.seed]))
+            self._node_visits = np.zeros(self.cfg.n_nodes, np.int64)
+            units = 0
+        else:  # a net: no nodes visited; its activations are drawn instead
+            assert isinstance(self.population, dict)
+            nets = NeuralControllers(self.cfg, self.population)
+            self._batch = Batch.driven_by(self.world, nets)
+            self._node_visits = np.zeros(0, np.int64)
+            units = self.cfg.n_units
+        self._activation, self._context = np.zeros(units), np.zeros(units)
+        self._commands = np.zeros(2)
         self._seen = self.world.sense().copy()
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(0.0)
         self._current_node = 0
-        self._node_visits = np.zeros(self.cfg.n_nodes, np.int64)
 
     @property
     def t(self) -> int:
@@ -138,6 +169,7 @@ class LiveRobot:
         assert record.trace is not None
         reward = float(record.reward[0])
         self._seen = record.observations
+        self._commands = record.commands[0].copy()
         self._record_trace(record.trace)
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(reward)
@@ -145,7 +177,10 @@ class LiveRobot:
         self._rewards.append(reward)
         self._broken_counts.append(int(np.count_nonzero(self.world.broken[0])))
 
-    def _record_trace(self, trace: gnp.StepTrace) -> None:
+    def _record_trace(self, trace: gnp.StepTrace | NeuralTrace) -> None:
+        if isinstance(trace, NeuralTrace):
+            self._context, self._activation = self._activation, trace.activation[0].copy()
+            return
         count = int(trace.count[0])
         columns = [trace.node, trace.sub, trace.branch, trace.u, trace.skipped]
         for k in range(count):
@@ -169,8 +204,8 @@ class LiveRobot:
         oldest = int(steps[0]) if len(steps) else self.t
         return RobotSnapshot(
             label=self.label,
-            method=self.cfg.method,
-            fuzzy=bool(self.cfg.fuzzy),
+            method=brain_name(self.cfg),
+            fuzzy=bool(getattr(self.cfg, "fuzzy", False)),
             t=self.t,
             pose=self.world.poses[0].copy(),
             true_readings=self.world.sense()[0].copy(),
@@ -189,16 +224,20 @@ class LiveRobot:
             alpha=self._rates[1],
             mean_reward=float(rewards.mean()) if len(rewards) else 0.0,
             node_visits=self._node_visits.copy(),
+            commands=self._commands.copy(),
+            activation=self._activation.copy(),
+            context=self._context.copy(),
         )
 
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """What to put on show: a label, a controller config and its one-individual population."""
+    """What to put on show: a label, a controller config and its one individual (a GNP
+    population, or a net's arrays, each with a leading axis of 1)."""
 
     label: str
-    cfg: gnp.GnpConfig
-    population: gnp.Population
+    cfg: BrainConfig
+    population: Individual
 
 
 class LiveSession:
@@ -246,7 +285,11 @@ class LiveSession:
             )
             world.reset(arena.start_poses[start : start + 1])
             # Copy: online learning mutates Q tables, the caller's individual stays as loaded.
-            population = gnp.take(spec.population, np.array([0]))
+            population: Individual = (
+                gnp.take(spec.population, np.array([0]))
+                if isinstance(spec.population, gnp.Population)
+                else neuro.take(spec.population, [0])
+            )
             self._robots.append(LiveRobot(spec.label, spec.cfg, population, world, seed))
 
     @property

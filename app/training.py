@@ -127,6 +127,7 @@ def _make_world(config: RunConfig, n: int) -> sim.World:
         seed=config.seed,
         noise_sigma=training.noise_sigma,
         control_period=training.control_period,
+        physics=training.physics,
     )
 
 

@@ -45,12 +45,14 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200)
     args = parser.parse_args()
     spec = robot_spec(args.run)
+    cfg, population = spec.cfg, spec.population
+    assert isinstance(cfg, gnp.GnpConfig) and isinstance(population, gnp.Population)  # GNP only
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         graph = GraphView(server, (0.0, -1.0), 1.0, 0.62)
-        graph.set_genome(genome_view(spec.cfg, spec.population))
+        graph.set_genome(genome_view(cfg, population))
         print(
-            f"{spec.label} ({spec.cfg.method}, {spec.cfg.n_nodes} nodes), after {args.steps} "
+            f"{spec.label} ({cfg.method}, {cfg.n_nodes} nodes), after {args.steps} "
             f"steps; {args.frames} frames per view, 3 steps between frames"
         )
         print(

@@ -1,4 +1,5 @@
-"""The world: arenas, the Khepera I model, pymunk physics, IR sensors, noise, faults, reward.
+"""The world: arenas, the Khepera I model, physics (pymunk or analytic), IR sensors, noise,
+faults, reward.
 
 The constants below are the world's facts; `app` imports them rather than re-typing them.
 """
@@ -8,7 +9,7 @@ from sim.check import check_world
 from sim.khepera import BODY_RADIUS_MM, IR_MAX, IR_RANGE_MM, MAX_COMMAND, N_SENSORS
 from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import sensor_rays
-from sim.world import FAULT_MODES, Fault, FaultMode, World, WorldError
+from sim.world import FAULT_MODES, PHYSICS, Fault, FaultMode, Physics, World, WorldError
 
 __all__ = [
     "ARENA_NAMES",
@@ -19,11 +20,13 @@ __all__ = [
     "MAX_COMMAND",
     "N_SENSORS",
     "N_START_POSES",
+    "PHYSICS",
     "TERM_NAMES",
     "Arena",
     "ArenaError",
     "Fault",
     "FaultMode",
+    "Physics",
     "World",
     "WorldError",
     "check_world",

@@ -4,28 +4,35 @@ import numpy as np
 
 from sim.arena import Arena
 from sim.khepera import BODY_RADIUS_MM, IR_MAX, MAX_COMMAND
-from sim.world import World
+from sim.world import Physics, World
 
 MAX_PENETRATION_MM = 2.0
 """How far a robot's body may be pushed into a wall during a contact."""
 
 
 def check_world(
-    arena: Arena, n: int = 20, steps: int = 300, seed: int = 0, noise_sigma: float = 50.0
+    arena: Arena,
+    n: int = 20,
+    steps: int = 300,
+    seed: int = 0,
+    noise_sigma: float = 50.0,
+    physics: Physics = "pymunk",
 ) -> None:
     """Assert the world's contract on an arena.
 
     Two worlds with the same seed, start poses and random commands must give identical poses,
     true readings and observations; readings must stay in 0..1023 and finite; every robot must
     stay inside the outer wall, outside obstacles, and never more than ``MAX_PENETRATION_MM``
-    into a wall.
+    into a wall. ``physics`` names the world's physics.
 
     Raises:
         AssertionError: naming the step, robot and broken property.
     """
     rng = np.random.default_rng(seed)
     poses = arena.start_poses[rng.integers(0, len(arena.start_poses), n)]
-    worlds = [World(arena, n=n, seed=seed, noise_sigma=noise_sigma) for _ in range(2)]
+    worlds = [
+        World(arena, n=n, seed=seed, noise_sigma=noise_sigma, physics=physics) for _ in range(2)
+    ]
     for world in worlds:
         world.reset(poses)
     for t in range(steps):

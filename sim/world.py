@@ -11,6 +11,7 @@ import pymunk
 import pymunk.batch as pb
 
 from sim import kernels
+from sim.analytic import AnalyticBodies
 from sim.arena import Arena
 from sim.khepera import (
     BODY_RADIUS_MM,
@@ -23,6 +24,10 @@ from sim.khepera import (
 FaultMode = Literal["dead", "saturated", "stuck", "random"]
 FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
 """Fault modes; their codes in ``World.fault_modes`` are 1..4 in this order (0 = healthy)."""
+Physics = Literal["pymunk", "analytic"]
+PHYSICS: tuple[Physics, ...] = ("pymunk", "analytic")
+"""The world's physics: pymunk (the reference) or analytic (numba, for sweeps; see
+``sim.analytic``)."""
 
 WALL_CATEGORY = 0b01
 ROBOT_CATEGORY = 0b10
@@ -238,6 +243,7 @@ class World:
         noise_sigma: σ of the Gaussian sensor noise of Eq. 2.6 (reading units), settable.
         control_period: Simulated seconds per ``step``.
         substeps: Physics steps per control period.
+        physics: ``pymunk`` (the reference) or ``analytic`` (sim.analytic: no pymunk space).
     """
 
     def __init__(
@@ -248,6 +254,7 @@ class World:
         noise_sigma: float = 0.0,
         control_period: float = CONTROL_PERIOD_S,
         substeps: int = DEFAULT_SUBSTEPS,
+        physics: Physics = "pymunk",
     ) -> None:
         if not isinstance(arena, Arena):
             raise WorldError(f"arena must be a sim.Arena (see sim.load_arena), got {arena!r}")
@@ -257,6 +264,9 @@ class World:
             raise WorldError(f"control_period must be > 0 seconds, got {control_period!r}")
         if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
             raise WorldError(f"substeps must be a positive int, got {substeps!r}")
+        if physics not in PHYSICS:
+            raise WorldError(f"unknown physics {physics!r}: expected one of {', '.join(PHYSICS)}")
+        self.physics = physics
         self.arena = arena
         self.n = int(n)
         self.seed = int(seed)
@@ -265,9 +275,16 @@ class World:
         self.noise_sigma = noise_sigma
         offsets, capacity, cell = _layout(arena, self.n)
         self._wall_table = kernels.wall_table(arena.walls)
+        # Analytic: every robot in the first copy's frame (copies round alike), no spaces.
+        self._analytic = (
+            AnalyticBodies(arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell)
+            if physics == "analytic"
+            else None
+        )
         self._chunks = [
             _Chunk(arena, offsets[start : start + capacity], cell)
             for start in range(0, self.n, capacity)
+            if self._analytic is None
         ]
         self._capacity = capacity
         self._poses = np.zeros((self.n, 3))
@@ -373,6 +390,8 @@ class World:
 
     def _place_all(self, index: np.ndarray, poses: np.ndarray) -> None:
         self._spins[index] = 0.0
+        if self._analytic is not None:
+            self._analytic.place(index, poses)
         cap = self._capacity
         for c, chunk in enumerate(self._chunks):
             mine = (index >= c * cap) & (index < (c + 1) * cap)
@@ -417,6 +436,8 @@ class World:
         return index  # in the caller's order: place() pairs them with poses
 
     def _read_poses(self) -> None:
+        if self._analytic is not None:
+            self._analytic.read_poses(self._poses)
         cap = self._capacity
         for c, chunk in enumerate(self._chunks):
             chunk.read_poses(self._poses[c * cap : c * cap + len(chunk.offsets)])
@@ -464,6 +485,11 @@ class World:
         if not kernels.clip_commands(raw, self._commands):
             raise WorldError("commands contain NaN")
         dt = self.control_period / self.substeps
+        if self._analytic is not None:
+            self._analytic.advance(
+                self._poses[:, 2], self._spins, self._commands, dt, self.substeps
+            )
+            self._analytic.read_poses(self._poses)
         cap = self._capacity
         for c, chunk in enumerate(self._chunks):
             part = slice(c * cap, c * cap + len(chunk.offsets))
@@ -533,5 +559,7 @@ class World:
 
     def space_of(self, robot: int) -> tuple[pymunk.Space, np.ndarray]:
         """The pymunk space holding a robot and its copy offset (for oracles and debugging)."""
+        if self._analytic is not None:
+            raise WorldError("an analytic world has no pymunk space")
         chunk = self._chunks[robot // self._capacity]
         return chunk.space, chunk.offsets[robot % self._capacity]

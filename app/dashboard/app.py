@@ -21,8 +21,10 @@ import numpy as np
 import viser
 
 import gnp
+import neuro
 from app import store
 from app.dashboard import geometry as geo
+from app.dashboard.network_view import NetworkView
 from app.dashboard.scene import ArenaView, GraphView
 from app.dashboard.stage import Show, Stage, random_show
 from app.dashboard.status import Status
@@ -74,7 +76,9 @@ class Dashboard:
         )
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
-            self.show = populate_show_tab(gui, self.stage, self.status, self.graph_view)
+            self.show = populate_show_tab(
+                gui, self.stage, self.status, self.graph_view, self.network_view
+            )
         with train:
             self.train = populate_train_tab(
                 gui, self.stage, self.status, self.plots, self.runs_dir, self.refresh_runs
@@ -110,6 +114,8 @@ class Dashboard:
         graph_height = 0.62 * width
         graph_origin = (xmin, ymin - 0.12 * width - graph_height)
         self.graph_view = GraphView(self.server, graph_origin, width, graph_height)
+        # A neural net on show draws its network in the same place (one of the two is hidden).
+        self.network_view = NetworkView(self.server, graph_origin, width, graph_height)
         bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.03 * width
         center = ((xmin + xmax) / 2, (bottom + top) / 2)
         fov = np.radians(50.0)
@@ -160,7 +166,7 @@ class Dashboard:
                 self.runs.load(choice)
                 self.runs.replay()
                 return
-            except (store.RunFileError, gnp.GnpError) as error:
+            except (store.RunFileError, gnp.GnpError, neuro.NeuroError) as error:
                 if run is not None:
                     raise
                 self.status.set(f"⚠ could not load {choice}: {error}")
@@ -202,7 +208,10 @@ class Dashboard:
         robots = session.snapshot()
         with self.server.atomic():
             self.arena_view.update(robots)
-            self.graph_view.update(robots[0])
+            if self.network_view.visible:
+                self.network_view.update(robots[0])
+            else:
+                self.graph_view.update(robots[0])
             if with_plots:
                 self.plots.draw(robots, self.stage.noise_sigma)
 

@@ -1,8 +1,9 @@
 """An implementation phase started from the dashboard, run in a child process.
 
-The child calls `app.implementation.run_implementation` on the run's final best individual and
-returns the result; nothing is written to the run file (a run on show, the bundled demo
-included, stays as it was; `gnp-lab implement` is the way to store one).
+The child calls `app.implementation.run_implementation` on the run's final best individual (a
+GNP individual, or a neural run's net, which does not learn online) and returns the result;
+nothing is written to the run file (a run on show, the bundled demo included, stays as it was;
+`gnp-lab implement` is the way to store one).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.implementation import run_implementation
+from app.neural import best_individual
 from app.store import Implementation, RunFileError, RunReader
 
 
@@ -56,7 +58,7 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         if run.generations_done == 0:
             raise RunFileError(f"{request.run.name} has no completed generation yet")
         settings = request.settings(run.config.implementation)
-        cfg, individual = run.best_genome(-1)
+        cfg, individual = best_individual(run, -1)
         generation = run.generations_done - 1
         seed = run.seed
         control_period = run.config.training.control_period

@@ -174,7 +174,7 @@ class ArenaView:
             handle.visible = True
 
 
-def _disc_mesh(radius: float, n_sides: int = 20) -> tuple[np.ndarray, np.ndarray]:
+def disc_mesh(radius: float, n_sides: int = 20) -> tuple[np.ndarray, np.ndarray]:
     """A flat disc in the z = 0 plane: (vertices (n + 1, 3), faces (n, 3))."""
     angles = np.linspace(0.0, 2.0 * np.pi, n_sides, endpoint=False)
     rim = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(n_sides)], 1)
@@ -229,6 +229,8 @@ class GraphView:
         self._width, self._height = width, height
         self._size = size = min(width, height)
         root = "/graph"
+        # Everything of the graph hangs under one frame: hidden at once when a net is on show.
+        self._root = server.scene.add_frame(root, show_axes=False)
         blank = np.zeros((1, 2, 3))
         black = np.zeros((1, 2, 3), np.uint8)
         self._edges = server.scene.add_line_segments(
@@ -237,7 +239,7 @@ class GraphView:
         self._node_radius = 0.02 * size
         self._nodes = server.scene.add_batched_meshes_simple(
             f"{root}/nodes",
-            *_disc_mesh(self._node_radius),
+            *disc_mesh(self._node_radius),
             batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
             batched_positions=np.zeros((1, 3)),
             material="toon3",
@@ -280,6 +282,15 @@ class GraphView:
         self._colors = np.zeros((0, 3), np.uint8)  # and their colours
         self._n_taken = 0
         self._last: RobotSnapshot | None = None
+
+    @property
+    def visible(self) -> bool:
+        """Whether the graph is drawn (a net on show draws its network instead)."""
+        return self._root.visible
+
+    @visible.setter
+    def visible(self, visible: bool) -> None:
+        self._root.visible = visible
 
     @property
     def nodes_handle(self) -> viser.BatchedMeshHandle:

@@ -19,6 +19,7 @@ import sim
 from app import store
 from app.dashboard.controls import DashboardInputError
 from app.live import LearningSettings, LiveSession, RobotSpec
+from app.neural import best_individual
 
 MAX_STEPS_PER_ADVANCE = 50
 """A frame that comes late catches up at most this many steps (then the loop just slows)."""
@@ -38,8 +39,9 @@ class Show:
 
 
 def run_robot(reader: store.RunReader, generation: int = -1) -> RobotSpec:
-    """The best individual of a run's `generation` (negative: from the end), named after the run."""
-    cfg, population = reader.best_genome(generation)
+    """The best individual of a run's `generation` (negative: from the end), named after the run;
+    a GNP individual or a neural run's net."""
+    cfg, population = best_individual(reader, generation)
     return RobotSpec(reader.path.stem, cfg, population)
 
 

@@ -9,11 +9,12 @@ from typing import Any
 import viser
 
 import gnp
+import neuro
 from app import store
 from app.dashboard.controls import DashboardInputError
 from app.live import LiveError
 
-REFUSALS = (DashboardInputError, LiveError, store.RunFileError, gnp.GnpError)
+REFUSALS = (DashboardInputError, LiveError, store.RunFileError, gnp.GnpError, neuro.NeuroError)
 """Errors that mean "this value cannot be used": shown on the page, nothing changes."""
 
 

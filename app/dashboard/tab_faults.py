@@ -13,7 +13,7 @@ import sim
 from app.dashboard.controls import DashboardInputError, finite, parse_mode, parse_sensors, whole
 from app.dashboard.stage import Stage
 from app.dashboard.status import Status
-from app.live import LearningSettings
+from app.live import LearningSettings, brain_name
 
 FIXED = "fixed"
 SCHEDULED = "scheduled from the fault (Eq. 4.3–4.4)"
@@ -95,9 +95,11 @@ class FaultsTab:
 
 def second_stage_words(stage: Stage, on: bool) -> str:
     """What the second-stage switch means for the robots on show, in words."""
+    methods = {brain_name(r.cfg) for r in stage.show.robots} if stage.show is not None else set()
+    nets = " (a neural net on show neither learns online nor has a second stage)"
+    net = nets if methods & {"Elman", "NEAT"} else ""
     if on:
-        return "second stage on"
-    methods = {r.cfg.method for r in stage.show.robots} if stage.show is not None else set()
+        return "second stage on" + net
     parts = []
     if "BS" in methods:
         parts.append("BS takes its greedy branch connection, Q_BS frozen")
@@ -105,7 +107,7 @@ def second_stage_words(stage: Stage, on: bool) -> str:
         parts.append("CS never takes its credit branch, Q_CS frozen")
     if "RL" in methods:
         parts.append("RL has none")
-    return "second stage off" + (f" ({'; '.join(parts)})" if parts else "")
+    return "second stage off" + (f" ({'; '.join(parts)})" if parts else "") + net
 
 
 def populate_faults_tab(

@@ -83,10 +83,12 @@ def show_line(robots: Sequence[RobotSnapshot], noise_sigma: float) -> str:
     first = robots[0]
     rewards = " · ".join(f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots)
     sub = f" sub {first.visits[-1, 1]}" if len(first.visits) else ""
-    lines = [
-        f"on show: step {first.t} · {rewards} · node {first.current_node}{sub} · "
-        f"ε {first.epsilon:.3f} α {first.alpha:.3f} · noise σ {noise_sigma:g}"
-    ]
+    if len(first.activation):  # a net: no node, nothing learnt online
+        left, right = first.commands
+        brain = f"wheels {left:+.1f} {right:+.1f} · no online learning"
+    else:
+        brain = f"node {first.current_node}{sub} · ε {first.epsilon:.3f} α {first.alpha:.3f}"
+    lines = [f"on show: step {first.t} · {rewards} · {brain} · noise σ {noise_sigma:g}"]
     broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))
     if broken:
         since = f" since step {first.fault_steps[-1]}" if first.fault_steps else ""

@@ -10,8 +10,10 @@ from pathlib import Path
 
 import viser
 
+import neuro
 import sim
 from app import store
+from app.config import RunConfig
 from app.dashboard.controls import (
     NO_RUNS,
     DashboardInputError,
@@ -27,6 +29,20 @@ from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
 
 SCHEDULES = ("fixed", "changing")
+NET_NOTE = (
+    "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
+    "schedule do not apply to it.</small>"
+)
+
+
+def run_brain(config: RunConfig) -> str:
+    """`CS fuzzy` of a GNP run; `cmaes: Elman net, 8 hidden` of a neural run."""
+    if config.neuro is None:
+        return f"{config.controller.method} {'fuzzy' if config.controller.fuzzy else 'crisp'}"
+    net = config.neuro.net_config()
+    if isinstance(net, neuro.ElmanConfig):
+        return f"{config.brain}: Elman net, {net.hidden} hidden"
+    return f"{config.brain}: NEAT net, ≤ {net.max_hidden} hidden nodes"
 
 
 @dataclass
@@ -82,13 +98,13 @@ class RunsTab:
         impls = reader.implementation_names()
         best = float(history.best_fitness.max()) if len(history.best_fitness) else 0.0
         self.summary.content = (
-            f"**{name}**: {config.controller.method} "
-            f"{'fuzzy' if config.controller.fuzzy else 'crisp'}, population "
+            f"**{name}**: {run_brain(config)}, population "
             f"{config.training.population}, {reader.generations_done}/"
             f"{config.training.generations} generations, T = {config.training.steps}, "
             f"σ = {config.training.noise_sigma:g}, seed {config.seed}  \n"
             f"best fitness {best:.4f}"
             f" · implementations: {', '.join(impls) or 'none'}"
+            + (NET_NOTE if config.neuro is not None else "")
         )
         implementation = config.implementation  # the run's own fault, as a starting point
         sensors = implementation.broken_sensors
@@ -284,7 +300,8 @@ def set_options(
 
 
 def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
-    """A markdown table of the runs: method, generations done, best fitness."""
+    """A markdown table of the runs: method (or neural optimiser), generations done, best
+    fitness."""
     if not runs:
         return f"No runs in `{runs_dir}` yet: train one in the Train tab."
     rows = ["| run | method | generations | best fitness |", "|---|---|---|---|"]
@@ -293,6 +310,6 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
-        judgment = "fuzzy" if r.fuzzy else "crisp"
-        rows.append(f"| {r.name} | {r.method} {judgment} | {done} | {r.best_fitness:.4f} |")
+        kind = f"{r.method} {'fuzzy' if r.fuzzy else 'crisp'}" if r.brain == "gnp" else r.brain
+        rows.append(f"| {r.name} | {kind} | {done} | {r.best_fitness:.4f} |")
     return "\n".join(rows)

@@ -6,15 +6,21 @@ from dataclasses import dataclass
 
 import viser
 
+import gnp
 import sim
 from app.dashboard.controls import DashboardInputError, finite
 from app.dashboard.genome import genome_view, node_label, node_markdown
 from app.dashboard.graph_view import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
+from app.dashboard.network import net_markdown
+from app.dashboard.network_view import NetworkView
 from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, GraphView
 from app.dashboard.stage import Show, Stage
 from app.dashboard.status import Status, hex_color, set_value
+from app.live import brain_name, is_net
+from app.neural import BrainConfig
 
 MAX_SPEED = 200
+NO_NODES = "— a net has no GNP nodes"
 
 
 @dataclass
@@ -23,6 +29,7 @@ class ShowTab:
 
     stage: Stage
     graph: GraphView
+    network: NetworkView
     description: viser.GuiMarkdownHandle
     arena: viser.GuiDropdownHandle[str]
     start: viser.GuiDropdownHandle[str]
@@ -35,17 +42,32 @@ class ShowTab:
     inspector: viser.GuiMarkdownHandle
 
     def staged(self, show: Show) -> None:
-        """A new show: its graph's nodes to inspect, the dropdowns and the description."""
+        """A new show: its graph's nodes to inspect (a net: its network, and the GNP-only
+        controls off), the dropdowns and the description."""
         first = show.robots[0]
-        self.graph.set_genome(genome_view(first.cfg, first.population))
-        self.node.options = tuple(
-            node_label(first.cfg, first.population, i) for i in range(first.cfg.n_nodes)
-        )
+        net = is_net(first.cfg)
+        self.graph.visible, self.network.visible = not net, net
+        self.graph_mode.disabled = self.node.disabled = net
+        if isinstance(first.population, dict):
+            assert not isinstance(first.cfg, gnp.GnpConfig)
+            self.network.set_network(first.cfg, first.population)
+            self.node.options = (NO_NODES,)
+        else:
+            assert isinstance(first.cfg, gnp.GnpConfig)
+            self.graph.set_genome(genome_view(first.cfg, first.population))
+            self.node.options = tuple(
+                node_label(first.cfg, first.population, i) for i in range(first.cfg.n_nodes)
+            )
         # Echo the show in the dropdowns; their callbacks then find nothing to change.
         set_value(self.arena, show.arena)
         set_value(self.start, str(show.start))
         self.description.content = describe(show)
-        self.inspect(self.graph.selected or 0)
+        if net:
+            assert self.network.layout is not None
+            self.inspector.content = net_markdown(self.network.layout)
+            self.describe_graph()
+        else:
+            self.inspect(self.graph.selected or 0)
 
     def set_speed(self, value: float) -> None:
         self.stage.speed = finite(value, "steps per second", 1, MAX_SPEED)
@@ -55,12 +77,20 @@ class ShowTab:
         show = self.stage.show
         if show is None:
             return
-        n_nodes = show.robots[0].cfg.n_nodes
+        cfg = show.robots[0].cfg
+        if not isinstance(cfg, gnp.GnpConfig):
+            raise DashboardInputError("a neural net has no GNP nodes: its network is drawn")
+        n_nodes = cfg.n_nodes
         if not 0 <= node < n_nodes:
             raise DashboardInputError(f"node must be in 0..{n_nodes - 1}, got {node}")
         self.graph.select(node)
         self.refresh()
         set_value(self.node, self.node.options[node])
+
+    def inspect_label(self, label: str) -> None:
+        """Inspect the node the dropdown names (`12 · J s3`); a net's placeholder: nothing."""
+        if label != NO_NODES:
+            self.inspect(int(label.split()[0]))
 
     def set_graph_mode(self, mode: str) -> None:
         """The graph in full (every connection) or simplified (what the robot runs)."""
@@ -72,6 +102,12 @@ class ShowTab:
 
     def describe_graph(self) -> None:
         """What the graph draws now, in words (also what the browser test reads)."""
+        if self.network.visible:
+            net = self.network.drawn()
+            text = f"network: {net.layers} · {net.segments} line segments"
+            if text != self.graph_info.content:
+                self.graph_info.content = text
+            return
         drawn = self.graph.drawn()
         genome = self.graph.genome
         total = len(genome.kinds) if genome is not None else 0
@@ -96,17 +132,23 @@ class ShowTab:
         if session is None or node is None:
             return
         robot = session.robots[0]
+        if not isinstance(robot.cfg, gnp.GnpConfig) or isinstance(robot.population, dict):
+            self.describe_graph()  # a net: nothing learns, its inspector stays as staged
+            return
         with session.lock:
             text = node_markdown(robot.cfg, robot.population, node)
         self.inspector.content = text + "\n\n<small>live: Q values update as it learns</small>"
         self.describe_graph()
 
 
-def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: GraphView) -> ShowTab:
+def populate_show_tab(
+    gui: viser.GuiApi, stage: Stage, status: Status, graph: GraphView, network: NetworkView
+) -> ShowTab:
     """Add the Show tab's controls (inside the current tab) and attach their callbacks."""
     tab = ShowTab(
         stage=stage,
         graph=graph,
+        network=network,
         description=gui.add_markdown("nothing on show yet"),
         arena=gui.add_dropdown("Arena", sim.ARENA_NAMES, initial_value=stage.arena),
         start=gui.add_dropdown(
@@ -141,7 +183,7 @@ def populate_show_tab(gui: viser.GuiApi, stage: Stage, status: Status, graph: Gr
     tab.start.on_update(status.guard(lambda: stage.restage(start=int(tab.start.value))))
     tab.speed.on_update(status.guard(lambda: tab.set_speed(tab.speed.value)))
     restart.on_click(status.guard(stage.restage))
-    tab.node.on_update(status.guard(lambda: tab.inspect(int(tab.node.value.split()[0]))))
+    tab.node.on_update(status.guard(lambda: tab.inspect_label(tab.node.value)))
     tab.graph_mode.on_update(status.guard(lambda: tab.set_graph_mode(tab.graph_mode.value)))
 
     @tab.playing.on_update
@@ -159,7 +201,7 @@ def describe(show: Show) -> str:
     """The Show tab's description of a show: title, robots (in their colours), arena, fault."""
     robots = ", ".join(
         f"<span style='color:{hex_color(ROBOT_COLORS[i])}'>●</span> {r.label} "
-        f"({r.cfg.method}, {'fuzzy' if r.cfg.fuzzy else 'crisp'})"
+        f"({brain_words(r.cfg)})"
         for i, r in enumerate(show.robots)
     )
     fault = ""
@@ -170,6 +212,13 @@ def describe(show: Show) -> str:
         f"**On show:** {show.title}  \n{robots}  \n{show.arena} arena, start pose "
         f"{show.start}{fault}"
     )
+
+
+def brain_words(cfg: BrainConfig) -> str:
+    """`CS, fuzzy` of a GNP individual, `Elman net` of a net."""
+    if isinstance(cfg, gnp.GnpConfig):
+        return f"{cfg.method}, {'fuzzy' if cfg.fuzzy else 'crisp'}"
+    return f"{brain_name(cfg)} net"
 
 
 def legend() -> str:
@@ -183,5 +232,7 @@ def legend() -> str:
         f"<span style='color:#143c96'>→</span> transitions taken, darker the more often"
         f" ({SIMPLIFIED} shows only nodes visited this life). Arena: rays grey→orange with "
         "the reading, <span style='color:#e61414'>red ✕</span> a broken sensor; trail "
-        "red→green with reward.</small>"
+        "red→green with reward. A neural net's network: weights "
+        "<span style='color:#d75014'>orange</span> positive, <span style='color:#1e64d7'>blue"
+        "</span> negative, darker the larger; nodes coloured by their live value.</small>"
     )

@@ -630,9 +630,10 @@ by seed (paired t). Each claim's verdict rests on an interval of Δ = mean(a) �
 effect (the margin declared in the experiment's file before the runs), else <i>undecided</i>,
 with the seeds per arm that 80% power would need at the thesis's effect and at ours, and their
 cost in core-hours. The intervals are two-sided t-intervals at level α/r (α = {report.alpha:g},
-r the claims still open; Holm over all claims, both directions in one family) widened, for an
-adaptive run, by the Lan–DeMets O'Brien–Fleming boundary of the look, so the chance of any
-wrong verdict over all claims and looks is at most α. Mann–Whitney U (Wilcoxon signed-rank
+r the claims holding a share: Holm over all claims, both directions in one family; a claim
+held or reversed hands its share on, one ruled out keeps it) widened, for an adaptive run, by
+the Lan–DeMets O'Brien–Fleming boundary of the look, so the chance of any wrong held or
+reversed over all claims and looks is at most α. Mann–Whitney U (Wilcoxon signed-rank
 when paired), P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> =
 X<sub>b</sub>) (rliable) and Hedges' g describe each claim too. Unfinished runs (NaN) are left
 out and counted.</p>

@@ -190,8 +190,8 @@ def tables(folder: Path) -> str:
     return (
         "## How to read the verdicts\n\n"
         "Each claim compares two sides on Δ = mean(a) − mean(b) over runs (seeds). Its interval "
-        "is a two-sided t-interval at level α/r (α = 0.05, r the claims still open; Holm over "
-        "the experiment's claims, both directions in one family; widened by the "
+        "is a two-sided t-interval at level α/r (α = 0.05, r the claims holding a share; Holm "
+        "over the experiment's claims, both directions in one family; widened by the "
         "O'Brien–Fleming boundary of its look in an adaptive run). `held`: the interval lies on "
         "the claimed side of 0; `reversed`: on the other side; `ruled out`: it excludes the "
         "thesis's effect (its own Δ relative to its baseline where it prints numbers, else a "

@@ -20,10 +20,10 @@ and the others are looked at again at the new level. Only `held` and `reversed` 
 with Δ = 0 it is decided rightly about half the time while its interval still carries its
 share of wrong `held`/`reversed` verdicts, and handing that share on lifted the family-wise
 error of two such claims to 0.061 and of three to 0.070 at α = 0.05 (20000 simulated
-experiments). A wrong verdict of any kind needs the
-interval to miss the true Δ, which each claim's repeated confidence interval (Jennison &
-Turnbull 1989) allows with probability at most its level over all looks, so the chance of any
-wrong verdict is at most α whatever the number of claims and looks. One look (no stages) is
+experiments). A wrong verdict of a claim needs its interval to miss the true Δ, which its
+repeated confidence interval (Jennison & Turnbull 1989) allows with probability at most its
+level over all looks; with Holm's stepping, the chance of any wrong `held` or `reversed` over
+the experiment is at most α whatever the number of claims and looks. One look (no stages) is
 plain Holm with two-sided t-intervals. The boundary is on the normal scale; each look's
 nominal level is turned into a t-interval (Welch, or paired t) for the runs at hand.
 """

@@ -315,6 +315,19 @@ class ExperimentSpec(_Frozen):
             raise ExperimentError(
                 f"experiment {self.name!r}: control condition {self.control!r} has a fault"
             )
+        for comparison in self.comparisons:
+            for metric, name in (
+                (comparison.metric, comparison.condition),
+                (
+                    comparison.metric_b or comparison.metric,
+                    comparison.condition_b or comparison.condition,
+                ),
+            ):
+                if metric == "fault_effect" and name is not None and info[name].fault_step is None:
+                    raise ExperimentError(
+                        f"experiment {self.name!r}, comparison {comparison.name!r}: fault_effect "
+                        f"of condition {name!r}, which has no fault"
+                    )
         for c in info.values():
             if c.steps != control.steps:
                 raise ExperimentError(

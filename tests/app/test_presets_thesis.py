@@ -140,6 +140,7 @@ NOT_FROM_THE_THESIS = {
     "controller.n_sub",  # unset = the method's thesis default, checked via sub_nodes
     "controller.n_branch",  # used by BS only; checked for ch. 3-4
     "training.control_period",  # Webots' 64 ms (DESIGN.md); not in the thesis's text
+    "training.physics",  # the simulator (DESIGN.md §2); the thesis used Webots
     "training.checkpoint_every",
     "training.shard_size",
     "implementation.broken_sensors",  # which sensor breaks: not said (docs/decisions.md)

@@ -38,6 +38,26 @@ def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
+def tiny_net_config(seed: int = 3) -> RunConfig:
+    """A CMA-ES Elman run that trains in seconds: 6 nets, 150 steps, 2 generations."""
+    return build_config(
+        {
+            "seed": seed,
+            "training": {"population": 6, "steps": 150, "generations": 2},
+            "implementation": {"steps": 120, "repeats": 1, "fault_step": 60},
+            "neuro": {"optimiser": "cmaes", "hidden": 6},
+        }
+    )
+
+
+@pytest.fixture(scope="session")
+def net_runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A runs directory holding one finished tiny neural run, `elman` (CMA-ES)."""
+    directory = tmp_path_factory.mktemp("net-runs")
+    train(tiny_net_config(), directory / "elman.h5")
+    return directory
+
+
 @pytest.fixture(scope="session")
 def dashboard_url(runs_dir: Path) -> Iterator[str]:
     """`gnp-lab serve` on a free local port, in its own process, showing `cs` first."""

@@ -6,9 +6,10 @@ import pytest
 import sim
 
 
+@pytest.mark.parametrize("physics", sim.PHYSICS)
 @pytest.mark.parametrize("name", sim.ARENA_NAMES)
-def test_check_world_passes_on_every_shipped_arena(name: str) -> None:
-    sim.check_world(sim.load_arena(name), n=20, steps=300, seed=1)
+def test_check_world_passes_on_every_shipped_arena(name: str, physics: sim.Physics) -> None:
+    sim.check_world(sim.load_arena(name), n=20, steps=300, seed=1, physics=physics)
 
 
 def test_check_world_catches_a_nondeterministic_world(monkeypatch: pytest.MonkeyPatch) -> None:
