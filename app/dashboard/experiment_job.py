@@ -1,5 +1,6 @@
-"""An experiment started from the dashboard: `run_experiment` in a background thread, on the
-dashboard's own Dask LocalCluster (127.0.0.1, one single-threaded worker process per core).
+"""An experiment started from the dashboard: `run_experiment`, or `run_adaptive` for stages of
+seeds, in a background thread, on the dashboard's own Dask LocalCluster (127.0.0.1, one
+single-threaded worker process per core).
 
 The cluster starts with the first experiment and lives until the dashboard stops; its worker
 processes do the training, so the page's process only waits on Dask and reads progress events.
@@ -16,9 +17,11 @@ from pathlib import Path
 from typing import Any, Literal
 
 from app.experiments import runner
+from app.experiments.adaptive import Stage, run_adaptive
 from app.experiments.lock import experiment_lock
 from app.experiments.progress import Counts, Progress
 from app.experiments.results import ExperimentResults
+from app.experiments.sequential import Design
 from app.experiments.spec import ExperimentError, ExperimentSpec
 
 Phase = Literal["starting", "running", "finished", "failed", "stopped"]
@@ -70,24 +73,49 @@ class JobSnapshot:
     counts: Counts | None
     outcomes: tuple[str, ...]  # the last finished runs, as `gnp-lab experiment run` prints them
     seconds: float
+    seeds: int | None = None  # adaptive: seeds per arm of the stage under way
+
+
+class _StartedOnUse:
+    """The cluster's client, started only when a stage has runs to submit (`run_adaptive`
+    takes a client up front, and a rerun of a decided experiment runs nothing)."""
+
+    def __init__(self, cluster: DaskCluster, stopping: threading.Event) -> None:
+        self._cluster, self._stopping = cluster, stopping
+
+    def __getattr__(self, name: str) -> Any:
+        if self._stopping.is_set():  # stopped between stages: no new cluster
+            raise ExperimentError("stopped")
+        return getattr(self._cluster.client(), name)
 
 
 class ExperimentJob:
-    """`runner.run_experiment(spec, scale, runs_dir)` in a daemon thread, on `cluster`.
+    """`runner.run_experiment(spec, scale, runs_dir)` in a daemon thread, on `cluster`; with a
+    `design`, `run_adaptive` in its stages (the design's looks) instead.
 
     The thread reads the run files' state first (a foreign file fails the job before anything
-    runs), then runs the missing runs and writes the summary; `snapshot` says how far it is.
+    runs), then runs the missing runs and writes the summary (an adaptive run: after every
+    look); `snapshot` says how far it is.
     """
 
     def __init__(
-        self, spec: ExperimentSpec, scale: str, runs_dir: Path, cluster: DaskCluster
+        self,
+        spec: ExperimentSpec,
+        scale: str,
+        runs_dir: Path,
+        cluster: DaskCluster,
+        design: Design | None = None,
     ) -> None:
         self.spec, self.scale, self.runs_dir, self.cluster = spec, scale, runs_dir, cluster
+        self.design = design
+        self.since = time.time()  # a summary written after this is the job's own
         self.results: ExperimentResults | None = None
+        self.stages: tuple[Stage, ...] = ()
         self.reported = False
         self._phase: Phase = "starting"
         self._detail = "reading its run files"
         self._progress: Progress | None = None
+        self._seeds: int | None = None
         self._outcomes: deque[str] = deque(maxlen=OUTCOME_LINES)
         self._started = time.monotonic()
         self._ended: float | None = None
@@ -108,6 +136,7 @@ class ExperimentJob:
             counts=progress.counts() if progress is not None else None,
             outcomes=tuple(self._outcomes),
             seconds=end - self._started,
+            seeds=self._seeds,
         )
 
     def stop(self) -> None:
@@ -127,9 +156,20 @@ class ExperimentJob:
     def _watch(self, progress: Progress) -> None:
         self._progress = progress
         self._detail = "running on the Dask cluster"
+        if self.design is not None:  # the stage whose runs were just submitted
+            seeds = 1 + max(task.seed for task in progress.tasks)
+            self._seeds = seeds
+            look = self.design.looks.index(seeds) + 1  # run_adaptive plans a look's seeds
+            self._detail = (
+                f"stage {look} of {len(self.design.looks)} ({seeds} seeds per arm) "
+                "running on the Dask cluster"
+            )
 
     def _run(self) -> None:
         try:
+            if self.design is not None:
+                self._run_adaptive(self.design)
+                return
             status = runner.scale_status(self.spec, self.scale, self.runs_dir)
             if status.problems:
                 raise ExperimentError(next(iter(status.problems.values())))
@@ -164,3 +204,33 @@ class ExperimentJob:
                 self._detail = text.splitlines()[0] if text else type(error).__name__
         finally:
             self._ended = time.monotonic()
+
+    def _run_adaptive(self, design: Design) -> None:
+        """`run_adaptive` up to the design's last look, on the cluster once runs are due."""
+        most = design.looks[-1]
+        status = runner.scale_status(self.spec, self.scale, self.runs_dir, most)
+        if status.problems:  # any look's file: refused before anything runs
+            raise ExperimentError(next(iter(status.problems.values())))
+        first = design.looks[0]
+        states = {t.key: s for t, s in zip(status.tasks, status.states, strict=True)}
+        # The first stage's counts from the files until the runner's own Progress takes over.
+        tasks = [t for t in status.tasks if t.seed < first]
+        self._progress = Progress(tasks, {t.key: states[t.key] for t in tasks}, quiet=True)
+        self._seeds = first
+        self._phase = "running"
+        self._detail = "stage 1: starting the Dask cluster and loading numba's kernels"
+        with experiment_lock(runner.experiment_dir(self.runs_dir, self.spec.name)):
+            self.results, self.stages = run_adaptive(
+                self.spec,
+                self.scale,
+                self.runs_dir,
+                stage_seeds=first,
+                max_seeds=most,
+                client=_StartedOnUse(self.cluster, self._stopping),
+                quiet=True,
+                echo=self._echo,
+                watch=self._watch,
+            )
+        looks = self.stages[-1].seeds if self.stages else 0
+        self._phase = "finished"
+        self._detail = f"summary written after {len(self.stages)} look(s), {looks} seeds per arm"

@@ -191,10 +191,25 @@ class ExperimentView:
     rewards: dict[str, Chart]  # by condition name, in the experiment's order
     verdicts: str  # markdown
     runs: tuple[str, ...]  # run files of this scale, e.g. "BS-seed0"
+    stages: str = ""  # markdown: the looks of the run (an adaptive run's stages)
 
 
-def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> ExperimentView:
-    """Read what the folder holds (the run files while `live`, else the summary if written)."""
+def build_view(
+    entry: Entry,
+    scale: str,
+    runs_dir: Path,
+    live: bool = False,
+    seeds: int | None = None,
+    since: float | None = None,
+) -> ExperimentView:
+    """Read what the folder holds: the summary if written, else the run files.
+
+    Args:
+        live: the experiment is running: its curves come from the run files (the first
+            `seeds` per arm when given, else the scale's), its verdicts and stages from the
+            summary only when it was written after `since` (a time.time(): an adaptive run
+            writes it after every look).
+    """
     spec, name = entry.spec, entry.name
     folder = runner.experiment_dir(runs_dir, name) / scale
     summary = runner.summary_path(runs_dir, name, scale)
@@ -202,6 +217,7 @@ def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> 
     results: ExperimentResults | None = None
     count: ScaleCount | None
     verdicts = "No summary at this scale yet: start the experiment."
+    stages = ""
     if live:  # the job's progress counts the runs; reading every file twice is too slow
         count = None
     elif spec is not None and scale in spec.scales and folder.is_dir():
@@ -210,13 +226,17 @@ def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> 
         problems = tuple(status.problems.values())
     else:
         count = scale_count(entry, scale, runs_dir)
+    so_far = live and since is not None and summary.exists() and summary.stat().st_mtime >= since
     try:
-        if summary.exists() and not live:
+        if summary.exists() and (so_far or not live):
             results = read_summary(summary)
-            verdicts = verdict_table(results)
-        elif spec is not None and folder.is_dir() and not problems:
-            results = runner.collect(spec, scale, runs_dir)
-            verdicts = "Verdicts: when the experiment finishes (its summary is written)."
+            verdicts, stages = verdicts_and_stages(results)
+            if so_far:
+                verdicts = "Verdicts so far (the last look made):\n\n" + verdicts
+        if (live or results is None) and spec is not None and folder.is_dir() and not problems:
+            results = runner.collect(spec, scale, runs_dir, seeds)  # the run files so far
+            if not so_far:
+                verdicts = "Verdicts: when the experiment finishes (its summary is written)."
     except ExperimentError as error:
         problems += (str(error),)
     runs = tuple(sorted(p.stem for p in folder.glob("*" + SUFFIX))) if folder.is_dir() else ()
@@ -225,8 +245,20 @@ def build_view(entry: Entry, scale: str, runs_dir: Path, live: bool = False) -> 
         fitness = fitness_chart(results)
         rewards = {c.name: reward_chart(results, c.name) for c in results.conditions}
     return ExperimentView(
-        name, scale, about(entry, results), count, problems, fitness, rewards, verdicts, runs
-    )
+        name, scale, about(entry, results), count, problems, fitness, rewards, verdicts, runs,
+        stages,
+    )  # fmt: skip
+
+
+def verdicts_and_stages(results: ExperimentResults) -> tuple[str, str]:
+    """The verdict tables and the stages table of a summary (markdown), the report's numbers."""
+    from app.dashboard.experiment_verdicts import stages_table, verdict_tables
+    from app.experiments.report import analyse
+
+    if not results.comparisons:
+        return "This experiment makes no comparisons.", ""
+    report = analyse(results)
+    return verdict_tables(report), stages_table(report)
 
 
 def about(entry: Entry, results: ExperimentResults | None) -> str:
@@ -244,34 +276,6 @@ def about(entry: Entry, results: ExperimentResults | None) -> str:
         return f"**{entry.name}**: saved experiment with no summary at this scale."
     arms = ", ".join(f"{a.name} ({a.label})" for a in results.arms)
     return f"**{results.name}** ({results.source}; saved): {results.description}  \narms: {arms}"
-
-
-def _cell(text: str) -> str:
-    return text.replace("|", "\\|")
-
-
-def verdict_table(results: ExperimentResults) -> str:
-    """The comparisons as a markdown table, with the report's statistics and verdicts."""
-    from app.experiments.report import analyse, format_number, interval_text
-
-    if not results.comparisons:
-        return "This experiment makes no comparisons."
-    report = analyse(results)  # the report's own numbers
-    rows = ["| claim | a | b | a − b [interval] | runs | verdict |", "|---|---|---|---|---|---|"]
-    for c in report.comparisons:
-        s = c.stats
-        names = list(c.comparison.side_names())
-        if c.comparison.paired:  # one arm: what tells its two sides apart
-            names = [f"{c.arm_a.name} ({name})" for name in names]
-        arms = [
-            f"{name} {format_number(summary.mean)} ± {format_number(summary.sd)}"
-            for name, summary in zip(names, (s.a, s.b), strict=True)
-        ]
-        difference = f"{format_number(s.difference)} {interval_text(c.claim)}"
-        cells = [f"{c.comparison.name} ({c.comparison.source})", *arms, difference]
-        cells += [f"{c.claim.runs[0]}, {c.claim.runs[1]}", f"**{c.claim.verdict}**"]
-        rows.append("| " + " | ".join(_cell(cell) for cell in cells) + " |")
-    return "\n".join(rows)
 
 
 # --- curves ---------------------------------------------------------------------------------

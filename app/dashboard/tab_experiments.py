@@ -1,7 +1,8 @@
 """The Experiments tab: the shipped and saved experiments with their status, starting one at
-`smoke` or `small` scale on the dashboard's Dask cluster, its progress live, its fitness and
-implementation curves per arm with 95% bands, the comparison table with verdicts, and any of
-its runs on the stage.
+`smoke` or `small` scale on the dashboard's Dask cluster (all its seeds, or adaptively in
+stages of seeds), its progress live, the stages of an adaptive run, the verdicts of the
+thesis's questions and of the sanity claims, its fitness and implementation curves per arm
+with 95% bands, and any of its runs on the stage.
 
 Callbacks only record choices and start threads: reading run files, statistics and curves are
 computed in one background thread (`experiment_view`), the experiment in another
@@ -24,8 +25,10 @@ from app.dashboard import experiment_view as ev
 from app.dashboard import plots
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
+from app.dashboard.experiment_verdicts import AdaptiveRequest
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
+from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.runner import DEFINITION
 from app.experiments.spec import SCALES, ExperimentSpec
 
@@ -44,14 +47,18 @@ class ExperimentsTab:
     table: viser.GuiMarkdownHandle
     experiment: viser.GuiDropdownHandle[str]
     scale: viser.GuiDropdownHandle[str]
+    adaptive: viser.GuiCheckboxHandle
+    stage_seeds: viser.GuiNumberHandle[int]
+    max_seeds: viser.GuiNumberHandle[int]
     progress: GuiProgressBarHandle
     progress_text: viser.GuiMarkdownHandle
     about: viser.GuiMarkdownHandle
+    stages: viser.GuiMarkdownHandle
+    verdicts: viser.GuiMarkdownHandle
     fitness: viser.GuiUplotHandle
     condition: viser.GuiDropdownHandle[str]
     reward_caption: viser.GuiMarkdownHandle
     reward: viser.GuiUplotHandle
-    verdicts: viser.GuiMarkdownHandle
     run: viser.GuiDropdownHandle[str]
     cluster: DaskCluster = field(default_factory=DaskCluster)
     job: ExperimentJob | None = None
@@ -92,8 +99,13 @@ class ExperimentsTab:
         name, scale = self._wanted or ("", "")
         entry = self.entries.get(name)
         if entry is not None:
-            live = self._live(name, scale)
-            self._pending = self._pool.submit(ev.build_view, entry, scale, self.runs_dir, live)
+            live, job = self._live(name, scale), self.job
+            seeds = since = None
+            if live and job is not None and job.design is not None:  # its stage's seeds so far
+                seeds, since = job.snapshot().seeds, job.since
+            self._pending = self._pool.submit(
+                ev.build_view, entry, scale, self.runs_dir, live, seeds, since
+            )
             self._pending.add_done_callback(self._landed)
 
     def start(self) -> None:
@@ -118,9 +130,12 @@ class ExperimentsTab:
             )
         if scale not in entry.spec.scales:
             raise DashboardInputError(f"{name} has no {scale} scale")
-        self.job = ExperimentJob(entry.spec, scale, self.runs_dir, self.cluster)
+        request = AdaptiveRequest(self.adaptive.value, self.stage_seeds.value, self.max_seeds.value)
+        design = request.design()
+        self.job = ExperimentJob(entry.spec, scale, self.runs_dir, self.cluster, design)
         self._shown = ""
-        self.status.set(f"experiment {name} at {scale} started")
+        how = "" if design is None else f" adaptively (looks at {design.looks} seeds per arm)"
+        self.status.set(f"experiment {name} at {scale} started{how}")
 
     def stop(self) -> None:
         if self.job is None or not self.job.active:
@@ -237,6 +252,7 @@ class ExperimentsTab:
         plots.set_mean_bands(self.fitness, view.fitness.x, view.fitness.lines)
         set_options(self.condition, list(view.rewards), NO_CONDITIONS)
         self.show_condition()
+        self.stages.content = view.stages
         self.verdicts.content = view.verdicts
         set_options(self.run, view.runs, ev.NO_RUNS)
 
@@ -265,6 +281,14 @@ def populate_experiments_tab(
     table = gui.add_markdown("Reading the experiments…")
     experiment = gui.add_dropdown("Experiment", (ev.NO_EXPERIMENTS,))
     scale = gui.add_dropdown("Scale", SCALES, initial_value=STARTABLE_SCALES[0])
+    adaptive = gui.add_checkbox(
+        "Adaptive",
+        False,
+        hint="Run in stages of seeds until every claim is decided (gnp-lab experiment run "
+        "--adaptive)",
+    )
+    stage_seeds = gui.add_number("Stage seeds", DEFAULT_STAGE_SEEDS, step=1)
+    max_seeds = gui.add_number("Max seeds", DEFAULT_MAX_SEEDS, step=1)
     buttons = gui.add_button_group("Experiment run", ("Start", "Stop", "Refresh"))
     tab = ExperimentsTab(
         status=status,
@@ -273,14 +297,18 @@ def populate_experiments_tab(
         table=table,
         experiment=experiment,
         scale=scale,
+        adaptive=adaptive,
+        stage_seeds=stage_seeds,
+        max_seeds=max_seeds,
         progress=gui.add_progress_bar(0.0),
         progress_text=gui.add_markdown("experiment: none started"),
         about=gui.add_markdown(""),
+        stages=gui.add_markdown(""),
+        verdicts=gui.add_markdown(""),
         fitness=plots.band_plot(gui, "Training: best fitness (mean, 95% band)", "generation"),
         condition=gui.add_dropdown("Condition", (NO_CONDITIONS,)),
         reward_caption=gui.add_markdown(""),
         reward=plots.band_plot(gui, "Implementation: reward per step", "step"),
-        verdicts=gui.add_markdown(""),
         run=gui.add_dropdown("Run (arm-seed)", (ev.NO_RUNS,)),
     )
     load = gui.add_button("Load run on stage")

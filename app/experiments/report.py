@@ -22,6 +22,7 @@ from app.experiments.figures import DeltaBar, FigureFile, SavedFigures, save_fig
 from app.experiments.results import (
     CORE_STEPS_PER_SECOND,
     METRICS,
+    VERDICT_COLOURS,
     Arm,
     Comparison,
     Condition,
@@ -404,7 +405,8 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
     }
 
 
-_CSS = """
+_CSS = (
+    """
 body { font: 15px/1.45 system-ui, sans-serif; max-width: 1100px; margin: 2em auto;
        padding: 0 1em; color: #222; }
 h1 { margin-bottom: 0.2em; } h2 { margin-top: 2em; border-bottom: 1px solid #ddd; }
@@ -414,16 +416,18 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 th { background: #f4f4f4; }
 .facts td:first-child { font-weight: 600; }
 .verdict { white-space: nowrap; font-weight: 700; padding: 0.1em 0.5em; border-radius: 4px; }
-.held { background: #d8f3dc; color: #1b5e20; }
-.reversed { background: #fde2e1; color: #9b1c1c; }
-.ruled-out { background: #fff1c2; color: #7a4b00; }
-.undecided { background: #eee; color: #555; }
-.comparison { display: flex; gap: 1.5em; align-items: flex-start; flex-wrap: wrap; }
+"""
+    + "".join(
+        f".{verdict.replace(' ', '-')} {{ background: {background}; color: {text}; }}\n"
+        for verdict, (background, text) in VERDICT_COLOURS.items()
+    )
+    + """.comparison { display: flex; gap: 1.5em; align-items: flex-start; flex-wrap: wrap; }
 .comparison figure { margin: 0.6em 0; flex: 1 1 320px; max-width: 440px; }
 figure { margin: 1em 0; } figcaption { color: #555; font-size: 0.9em; max-width: 780px; }
 img { max-width: 100%; }
 .note { color: #8a5300; }
 """
+)
 
 
 def _e(text: object) -> str:

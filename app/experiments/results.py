@@ -17,6 +17,13 @@ MetricScope = Literal["training", "condition"]
 Direction = Literal["greater", "less", "equivalent"]
 Verdict = Literal["held", "reversed", "ruled out", "undecided"]
 VERDICTS: tuple[Verdict, ...] = ("held", "reversed", "ruled out", "undecided")
+# How a verdict is marked, as (background, text) colours: on the report's page and the dashboard.
+VERDICT_COLOURS: dict[Verdict, tuple[str, str]] = {
+    "held": ("#d8f3dc", "#1b5e20"),
+    "reversed": ("#fde2e1", "#9b1c1c"),
+    "ruled out": ("#fff1c2", "#7a4b00"),
+    "undecided": ("#eee", "#555"),
+}
 MarginForm = Literal["absolute", "relative"]
 ClaimKind = Literal["question", "sanity"]
 # Simulated steps per second on one core of this machine, measured: ch3-bs-rl at thesis scale,

@@ -1,6 +1,8 @@
 """The Experiments tab in a real browser: start ch3-bs-rl at smoke scale from the page, on the
 Dask cluster the dashboard starts, follow its progress, see its verdicts and load one of its
-runs on the stage. Saves `experiments.png` with the other screenshots (test-output/dashboard/).
+runs on the stage; then run it adaptively (stages of 2 seeds up to 4) and see its stages and
+verdicts. Saves `experiments-curves.png` and `experiments.png` with the other screenshots
+(test-output/dashboard/).
 
 Every wait is for a state of the page; how long a control took to answer while the experiment
 ran is printed, not asserted (bench/dashboard_latency.py --during experiment measures it).
@@ -16,11 +18,14 @@ from typing import Any
 
 import psutil
 import pytest
-from page_helpers import TIMEOUT_MS, choose, field, open_page, press, wait_for_line
+from page_helpers import TIMEOUT_MS, choose, field, open_page, press, sent, type_into, wait_for_line
 
 from app.dashboard.headless import start_dashboard, stop_dashboard
+from app.experiments import runner
+from app.experiments.report import analyse
 from app.experiments.results import VERDICTS
 from app.experiments.spec import load_shipped
+from app.experiments.summary import read_summary
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
@@ -97,10 +102,11 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     last = wait_for_line(page, PROGRESS, rf"finished: summary written · {COUNTS}")
     assert last.groups() == (RUNS, GENERATIONS, CONDITIONS) and len(seen) >= 2
     assert field(page, "Experiment").input_value() == NAME
-    verdicts = page.locator("table", has_text="a − b [interval]").first
-    expect(verdicts).to_contain_text(re.compile("|".join(VERDICTS)), timeout=TIMEOUT_MS)
+    verdicts = page.locator("table", has_text="Δ [interval]")
+    expect(verdicts.first).to_contain_text(re.compile("|".join(VERDICTS)), timeout=TIMEOUT_MS)
     claims = len(load_shipped(NAME).comparisons)
-    expect(verdicts.locator("tr")).to_have_count(1 + claims)  # a header and a row per claim
+    expect(verdicts.locator("tr")).to_have_count(2 + claims)  # questions, sanity: header, rows
+    page.get_by_text("one look at 2 seeds per arm (not adaptive)").first.wait_for()
     assert page.locator(".u-legend", has_text="BS (n = 2)").count() >= 1
     smoke_cell = catalogue.locator("tr", has_text=NAME).locator("td").nth(1)
     expect(smoke_cell).to_have_text(f"{RUNS}/{RUNS}", timeout=TIMEOUT_MS)  # the list is refreshed
@@ -115,6 +121,60 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     title = page.get_by_text("Training: best fitness").first  # the charts, then the table
     title.evaluate("(element) => element.scrollIntoView({block: 'start'})")
     page.wait_for_timeout(1000)  # let software WebGL draw the new robot
+    page.screenshot(path=str(screenshots / "experiments-curves.png"))
+    page.close()
+
+
+def test_an_adaptive_run_shows_its_stages_and_verdicts(
+    served: tuple[Any, str, Path], browser: Any, screenshots: Path
+) -> None:
+    """Stages of 2 seeds up to 4: after the test above only the second stage has runs to do."""
+    from playwright.sync_api import expect
+
+    _, url, runs = served
+    page = open_page(browser, url)
+    page.get_by_role("tab", name="Experiments").click()
+    expect(page.locator("table", has_text="experiment").first).to_contain_text(NAME)
+    choose(page, "Experiment", NAME)
+    choose(page, "Scale", SCALE)
+    adaptive = field(page, "Adaptive")
+    sent(page, adaptive.check, "true")
+    type_into(page, "Stage seeds", "1")  # refused, with the reason
+    type_into(page, "Max seeds", "4")
+    press(page, "Start")
+    page.get_by_text("⚠ adaptive: stages need at least 2 seeds each").first.wait_for()
+    type_into(page, "Stage seeds", "2")
+    press(page, "Start")
+    page.get_by_text(f"experiment {NAME} at {SCALE} started adaptively").first.wait_for()
+    done = wait_for_line(
+        page, PROGRESS, r"finished: summary written after (\d) look\(s\), (\d) seeds per arm"
+    )
+    # The stages on the page are the summary's looks (the report is the oracle).
+    report = analyse(read_summary(runner.summary_path(runs, NAME, SCALE)))
+    looks = len(report.looks)
+    assert done.groups() == (str(looks), str(report.looks[-1])) and report.looks[0] == 2
+    header = page.get_by_role("columnheader", name="decided", exact=True)
+    stages = page.locator("table", has=header)
+    expect(stages.locator("tr")).to_have_count(1 + looks, timeout=TIMEOUT_MS)
+    first = stages.locator("tr").nth(1).locator("td")
+    expect(first.nth(1)).to_have_text("2")
+    expect(first.nth(2)).to_have_text("BS 2 · RL 2")
+    # The verdicts: questions then sanity claims, each named by one of the four verdicts.
+    page.get_by_text("The thesis's questions").first.wait_for()
+    header = page.get_by_role("columnheader", name="Δ [interval]", exact=True)
+    verdicts = page.locator("table", has=header)
+    expect(verdicts).to_have_count(2)
+    for table, kind in zip((verdicts.nth(0), verdicts.nth(1)), ("question", "sanity"), strict=True):
+        claims = report.of_kind(kind)
+        expect(table.locator("tr")).to_have_count(1 + len(claims))
+        box = table.bounding_box()  # it fits the side panel: nothing off the page's right edge
+        assert box is not None and box["x"] + box["width"] <= page.viewport_size["width"]
+        cells = table.locator("tr td:nth-child(4)").all_inner_texts()
+        assert [cell.splitlines()[0] for cell in cells] == [c.claim.verdict for c in claims]
+    page.get_by_text("Stages").first.evaluate(
+        "(element) => element.scrollIntoView({block: 'start'})"
+    )
+    page.wait_for_timeout(500)
     page.screenshot(path=str(screenshots / "experiments.png"))
     page.close()
 

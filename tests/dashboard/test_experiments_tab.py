@@ -25,6 +25,7 @@ from app import store
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob
+from app.dashboard.experiment_verdicts import badge
 from app.dashboard.plots import MAX_POINTS
 from app.experiments import runner
 from app.experiments.figures import mean_and_ci
@@ -35,7 +36,9 @@ from app.experiments.spec import SHIPPED_PACKAGE, ExperimentSpec, load_shipped
 from app.experiments.summary import read_summary, write_summary
 
 NAME, SCALE = "ch3-bs-rl", "smoke"
-VERDICT = re.compile(r"\*\*(" + "|".join(VERDICTS) + r")\*\* \|$", re.MULTILINE)
+VERDICT = re.compile(
+    r">(" + "|".join(VERDICTS) + r")</span>(<br><small>need [^<]+</small>)? \|$", re.MULTILINE
+)
 
 
 @pytest.fixture(scope="module")
@@ -126,23 +129,27 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
     results = read_summary(runner.summary_path(finished, NAME, SCALE))
     assert view.count == ev.ScaleCount(4, 4) and not view.problems
     assert view.runs == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
-    # The verdict table holds the report's own numbers and verdicts.
+    # The verdict tables hold the report's own numbers and verdicts: questions, then sanity.
     report = analyse(results)
-    rows = [line for line in view.verdicts.splitlines() if line.startswith("| ")][1:]
-    assert len(rows) == len(spec.comparisons) == len(report.comparisons)
-    for row, comparison in zip(rows, report.comparisons, strict=True):
+    rows = [line for line in view.verdicts.splitlines() if line.startswith("| <span")]
+    ordered = [*report.of_kind("question"), *report.of_kind("sanity")]
+    assert len(rows) == len(spec.comparisons) == len(ordered)
+    assert view.verdicts.index("**The thesis's questions**") < view.verdicts.index(
+        "**Within one arm (sanity)**"
+    )
+    for row, comparison in zip(rows, ordered, strict=True):
         cells = [cell.strip() for cell in row.strip("|").split(" | ")]
-        assert cells[0].startswith(comparison.comparison.name)
+        assert cells[0].endswith(f">{comparison.comparison.name}</span>")
         c = comparison.comparison
         side = f"{c.a} ({c.side_names()[0]})" if c.paired else c.a  # one arm, two sides
-        assert cells[1] == f"{side} {format_number(comparison.stats.a.mean)} ± " + format_number(
-            comparison.stats.a.sd
-        )
+        mean_a = f"{side} {format_number(comparison.stats.a.mean)} ± "
+        assert mean_a + format_number(comparison.stats.a.sd) in cells[0]  # in its tooltip
         difference = format_number(comparison.stats.difference)
-        assert cells[3] == f"{difference} {interval_text(comparison.claim)}"
-        assert cells[4] == ", ".join(map(str, comparison.claim.runs))
-        assert cells[-1] == f"**{comparison.claim.verdict}**"
+        assert cells[1] == f"{difference}<br>{interval_text(comparison.claim)}"
+        assert cells[2] == ", ".join(map(str, comparison.claim.runs))
+        assert cells[3].startswith(badge(comparison.claim.verdict))
         assert comparison.claim.verdict in VERDICTS
+    assert view.stages == "**Stages**: one look at 2 seeds per arm (not adaptive)."
     # Fitness: per arm the mean over seeds per generation and its 95% half-width.
     assert view.fitness.x.tolist() == [1.0, 2.0]
     assert [line.label for line in view.fitness.lines] == ["BS (n = 2)", "RL (n = 2)"]
