@@ -95,13 +95,18 @@ def _tally(comparisons: list[dict[str, Any]]) -> str:
     return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
 
 
-def claims_tables(reports: dict[tuple[str, str], dict[str, Any]], kind: str) -> str:
-    """A table per shipped experiment of its claims of one kind ("question" or "sanity"):
-    a row per claim, our numbers and verdict per scale run."""
+def claims_tables(
+    reports: dict[tuple[str, str], dict[str, Any]], kind: str, experiments: str = "thesis"
+) -> str:
+    """A table per shipped experiment of `experiments` kind ("thesis" or "beyond") of its
+    claims of one kind ("question" or "sanity"): a row per claim, our numbers and verdict per
+    scale run."""
     out = []
     for name in shipped_names():
         scales = [s for s in SCALES if (name, s) in reports and s != "smoke"]
         spec = load_shipped(name)
+        if spec.kind != experiments:
+            continue
         if kind == "question":
             out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
         if not scales:
@@ -166,10 +171,11 @@ def cost_table() -> str:
 
 
 def tallies(reports: dict[tuple[str, str], dict[str, Any]]) -> dict[tuple[str, str], int]:
-    """(kind, verdict) -> count over every committed report at `small` scale."""
+    """(kind, verdict) -> count over the thesis experiments' committed reports at `small`."""
     counts: dict[tuple[str, str], int] = {}
-    for (_, scale), report in reports.items():
-        if scale != "small":
+    thesis = {n for n in shipped_names() if load_shipped(n).kind == "thesis"}
+    for (name, scale), report in reports.items():
+        if scale != "small" or name not in thesis:
             continue
         for c in report["comparisons"]:
             key = (c.get("kind", "question"), c["verdict"])
@@ -204,8 +210,12 @@ def tables(folder: Path) -> str:
         + "\n## Within one arm: sanity claims\n\n"
         "More broken sensors give less reward, the reward after a fault is below the reward "
         f"before it: claims about one method, apart from the thesis's questions. {tally('sanity')}."
-        "\n\n"
-        + claims_tables(reports, "sanity")
+        "\n\n" + claims_tables(reports, "sanity") + "\n## Beyond the thesis\n\n"
+        "Our own hypotheses, asked with the same engine: GNP with online RL against neural "
+        "controllers evolved by CMA-ES and NEAT, and the analytic physics against pymunk "
+        "(equivalence within ±0.02).\n\n"
+        + claims_tables(reports, "question", "beyond")
+        + claims_tables(reports, "sanity", "beyond")
         + "\n## What each experiment costs\n\n"
         + "Simulated work per scale, and the wall time measured on this machine (2 vCPUs).\n\n"
         + cost_table()

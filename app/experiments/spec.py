@@ -176,6 +176,11 @@ class ExperimentSpec(_Frozen):
     name: str
     description: str
     source: str = Field(description="the thesis result it reproduces")
+    kind: Literal["thesis", "beyond"] = Field(
+        default="thesis",
+        description="thesis: it asks the thesis's questions; beyond: our own hypotheses (other "
+        "controllers, another physics), reported apart",
+    )
     preset: str = Field(description=f"base preset: {', '.join(PRESET_NAMES)}")
     seeds: int = Field(default=10, ge=1, le=10_000, description="seeds 0..n-1 (paired)")
     config: dict[str, Any] = Field(default_factory=dict, description="base overlay")
