@@ -10,8 +10,10 @@ import h5py
 import numpy as np
 from lab_fixtures import datasets, tiny_config
 
+from app.arenas import shipped_spec
 from app.implementation import implement
 from app.training import train
+from sim.arena import ArenaSpec
 
 #: sha256 of a tiny CS run's datasets and config, trained and implemented by the code before
 #: the lab loop learnt to step neural controllers (commit 8a103b1). A change of the simulator
@@ -41,6 +43,10 @@ def run_digest(path: Path) -> str:
         for parent in parents:
             where = where[parent]
         assert where.pop(key) == default
+    for section in ("training", "implementation"):  # arenas carried inline since: by name then
+        arena = ArenaSpec.model_validate(config[section]["arena"])
+        assert arena == shipped_spec(arena.name)
+        config[section]["arena"] = arena.name
     digest.update(json.dumps(config, separators=(",", ":")).encode())
     return digest.hexdigest()
 

@@ -19,6 +19,7 @@ from lab_fixtures import assert_same_data, datasets, tiny_config
 import app.training as training
 import neuro
 import sim
+from app.arenas import arena_of
 from app.config import ImplementationSettings, RunConfig, build_config, to_toml
 from app.export import ExportError, export_replay, export_run
 from app.implementation import implement
@@ -167,7 +168,7 @@ def test_an_exported_net_is_loaded_bit_identical_and_lives_the_elites_life(
     training_settings = config.training
     seeds = life_seeds(config.seed, generation, np.array([best]), 1, 10)
     world = sim.World(
-        sim.load_arena(training_settings.arena),
+        arena_of(training_settings.arena),
         n=1,
         seed=config.seed,
         noise_sigma=training_settings.noise_sigma,
