@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
-import signal
 import time
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -41,6 +40,7 @@ from app.training import (
     _owned,
     _stop_on_sigterm,
     _stop_requested,
+    serve_lives,
     shards,
 )
 from neuro.cmaes import Cmaes
@@ -147,17 +147,7 @@ class _NetLives:
 
 
 def _worker_main(conn: Connection, config_json: str) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides (see app.training)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    lives = _NetLives(RunConfig.model_validate_json(config_json))
-    try:
-        while True:
-            job = conn.recv()
-            if job is None:
-                break
-            conn.send(lives.run(*job))
-    except (EOFError, BrokenPipeError, KeyboardInterrupt):
-        pass
+    serve_lives(conn, _NetLives(RunConfig.model_validate_json(config_json)).run)
 
 
 class _Evaluator:

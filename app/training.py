@@ -196,20 +196,26 @@ class LocalEvaluator:
         pass
 
 
-def _worker_main(conn: Connection, config_json: str) -> None:
-    # Ctrl-C and SIGTERM reach the whole process group: the main process decides, and stops
-    # workers itself; a worker whose parent died sees its pipe close and exits.
+def serve_lives(conn: Connection, run: Callable[..., Any]) -> None:
+    """A worker process's loop: live each job `conn` brings with `run`, until None arrives.
+
+    Ctrl-C and SIGTERM reach the whole process group: the main process decides, and stops
+    workers itself; a worker whose parent died sees its pipe close and exits.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    lives = _Lives(RunConfig.model_validate_json(config_json))
     try:
         while True:
             job = conn.recv()
             if job is None:
                 break
-            conn.send(lives.run(*job))
+            conn.send(run(*job))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
+
+
+def _worker_main(conn: Connection, config_json: str) -> None:
+    serve_lives(conn, _Lives(RunConfig.model_validate_json(config_json)).run)
 
 
 class ProcessEvaluator:
