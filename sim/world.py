@@ -212,8 +212,12 @@ def _layout(arena: Arena, count: int) -> tuple[np.ndarray, int, int]:
     """
     xmin, ymin, xmax, ymax = arena.bounds
     span = max(np.ceil(xmax) - np.floor(xmin), np.ceil(ymax) - np.floor(ymin)) + 2 * COPY_MARGIN_MM
-    cell = 1 << int(np.ceil(np.log2(span / HASH_CELLS_PER_SIDE)))
-    side = int(np.ceil(span / cell))  # cells per square side
+    # A copy spans the closed interval [start, start + span] from a cell boundary: floor(span /
+    # cell) + 1 cells, so the cell must exceed span / cells-per-side strictly (a span of exactly
+    # whole cells would reach one cell further: found by hypothesis for a 100 x 512 mm box). For
+    # the shipped arenas (span / 5 = 225.6 mm) this is the cell and side it always was.
+    cell = 1 << (int(np.floor(np.log2(span / HASH_CELLS_PER_SIDE))) + 1)
+    side = int(span // cell) + 1  # cells per square side
     lo, hi = COPY_REGION_MM
     first, per_axis = int(lo) // cell, int(hi - lo) // (side * cell)
     col, row = np.divmod(np.arange(per_axis * per_axis), per_axis)
