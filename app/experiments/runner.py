@@ -310,8 +310,17 @@ def warm_numba(tasks: list[Task], client: Any = None) -> None:
 
     configs = controllers([t.config for t in tasks])
     warm_up(configs)
-    if client is not None:  # after the cache is written: the workers only read it
+    # After the cache is written: the workers only read it. Workers inside this process (an
+    # in-process cluster) are warm already, and their warm-up would hold the event loop that
+    # this process's scheduler and client share.
+    if client is not None and not _in_process(client):
         client.register_plugin(WarmWorkers(configs))
+
+
+def _in_process(client: Any) -> bool:
+    """Every worker of `client`'s cluster lives in this process (`processes=False`)."""
+    workers = client.scheduler_info().get("workers", {})
+    return bool(workers) and all(str(a).startswith("inproc://") for a in workers)
 
 
 def default_workers() -> int:
