@@ -185,13 +185,17 @@ def test_experiment_killed_at_ten_moments_resumes_to_identical_data(tmp_path: Pa
     spec = load_file(spec_file)
     reference, runs = tmp_path / "reference", tmp_path / "runs"
     run = ("experiment", "run", "--file", spec_file, "--scale", "smoke", "--quiet")
+    began = time.monotonic()
     status, err = _finish(_gnp_lab(*run, "--runs-dir", reference, "--workers", "1"), 90)
+    took = time.monotonic() - began  # of a whole run, start-up included
     assert status == 0, err
     kills = sum(
         _kill_after(_gnp_lab(*run, "--runs-dir", runs, "--workers", "2"), moment)
-        for moment in _moments(1.0, 5.0)
+        for moment in sorted(_moments(0.05 * took, 0.9 * took))
     )
-    assert kills >= MOMENTS - 2  # the last moments may come after the end
+    # Each resume has less left to do than the one before, so the later moments may come after
+    # its end (how many depends on the machine's speed); the early ones always cut a run.
+    assert kills >= 3, kills
     status, err = _finish(_gnp_lab(*run, "--runs-dir", runs, "--workers", "2"))
     assert status == 0, err
     for ours, theirs in zip(plan(spec, "smoke", runs), plan(spec, "smoke", reference), strict=True):
