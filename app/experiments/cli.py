@@ -180,7 +180,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _write_report(results: ExperimentResults, out: Path) -> str:
-    from app.experiments.report import write_report
+    from app.experiments.report_page import write_report
 
     return f"report: {write_report(results, out)}"
 
@@ -240,7 +240,7 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         return _print_json(results)
     if not args.out:
         raise ExperimentError("--from-values writes a report folder: give --out")
-    from app.experiments.report import write_report
+    from app.experiments.report_page import write_report
 
     print(f"report: {write_report(results, Path(args.out), keep_curves=True)}")
     return 0

@@ -1,28 +1,22 @@
-"""An experiment's report: every claim's statistics, as a typed object, JSON and a static page.
+"""An experiment's report: every claim's statistics, as a typed object and as JSON.
 
 `analyse` computes the statistics and the verdict of every comparison of an
 `ExperimentResults` (`sequential.judge` over the looks of an adaptive run, Holm across the
-experiment's comparisons), `to_json` gives them as a JSON-ready dict, and `write_report`
-writes a self-contained `index.html` with PNG figures, the per-run values (`values.csv`) every
-statistic was computed from, and the JSON (`report.json`), all in one folder.
+experiment's comparisons) and `to_json` gives them as a JSON-ready dict; the page, its
+figures and files are `app.experiments.report_page.write_report`'s.
 """
 
 from __future__ import annotations
 
-import html
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from app.experiments.figures import DeltaBar, FigureFile, SavedFigures, save_figures
 from app.experiments.results import (
     CORE_STEPS_PER_SECOND,
     METRICS,
-    VERDICT_COLOURS,
     Arm,
     Comparison,
     Condition,
@@ -40,7 +34,6 @@ from app.experiments.sequential import (
     seeds_for_power,
 )
 from app.experiments.stats import ArmSummary, PairStats, compare, holm, summarise
-from app.experiments.values import VALUES_COLUMNS, write_values_csv
 
 _DIRECTION_WORDS = {"greater": "higher", "less": "lower", "equivalent": "about the same"}
 
@@ -134,7 +127,7 @@ def _thesis_value(results: ExperimentResults, key: tuple[str, str, str]) -> Thes
     return next((v for v in results.thesis if (v.metric, v.arm, v.condition or "") == key), None)
 
 
-def _thesis_beside_ours(results: ExperimentResults) -> list[tuple[ThesisValue, ArmSummary]]:
+def thesis_beside_ours(results: ExperimentResults) -> list[tuple[ThesisValue, ArmSummary]]:
     """Each of the thesis's numbers with our summary of the same arm, metric and condition."""
     missing = np.full(len(results.seeds), np.nan)
     return [
@@ -400,51 +393,9 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
                 "source": v.source,
                 "ours": {"mean": json_number(ours.mean), "sd": json_number(ours.sd), "n": ours.n},
             }
-            for v, ours in _thesis_beside_ours(results)
+            for v, ours in thesis_beside_ours(results)
         ],
     }
-
-
-_CSS = (
-    """
-body { font: 15px/1.45 system-ui, sans-serif; max-width: 1100px; margin: 2em auto;
-       padding: 0 1em; color: #222; }
-h1 { margin-bottom: 0.2em; } h2 { margin-top: 2em; border-bottom: 1px solid #ddd; }
-table { border-collapse: collapse; margin: 0.6em 0 1em; }
-th, td { border: 1px solid #ddd; padding: 0.3em 0.6em; text-align: left; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-th { background: #f4f4f4; }
-.facts td:first-child { font-weight: 600; }
-.verdict { white-space: nowrap; font-weight: 700; padding: 0.1em 0.5em; border-radius: 4px; }
-"""
-    + "".join(
-        f".{verdict.replace(' ', '-')} {{ background: {background}; color: {text}; }}\n"
-        for verdict, (background, text) in VERDICT_COLOURS.items()
-    )
-    + """.comparison { display: flex; gap: 1.5em; align-items: flex-start; flex-wrap: wrap; }
-.comparison figure { margin: 0.6em 0; flex: 1 1 320px; max-width: 440px; }
-figure { margin: 1em 0; } figcaption { color: #555; font-size: 0.9em; max-width: 780px; }
-img { max-width: 100%; }
-.note { color: #8a5300; }
-"""
-)
-
-
-def _e(text: object) -> str:
-    return html.escape(str(text))
-
-
-def _arm_name(arm: Arm) -> str:
-    return arm.label if arm.name in arm.label else f"{arm.label} ({arm.name})"
-
-
-def _verdict_html(verdict: str) -> str:
-    return f'<span class="verdict {verdict.replace(" ", "-")}">{_e(verdict)}</span>'
-
-
-def _row(*cells: str, header: bool = False) -> str:
-    tag = "th" if header else "td"
-    return "<tr>" + "".join(f"<{tag}>{cell}</{tag}>" for cell in cells) + "</tr>"
 
 
 def interval_level(claim: ClaimStats) -> str:
@@ -476,212 +427,3 @@ def need_text(need: Need) -> str:
         f"{one(need.seeds_at_thesis, need.core_hours_at_thesis)}, "
         f"{one(need.seeds_at_ours, need.core_hours_at_ours)}"
     )
-
-
-def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
-    s, claim, c = report.stats, report.claim, report.comparison
-    sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
-    if c.paired:  # one arm: each side says its metric or condition
-        parts: list[list[str]] = [[], []]
-        if report.metric_b is not None:
-            parts[0].append(report.metric.label)
-            parts[1].append(report.metric_b.label)
-        if report.condition_b is not None and report.condition is not None:
-            parts[0].append(report.condition.label)
-            parts[1].append(report.condition_b.label)
-        sides = [", ".join([side, *part]) for side, part in zip(sides, parts, strict=True)]
-    arm_rows = "".join(
-        "<tr>"
-        f"<td>{_e(side)}</td>"
-        f'<td class="num">{summary.n}</td><td class="num">{summary.dropped}</td>'
-        f'<td class="num">{_e(format_number(summary.mean))} ± {_e(format_number(summary.sd))}'
-        "</td>"
-        + (
-            f'<td class="num">{_e(format_number(thesis.value))} ({_e(thesis.source)})</td>'
-            if thesis
-            else "<td>–</td>"
-        )
-        + "</tr>"
-        for side, summary, thesis in (
-            (sides[0], s.a, report.thesis_a),
-            (sides[1], s.b, report.thesis_b),
-        )
-    )
-    t_test, rank_test = s.tests
-    rows = [
-        ("difference of means (a − b)", format_number(s.difference)),
-        (f"verdict's interval ({interval_level(claim)})", interval_text(claim)),
-        ("effect ruled out by 'ruled out'", margin_text(report)),
-        ("runs (a, b); look", f"{claim.runs[0]}, {claim.runs[1]}; {claim.judged.look + 1}"),
-        (f"{t_test} t (df)", f"{format_number(s.t)} ({format_number(s.df)})"),
-        (f"{t_test} p, one-tailed (other direction)",
-         f"{format_number(s.p)} ({format_number(s.p_opposite)})"),
-        (f"{rank_test} {'W+' if s.paired else 'U'} (p, one-tailed)",
-         f"{format_number(s.rank_statistic)} ({format_number(s.rank_p)})"),
-        (f"Holm-adjusted two-sided {t_test} p", format_number(claim.holm_p)),
-        ("P(improvement)", format_number(s.prob_improvement)),
-        ("Hedges' g", format_number(s.hedges_g)),
-    ]  # fmt: skip
-    if claim.need is not None:
-        rows.append(("seeds per arm for 80% power: thesis's effect, ours", need_text(claim.need)))
-    stats_rows = "".join(f'<tr><td>{_e(k)}</td><td class="num">{_e(v)}</td></tr>' for k, v in rows)
-    notes = "".join(f'<li class="note">{_e(note)}</li>' for note in s.notes)
-    image = (
-        f'<figure><img src="{_e(figure.file)}" alt="{_e(figure.title)}">'
-        f"<figcaption>{_e(figure.caption)}</figcaption></figure>"
-        if figure
-        else ""
-    )
-    return f"""
-<h3>{_e(c.name)} {_verdict_html(claim.verdict)}</h3>
-<p>Claim ({_e(c.source)}): {_e(report.sentence)}. a = {_e(c.a)}, b = {_e(c.b)}.</p>
-<div class="comparison"><div>
-<table>{_row("arm", "runs (n)", "unfinished", "mean ± sd", "thesis", header=True)}{arm_rows}
-</table>
-<table>{_row("statistic", "value", header=True)}{stats_rows}
-<tr><td>verdict</td><td>{_verdict_html(claim.verdict)}</td></tr></table>
-{f"<ul>{notes}</ul>" if notes else ""}
-</div>{image}</div>"""
-
-
-def _page(report: ExperimentReport, figures: SavedFigures) -> str:
-    results = report.results
-    facts = "".join(
-        _row(_e(k), _e(v))
-        for k, v in (
-            ("source", results.source),
-            ("scale", results.scale),
-            ("seeds", ", ".join(map(str, results.seeds)) + f" ({len(results.seeds)} runs per arm)"),
-            ("arms", "; ".join(f"{a.name}: {a.label}" for a in results.arms)),
-            ("unit of analysis", "the run (seed): a run's value is its mean over trials"),
-        )
-    )
-
-    def verdict_rows(kind: str) -> str:
-        return "".join(
-            _row(_e(c.comparison.name), _e(c.sentence), _e(c.comparison.source),
-                 _e(f"{format_number(c.stats.difference)} {interval_text(c.claim)}"),
-                 _e(f"{c.claim.runs[0]}, {c.claim.runs[1]}"), _verdict_html(c.claim.verdict))
-            for c in report.of_kind(kind)
-        )  # fmt: skip
-
-    verdict_head = _row("comparison", "claim", "claimed in", "Δ [interval]", "runs (a, b)",
-                        "verdict", header=True)  # fmt: skip
-    questions, sanity = verdict_rows("question"), verdict_rows("sanity")
-    summary = (
-        f"<h3>The thesis's questions</h3><table>{verdict_head}{questions}</table>"
-        if questions
-        else ""
-    ) + (f"<h3>Within one arm (sanity)</h3><table>{verdict_head}{sanity}</table>" if sanity else "")
-    stage_rows = "".join(
-        _row(str(st["look"]), str(st["seeds_per_arm"]),
-             _e(", ".join(f"{arm} {n}" for arm, n in st["runs"].items())),
-             _e(", ".join(f"{d['name']} ({d['verdict']})" for d in st["decided"]) or "–"),
-             str(st["open_after"]))
-        for st in stages_json(report)
-    )  # fmt: skip
-    stages = (
-        "<h2>Stages</h2><table>"
-        + _row("look", "seeds per arm", "runs", "decided", "still open", header=True)
-        + stage_rows
-        + "</table>"
-    )
-    thesis_rows = "".join(
-        _row(_e(v.arm), _e(METRICS[v.metric].label if v.metric in METRICS else v.metric),
-             _e(v.condition or "–"), _e(f"{format_number(v.value)} ({v.source})"),
-             _e(f"{format_number(ours.mean)} ± {format_number(ours.sd)} (n = {ours.n})"))
-        for v, ours in _thesis_beside_ours(results)
-    )  # fmt: skip
-    thesis_header = _row(
-        "arm", "metric", "condition", "thesis", "ours: mean ± sd over runs", header=True
-    )
-    thesis_section = (
-        f"<h2>The thesis's numbers beside ours</h2><table>{thesis_header}{thesis_rows}</table>"
-        if thesis_rows
-        else ""
-    )
-    conditions = "".join(
-        _row(_e(c.name), _e(c.label), str(c.steps),
-             "–" if c.fault_step is None else str(c.fault_step),
-             str(c.broken_count), format_number(c.noise_sigma))
-        for c in results.conditions
-    )  # fmt: skip
-    other_figures = "".join(
-        f'<figure><img src="{_e(f.file)}" alt="{_e(f.title)}">'
-        f"<figcaption><b>{_e(f.title)}.</b> {_e(f.caption)}</figcaption></figure>"
-        for f in figures.overview
-    )
-    comparisons = "".join(
-        _comparison_html(c, f) for c, f in zip(report.comparisons, figures.runs, strict=True)
-    )
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<title>{_e(results.name)} ({_e(results.scale)})</title>
-<style>{_CSS}</style></head><body>
-<h1>{_e(results.name)}</h1>
-<p>{_e(results.description)}</p>
-<table class="facts">{facts}</table>
-<p>Each arm is run with the same seeds; the unit of analysis is the run, so n counts runs,
-never trials. As in the thesis, arms are compared as independent samples (Welch); one arm
-compared across two conditions or metrics has the same runs on both sides and is tested paired
-by seed (paired t). Each claim's verdict rests on an interval of Δ = mean(a) − mean(b):
-<i>held</i> when it lies on the claimed side of 0 (an equivalence claim: inside ±margin),
-<i>reversed</i> when it lies on the other side, <i>ruled out</i> when it excludes the thesis's
-effect (the margin declared in the experiment's file before the runs), else <i>undecided</i>,
-with the seeds per arm that 80% power would need at the thesis's effect and at ours, and their
-cost in core-hours. The intervals are two-sided t-intervals at level α/r (α = {report.alpha:g},
-r the claims holding a share: Holm over all claims, both directions in one family; a claim
-held or reversed hands its share on, one ruled out keeps it) widened, for an adaptive run, by
-the Lan–DeMets O'Brien–Fleming boundary of the look, so the chance of any wrong held or
-reversed over all claims and looks is at most α. Mann–Whitney U (Wilcoxon signed-rank
-when paired), P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> =
-X<sub>b</sub>) (rliable) and Hedges' g describe each claim too. Unfinished runs (NaN) are left
-out and counted.</p>
-<h2>Verdicts</h2>
-{summary}
-{stages}
-{thesis_section}
-<h2>Comparisons</h2>{comparisons}
-<h2>Figures</h2>{other_figures or "<p>No curves were recorded.</p>"}
-<h2>Conditions</h2>
-<table>{_row("name", "label", "steps T", "fault step t'", "broken sensors", "noise σ",
-             header=True)}{conditions}</table>
-<h2>Data</h2>
-<p><a href="values.csv">values.csv</a>: every run's value each statistic was computed from
-(columns {", ".join(VALUES_COLUMNS)}; nan for an unfinished run).
-<a href="report.json">report.json</a>: these statistics as JSON.</p>
-</body></html>
-"""  # fmt: skip
-
-
-def write_report(results: ExperimentResults, out_dir: Path, keep_curves: bool = False) -> Path:
-    """Write `index.html`, its PNG figures, `values.csv` and `report.json` into `out_dir`.
-
-    Args:
-        results: the experiment's per-run values.
-        out_dir: the report's folder, created if needed.
-        keep_curves: keep the folder's curve figures (results read back from a values.csv
-            have no curves; the verdict rules may change, the curves do not).
-
-    Returns:
-        The path of `index.html`.
-    """
-    out_dir.mkdir(parents=True, exist_ok=True)
-    report = analyse(results)
-    deltas = [
-        DeltaBar(
-            c.stats.difference,
-            c.claim.judged.interval.low,
-            c.claim.judged.interval.high,
-            c.claim.margin,
-            c.comparison.direction,
-            interval_level(c.claim),
-        )
-        for c in report.comparisons
-    ]
-    figures = save_figures(results, out_dir, deltas, keep_curves=keep_curves)
-    write_values_csv(results, out_dir / "values.csv")
-    (out_dir / "report.json").write_text(json.dumps(to_json(report), indent=2, allow_nan=False))
-    index = out_dir / "index.html"
-    index.write_text(_page(report, figures), encoding="utf-8")
-    return index

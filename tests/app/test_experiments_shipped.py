@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from app.experiments.report import write_report
+from app.experiments.report_page import write_report
 from app.experiments.results import METRICS, VERDICTS
 from app.experiments.runner import NO_DASHBOARD, run_experiment
 from app.experiments.spec import SCALES, ConditionSpec, ExperimentSpec, load_shipped, shipped_names
