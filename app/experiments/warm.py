@@ -9,7 +9,6 @@ live a tiny run of each controller at start, so no task pays for it.
 
 from __future__ import annotations
 
-import asyncio
 import hashlib
 import tempfile
 from pathlib import Path
@@ -64,7 +63,5 @@ class WarmWorkers(WorkerPlugin):
         ]
         self.name = f"gnp-lab-warm-{digest}"  # one registration per set of controllers
 
-    async def setup(self, worker: Any) -> None:
-        # In a thread: a warm-up of seconds (minutes with a cold cache) must not stall the
-        # worker's event loop, its heartbeats and its comms with the scheduler.
-        await asyncio.get_running_loop().run_in_executor(None, warm_up, self.configs)
+    def setup(self, worker: Any) -> None:
+        warm_up(self.configs)
