@@ -19,7 +19,7 @@ from neuro.nets import NetConfig, NeuroError, check_arrays, field_dtype
 
 FORMAT = "gnp-lab-neural-controller"
 VERSION = 1
-_NET: TypeAdapter[NetConfig] = TypeAdapter(NetConfig)  # type: ignore[arg-type]
+_NET: TypeAdapter[NetConfig] = TypeAdapter(NetConfig)
 
 
 def save_net(
