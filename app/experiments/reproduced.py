@@ -1,26 +1,37 @@
-""" "The thesis, reproduced": one page with a row per claim, the thesis beside us at every scale.
+""" "The thesis, reproduced": one page that answers the thesis's questions from the reports.
 
 The page is `docs/experiments/README.md`. Its tables are written from the committed reports
-(`docs/experiments/NAME-SCALE/report.json`, from `gnp-lab experiment report --out`) and
-the shipped specs, between two marker lines; everything outside the markers (the discussion of
-each claim) is written by hand and kept as it is. `gnp-lab experiment reproduced` rewrites the
-tables; a test checks the committed page agrees with the committed reports.
+(`docs/experiments/NAME-SCALE/report.json`, from `gnp-lab experiment report --out`), the shipped
+specs and the headline questions (`questions.toml`), each between the two marker lines of its
+section (`<!-- reproduced: NAME -->` ... `<!-- reproduced: end NAME -->`); everything outside
+the markers (what the numbers mean, the discussion) is written by hand and kept as it is.
+`gnp-lab experiment reproduced` rewrites the tables; a test checks the committed page agrees
+with the committed reports.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from app.experiments import runner
+from app.experiments.questions import answers_table
 from app.experiments.results import VERDICTS
 from app.experiments.spec import SCALES, ExperimentError, load_shipped, shipped_names
 
 PAGE = "README.md"
-BEGIN = "<!-- reproduced: tables written by `gnp-lab experiment reproduced`; edit outside -->"
-END = "<!-- reproduced: end of the written tables -->"
 TITLE = "# The thesis, reproduced\n"
+Reports = dict[tuple[str, str], dict[str, Any]]
+
+
+def begin(section: str) -> str:
+    return f"<!-- reproduced: {section} -->"
+
+
+def end(section: str) -> str:
+    return f"<!-- reproduced: end {section} -->"
 
 
 def load_reports(folder: Path) -> dict[tuple[str, str], dict[str, Any]]:
@@ -95,37 +106,35 @@ def _tally(comparisons: list[dict[str, Any]]) -> str:
     return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
 
 
+Keep = Callable[[dict[str, Any]], bool]
+
+
 def claims_tables(
-    reports: dict[tuple[str, str], dict[str, Any]], kind: str, experiments: str = "thesis"
+    reports: Reports, keep: Keep, experiments: str = "thesis", names: tuple[str, ...] = ()
 ) -> str:
-    """A table per shipped experiment of `experiments` kind ("thesis" or "beyond") of its
-    claims of one kind ("question" or "sanity"): a row per claim, our numbers and verdict per
-    scale run."""
+    """A table per shipped experiment of `experiments` kind ("thesis" or "beyond"), or of the
+    experiments `names`, of its claims that `keep` picks: a row per claim, our numbers and
+    verdict per scale run."""
     out = []
-    for name in shipped_names():
+    for name in names or shipped_names():
         scales = [s for s in SCALES if (name, s) in reports and s != "smoke"]
         spec = load_shipped(name)
-        if spec.kind != experiments:
+        if not names and spec.kind != experiments:
             continue
-        if kind == "question":
-            out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
         if not scales:
-            if kind == "question":
-                out.append("Not run yet at `small` or `thesis` scale.\n")
+            out.append(f"### {name}\n\nNot run yet at `small` or `thesis` scale.\n")
             continue
         # a claim per row, matched by name: a report written before a claim was added lacks it
         by_scale = [
-            {c["name"]: c for c in reports[name, s]["comparisons"] if c.get("kind") == kind}
-            for s in scales
+            {c["name"]: c for c in reports[name, s]["comparisons"] if keep(c)} for s in scales
         ]
         claims = {c: None for found in by_scale for c in found}  # first seen first, no repeats
         if not claims:
             continue
-        if kind == "sanity":
-            out.append(f"### {name}\n")
         links = ", ".join(f"[{s}]({name}-{s}/index.html)" for s in scales)
         tallies = "; ".join(f"{s}: {_tally(list(found.values()))}" for s, found in zip(
             scales, by_scale, strict=True))  # fmt: skip
+        out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
         out.append(f"Reports: {links}. Verdicts: {tallies}.\n")
         head = ["claim", "thesis"]
         for scale in scales:
@@ -170,7 +179,36 @@ def cost_table() -> str:
     return "\n".join(out) + "\n"
 
 
-def tallies(reports: dict[tuple[str, str], dict[str, Any]]) -> dict[tuple[str, str], int]:
+def runs_made(report: dict[str, Any]) -> dict[str, int]:
+    """Arm -> the runs a report's statistics used (its last look's, or every seed of each arm)."""
+    if report.get("stages"):
+        return dict(report["stages"][-1]["runs"])
+    return {arm["name"]: len(report["seeds"]) for arm in report["arms"]}
+
+
+def spent_table(reports: Reports) -> str:
+    """What each committed report cost: looks, runs per arm, simulated steps, measured time."""
+    out = [
+        "| report | looks (seeds per arm) | runs | robot-steps | trial-steps | measured |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (name, scale), report in sorted(reports.items()):
+        spec = load_shipped(name)
+        if scale not in spec.scales:
+            continue
+        planned = runner.work(spec, scale)  # every arm costs the same per run
+        runs = sum(runs_made(report).values())
+        looks = ", ".join(str(s) for s in report["looks_made"])
+        out.append(
+            f"| [{name}-{scale}]({name}-{scale}/index.html) | {looks} | {runs} "
+            f"| {short_count(planned.robot_steps / planned.runs * runs)} "
+            f"| {short_count(planned.trial_steps / planned.runs * runs)} "
+            f"| {_cell(spec.scales[scale].measured or '—')} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def tallies(reports: Reports) -> dict[tuple[str, str], int]:
     """(kind, verdict) -> count over the thesis experiments' committed reports at `small`."""
     counts: dict[tuple[str, str], int] = {}
     thesis = {n for n in shipped_names() if load_shipped(n).kind == "thesis"}
@@ -183,56 +221,104 @@ def tallies(reports: dict[tuple[str, str], dict[str, Any]]) -> dict[tuple[str, s
     return counts
 
 
-def tables(folder: Path) -> str:
-    """The written part of the page."""
-    reports = load_reports(folder)
-    counts = tallies(reports)
+def _against_control(c: dict[str, Any]) -> bool:
+    """A claim on what a fault costs: fault_effect, or a fault condition against the control."""
+    return c["metric"] == "fault_effect" or c.get("sides", [None, None])[1] == "no-fault"
 
-    def tally(kind: str) -> str:
+
+READING = (
+    "Each claim compares two sides on Δ = mean(a) − mean(b) over runs (seeds). Its interval "
+    "is a two-sided t-interval at level α/r (α = 0.05, r the claims holding a share; Holm "
+    "over the experiment's claims, both directions in one family; widened by the "
+    "O'Brien–Fleming boundary of its look in an adaptive run). `held`: the interval lies on "
+    "the claimed side of 0; `reversed`: on the other side; `ruled out`: it excludes the "
+    "thesis's effect (its own Δ relative to its baseline where it prints numbers, else a "
+    "smallest effect of interest declared before the runs); `undecided`: none of these, "
+    "with the seeds per arm that 80% power would need at the thesis's effect. "
+    "`not run`: the claim was added after the report's runs (no values yet).\n"
+)
+
+
+def _answers(reports: Reports) -> str:
+    return READING + "\n" + answers_table(reports)
+
+
+def _kind(kind: str) -> Callable[[Reports], str]:
+    """The section of every thesis experiment's claims of one kind, with their tally."""
+
+    def write(reports: Reports) -> str:
+        counts = tallies(reports)
         found = {v: counts.get((kind, v), 0) for v in VERDICTS}
-        total = sum(found.values())
-        return f"{total} claims at `small`: " + ", ".join(f"{n} {v}" for v, n in found.items())
+        tally = ", ".join(f"{n} {v}" for v, n in found.items())
+        head = f"{sum(found.values())} claims at `small`: {tally}.\n\n"
+        return head + claims_tables(reports, lambda c: c.get("kind") == kind)
 
-    return (
-        "## How to read the verdicts\n\n"
-        "Each claim compares two sides on Δ = mean(a) − mean(b) over runs (seeds). Its interval "
-        "is a two-sided t-interval at level α/r (α = 0.05, r the claims holding a share; Holm "
-        "over the experiment's claims, both directions in one family; widened by the "
-        "O'Brien–Fleming boundary of its look in an adaptive run). `held`: the interval lies on "
-        "the claimed side of 0; `reversed`: on the other side; `ruled out`: it excludes the "
-        "thesis's effect (its own Δ relative to its baseline where it prints numbers, else a "
-        "smallest effect of interest declared before the runs); `undecided`: none of these, "
-        "with the seeds per arm that 80% power would need at the thesis's effect. "
-        "`not run`: the claim was added after the report's runs (no values yet).\n\n"
-        "## The thesis's questions: method against baseline\n\n"
-        f"{tally('question')}.\n\n"
-        + claims_tables(reports, "question")
-        + "\n## Within one arm: sanity claims\n\n"
-        "More broken sensors give less reward, the reward after a fault is below the reward "
-        f"before it: claims about one method, apart from the thesis's questions. {tally('sanity')}."
-        "\n\n" + claims_tables(reports, "sanity") + "\n## Beyond the thesis\n\n"
-        "Our own hypotheses, asked with the same engine: GNP with online RL against neural "
-        "controllers evolved by CMA-ES and NEAT, and the analytic physics against pymunk "
-        "(equivalence within ±0.02).\n\n"
-        + claims_tables(reports, "question", "beyond")
-        + claims_tables(reports, "sanity", "beyond")
-        + "\n## What each experiment costs\n\n"
-        + "Simulated work per scale, and the wall time measured on this machine (2 vCPUs).\n\n"
-        + cost_table()
-    )
+    return write
+
+
+def _beyond(reports: Reports) -> str:
+    return claims_tables(reports, lambda c: True, "beyond")
+
+
+#: The page's written sections, in page order: name -> what writes it from the reports.
+SECTIONS: dict[str, Callable[[Reports], str]] = {
+    "answers": _answers,
+    "reward-source": lambda r: claims_tables(r, lambda c: True, names=("ch2-reward-source",)),
+    "fault-effects": lambda r: (
+        claims_tables(r, _against_control) + claims_tables(r, _against_control, "beyond")
+    ),
+    "sanity": _kind("sanity"),
+    "questions": _kind("question"),
+    "beyond": _beyond,
+    "spent": spent_table,
+    "costs": lambda r: cost_table(),
+}
+
+
+def sections(folder: Path) -> dict[str, str]:
+    """Each written section of the page, from the reports in `folder`."""
+    reports = load_reports(folder)
+    return {name: write(reports) for name, write in SECTIONS.items()}
+
+
+def new_page() -> str:
+    """A page with a title and every section's markers, in order."""
+    return TITLE + "".join(f"\n{begin(s)}\n{end(s)}\n" for s in SECTIONS)
+
+
+def written(text: str) -> dict[str, str]:
+    """Section -> what stands between its markers in `text`; raises if they are not there once
+    each, in the page's order."""
+    found, at = {}, 0
+    for section in SECTIONS:
+        first, last = begin(section), end(section)
+        if text.count(first) != 1 or text.count(last) != 1 or text.index(first) < at:
+            raise ExperimentError(
+                f"the page must hold the marker lines of section {section!r} once each, in "
+                f"the order {', '.join(SECTIONS)}"
+            )
+        start = text.index(first) + len(first)
+        at = text.index(last)
+        if at < start:
+            raise ExperimentError(f"the end marker of section {section!r} comes before its start")
+        found[section] = text[start:at]
+    return found
 
 
 def write_page(folder: str | Path) -> Path:
-    """Rewrite the tables of `folder`/README.md from the reports in `folder`, keeping the
-    hand-written text around them (a new page gets a title and the tables)."""
+    """Rewrite the sections of `folder`/README.md from the reports in `folder`, keeping the
+    hand-written text around them (a new page gets a title and every section)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise ExperimentError(f"no folder {folder}")
     page = folder / PAGE
-    text = page.read_text() if page.exists() else f"{TITLE}\n{BEGIN}\n{END}\n"
-    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
-        raise ExperimentError(f"{page} must hold the two marker lines once each, in order")
-    head, rest = text.split(BEGIN)
-    tail = rest.split(END)[1]
-    page.write_text(f"{head}{BEGIN}\n{tables(folder)}{END}{tail}")
+    text = page.read_text() if page.exists() else new_page()
+    old = written(text)
+    new = sections(folder)
+    for section, content in new.items():
+        text = text.replace(
+            begin(section) + old[section] + end(section),
+            f"{begin(section)}\n{content}{end(section)}",
+        )
+    page.write_text(text)
     return page

@@ -84,7 +84,7 @@ METRICS: dict[str, Metric] = {
         ),
         Metric(
             "fault_effect",
-            "reward lost to the fault",
+            "fault effect on reward (fault − no-fault control)",
             "scalar",
             "condition",
             "reward per step from the fault step on, minus the same steps of the no-fault "

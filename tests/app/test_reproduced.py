@@ -9,7 +9,17 @@ from pathlib import Path
 import pytest
 
 from app.experiments import runner
-from app.experiments.reproduced import BEGIN, END, load_reports, tables, write_page
+from app.experiments.questions import load_questions
+from app.experiments.reproduced import (
+    SECTIONS,
+    begin,
+    end,
+    load_reports,
+    new_page,
+    sections,
+    write_page,
+    written,
+)
 from app.experiments.spec import ExperimentError, load_shipped, shipped_names
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
@@ -18,8 +28,8 @@ REPORT = DOCS / "ch3-bs-rl-small" / "report.json"
 
 def test_the_committed_page_agrees_with_the_committed_reports() -> None:
     page = (DOCS / "README.md").read_text()
-    written = page.split(BEGIN)[1].split(END)[0]
-    assert written == "\n" + tables(DOCS), "run: gnp-lab experiment reproduced"
+    expected = {name: "\n" + text for name, text in sections(DOCS).items()}
+    assert written(page) == expected, "run: gnp-lab experiment reproduced"
 
 
 def test_every_committed_report_folder_has_its_per_run_values() -> None:
@@ -38,15 +48,16 @@ def _copy_report(folder: Path, edit: dict[str, object] | None = None) -> dict[st
 
 def test_rewriting_keeps_the_hand_written_text_and_lists_each_claim(tmp_path: Path) -> None:
     report = _copy_report(tmp_path)
-    (tmp_path / "README.md").write_text(f"# Title\n\nintro\n{BEGIN}\nold tables\n{END}\n\nwhy\n")
+    marked = "".join(f"{begin(s)}\nold {s}\n{end(s)}\nwhy {s}\n" for s in SECTIONS)
+    (tmp_path / "README.md").write_text(f"# Title\n\nintro\n{marked}")
     page = write_page(tmp_path).read_text()
-    assert page.startswith("# Title\n\nintro\n" + BEGIN)
-    assert page.endswith(END + "\n\nwhy\n")
-    assert "old tables" not in page
+    assert page.startswith("# Title\n\nintro\n" + begin("answers"))
+    for section in SECTIONS:  # every hand-written paragraph kept, in place; the old text gone
+        assert f"{end(section)}\nwhy {section}\n" in page
+        assert f"old {section}" not in page
     comparisons = report["comparisons"]
     assert isinstance(comparisons, list)
-    questions = page.split("## The thesis's questions")[1].split("## Within one arm")[0]
-    sanity = page.split("## Within one arm")[1]
+    questions, sanity = written(page)["questions"], written(page)["sanity"]
     for comparison in comparisons:  # a row per claim, our means as the report has them
         claim = f"| {comparison['claim']} |"
         section = questions if comparison["kind"] == "question" else sanity
@@ -80,7 +91,8 @@ def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
     thesis.update(scale="thesis", comparisons=[extra, *reversed(comparisons)])
     (tmp_path / "ch3-bs-rl-thesis").mkdir()
     (tmp_path / "ch3-bs-rl-thesis" / "report.json").write_text(json.dumps(thesis))
-    section = write_page(tmp_path).read_text().split("### ch3-bs-rl")[1].split("###")[0]
+    questions = written(write_page(tmp_path).read_text())["questions"]
+    section = questions.split("### ch3-bs-rl")[1].split("###")[0]
     rows = [line.removesuffix(" |") for line in section.splitlines() if line.startswith("| ")]
     claims = [row.split(" | ")[0].removeprefix("| ") for row in rows[1:]]
     assert isinstance(small["comparisons"], list)
@@ -97,7 +109,8 @@ def test_a_new_page_gets_a_title_and_the_markers(tmp_path: Path) -> None:
     _copy_report(tmp_path)
     page = write_page(tmp_path).read_text()
     assert page.startswith("# The thesis, reproduced")
-    assert page.count(BEGIN) == 1 and page.count(END) == 1
+    assert list(written(page)) == list(SECTIONS)
+    assert written(new_page()) == dict.fromkeys(SECTIONS, "\n")
 
 
 @pytest.mark.parametrize(
@@ -105,7 +118,8 @@ def test_a_new_page_gets_a_title_and_the_markers(tmp_path: Path) -> None:
     [
         (lambda d: (d / "x").mkdir() or (d / "x" / "report.json").write_text("{"), "not an"),
         (lambda d: _rename(d), "rename its folder"),
-        (lambda d: (d / "README.md").write_text(f"{END}\n{BEGIN}\n"), "marker lines"),
+        (lambda d: (d / "README.md").write_text(new_page().replace(end("spent"), "")), "'spent'"),
+        (lambda d: (d / "README.md").write_text(_swapped()), "in the order"),
     ],
 )
 def test_bad_pages_and_reports_are_named_and_nothing_is_written(
@@ -117,6 +131,14 @@ def test_bad_pages_and_reports_are_named_and_nothing_is_written(
     with pytest.raises(ExperimentError, match=message):
         write_page(tmp_path)
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def _swapped() -> str:
+    """A page whose first two sections come in the wrong order."""
+    first, second = list(SECTIONS)[:2]
+    block = {s: f"{begin(s)}\n{end(s)}" for s in (first, second)}
+    page = new_page().replace(block[first], "FIRST").replace(block[second], block[first])
+    return page.replace("FIRST", block[second])
 
 
 def _rename(folder: Path) -> None:
@@ -138,3 +160,32 @@ def test_the_stated_work_is_what_the_planned_runs_step(name: str, tmp_path: Path
         trained = sum(t.config.training.generations * t.generation_cost for t in tasks)
         assert cost.robot_steps == trained
         assert cost.trial_steps == sum(len(t.conditions) * t.condition_cost for t in tasks)
+
+
+def test_every_question_names_claims_its_experiment_declares() -> None:
+    questions = load_questions()
+    assert len({q.text for q in questions}) == len(questions)
+    for question in questions:
+        names = [c.name for c in load_shipped(question.experiment).comparisons]
+        assert question.claim in names and set(question.also) <= set(names)
+        assert question.claim not in question.also
+
+
+def test_a_question_takes_its_answering_claims_verdict_and_tallies_the_rest(
+    tmp_path: Path,
+) -> None:
+    report = json.loads(REPORT.read_text())
+    by_name = {c["name"]: c for c in report["comparisons"]}
+    by_name["after-1-sensor"].update(verdict="reversed")
+    for name, verdict in (("after-2-sensors", "held"), ("after-3-sensors", "ruled out")):
+        by_name[name].update(verdict=verdict)
+    _copy_report(tmp_path, {"comparisons": list(by_name.values())})
+    page = write_page(tmp_path).read_text()
+    row = next(line for line in page.splitlines() if "`after-1-sensor`" in line)
+    cells = row.split(" | ")
+    runs = by_name["after-1-sensor"]["runs"]
+    assert cells[2] == f"**reversed** ({runs[0]} + {runs[1]} runs)"
+    assert cells[3] == "—"  # no thesis-scale report in this folder
+    assert cells[5] == "1 held, 1 ruled out, 2 undecided |"
+    fifth = next(line for line in page.splitlines() if "`training-fitness-CS-BS`" in line)
+    assert fifth.split(" | ")[2:4] == ["not run", "—"]  # ch5 has no report here
