@@ -28,6 +28,7 @@ from pydantic import (
 import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
+from app.fields import about
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
@@ -56,19 +57,38 @@ class ControllerSettings(_Frozen):
     fuzzy: bool = Field(
         default=True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds"
     )
-    n_judgment: int = Field(default=40, ge=8, le=400, description="judgment nodes [count]")
-    n_processing: int = Field(default=20, ge=2, le=200, description="processing nodes [count]")
+    n_judgment: int = Field(
+        default=40,
+        ge=8,
+        le=400,
+        description="judgment nodes",
+        json_schema_extra=about(unit="count"),
+    )
+    n_processing: int = Field(
+        default=20,
+        ge=2,
+        le=200,
+        description="processing nodes",
+        json_schema_extra=about(unit="count"),
+    )
     n_sub: int | None = Field(
         default=None,
         ge=1,
         le=8,
-        description="sub nodes per node [count]; unset = the thesis's choice for the method "
+        description="sub nodes per node; unset = the thesis's choice for the method "
         "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
+        json_schema_extra=about(unit="count"),
     )
     n_branch: int = Field(
         default=2, ge=1, le=8, description="branch connections per connection, BS only"
     )
-    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ [1]")
+    gamma: float = Field(
+        default=0.9,
+        ge=0.0,
+        le=1.0,
+        description="Sarsa discount rate γ",
+        json_schema_extra=about(unit="1"),
+    )
 
     @property
     def sub_nodes(self) -> int:
@@ -99,16 +119,44 @@ class TrainingSettings(_Frozen):
         description="arena: a shipped name or a JSON file, stored inline",
     )
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
-    population: int = Field(default=300, ge=2, le=100_000, description="individuals [count]")
-    generations: int = Field(default=1000, ge=1, le=1_000_000, description="generations G [count]")
-    steps: int = Field(default=1000, ge=1, le=1_000_000, description="life time T [control steps]")
+    population: int = Field(
+        default=300,
+        ge=2,
+        le=100_000,
+        description="individuals",
+        json_schema_extra=about(unit="count"),
+    )
+    generations: int = Field(
+        default=1000,
+        ge=1,
+        le=1_000_000,
+        description="generations G",
+        json_schema_extra=about(unit="count"),
+    )
+    steps: int = Field(
+        default=1000,
+        ge=1,
+        le=1_000_000,
+        description="life time T",
+        json_schema_extra=about(unit="control steps", label="Life T (steps)"),
+    )
     redraw_every: int = Field(
-        default=0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
+        default=0,
+        ge=0,
+        le=1_000_000,
+        description="new start pose every R steps, 0 = never",
+        json_schema_extra=about(unit="steps"),
     )
     noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
+        default=0.0,
+        ge=0.0,
+        le=IR_MAX,
+        description="sensor noise σ",
+        json_schema_extra=about(unit="reading", label="Noise σ"),
     )
-    control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
+    control_period: float = Field(
+        default=0.064, gt=0.0, le=1.0, description="control step", json_schema_extra=about(unit="s")
+    )
     physics: Physics = Field(
         default="pymunk",
         description="the world's physics in both phases, like control_period: pymunk (the "
@@ -117,15 +165,43 @@ class TrainingSettings(_Frozen):
     schedule: ScheduleKind = Field(
         default="fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2"
     )
-    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
-    epsilon_min: float = Field(
-        default=0.01, ge=0.0, le=1.0, description="changing ε at the last generation [1]"
+    epsilon: float = Field(
+        default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy", json_schema_extra=about(unit="1")
     )
-    alpha_max: float = Field(default=0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
+    alpha: float = Field(
+        default=0.1,
+        ge=0.0,
+        le=1.0,
+        description="fixed learning rate α",
+        json_schema_extra=about(unit="1"),
+    )
+    epsilon_max: float = Field(
+        default=0.15,
+        ge=0.0,
+        le=1.0,
+        description="changing ε at g = 0",
+        json_schema_extra=about(unit="1"),
+    )
+    epsilon_min: float = Field(
+        default=0.01,
+        ge=0.0,
+        le=1.0,
+        description="changing ε at the last generation",
+        json_schema_extra=about(unit="1"),
+    )
+    alpha_max: float = Field(
+        default=0.70,
+        ge=0.0,
+        le=1.0,
+        description="changing α at g = 0",
+        json_schema_extra=about(unit="1"),
+    )
     alpha_min: float = Field(
-        default=0.10, ge=0.0, le=1.0, description="changing α at the last generation [1]"
+        default=0.10,
+        ge=0.0,
+        le=1.0,
+        description="changing α at the last generation",
+        json_schema_extra=about(unit="1"),
     )
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
@@ -136,14 +212,19 @@ class TrainingSettings(_Frozen):
         "generation uses the min (last-generation-min), or g/G as printed (g-over-G)",
     )
     checkpoint_every: int = Field(
-        default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
+        default=1,
+        ge=1,
+        le=1_000_000,
+        description="full-population checkpoint period",
+        json_schema_extra=about(unit="generations"),
     )
     shard_size: int = Field(
         default=75,
         ge=1,
         le=100_000,
         description="robots per simulated world, the unit of work a worker owns "
-        "(at most one worker per shard is used) [robots]",
+        "(at most one worker per shard is used)",
+        json_schema_extra=about(unit="robots"),
     )
 
     @model_validator(mode="after")
@@ -197,10 +278,26 @@ class ImplementationSettings(_Frozen):
         description="arena: a shipped name or a JSON file, stored inline",
     )
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
-    steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
-    repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
+    steps: int = Field(
+        default=3000,
+        ge=1,
+        le=1_000_000,
+        description="life time T",
+        json_schema_extra=about(unit="control steps"),
+    )
+    repeats: int = Field(
+        default=300,
+        ge=1,
+        le=100_000,
+        description="trials per start pose",
+        json_schema_extra=about(unit="count"),
+    )
     noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
+        default=0.0,
+        ge=0.0,
+        le=IR_MAX,
+        description="sensor noise σ",
+        json_schema_extra=about(unit="reading", label="Noise σ"),
     )
     broken_sensors: tuple[int, ...] = Field(
         default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
@@ -210,28 +307,67 @@ class ImplementationSettings(_Frozen):
         ge=0,
         le=N_SENSORS,
         description="k sensors that break at the fault step, drawn per trial from its own "
-        "seeded stream (instead of a fixed `broken_sensors` set) [count]",
+        "seeded stream (instead of a fixed `broken_sensors` set)",
+        json_schema_extra=about(unit="count"),
     )
     fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
     fault_step: int = Field(
-        default=500, ge=0, le=1_000_000, description="fault step t' [control steps]"
+        default=500,
+        ge=0,
+        le=1_000_000,
+        description="fault step t'",
+        json_schema_extra=about(unit="control steps"),
     )
     schedule: ScheduleKind = Field(
         default="fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4"
     )
-    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(
-        default=0.015, ge=0.0, le=1.0, description="changing ε at t = t' [1]"
+    epsilon: float = Field(
+        default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy", json_schema_extra=about(unit="1")
     )
-    epsilon_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing ε at t = T [1]")
-    alpha_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing α at t = t' [1]")
-    alpha_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing α at t = T [1]")
+    alpha: float = Field(
+        default=0.1,
+        ge=0.0,
+        le=1.0,
+        description="fixed learning rate α",
+        json_schema_extra=about(unit="1"),
+    )
+    epsilon_max: float = Field(
+        default=0.015,
+        ge=0.0,
+        le=1.0,
+        description="changing ε at t = t'",
+        json_schema_extra=about(unit="1"),
+    )
+    epsilon_min: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=1.0,
+        description="changing ε at t = T",
+        json_schema_extra=about(unit="1"),
+    )
+    alpha_max: float = Field(
+        default=0.15,
+        ge=0.0,
+        le=1.0,
+        description="changing α at t = t'",
+        json_schema_extra=about(unit="1"),
+    )
+    alpha_min: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=1.0,
+        description="changing α at t = T",
+        json_schema_extra=about(unit="1"),
+    )
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4"
     )
     recorded_trials: int = Field(
-        default=3, ge=0, le=100, description="trials whose trajectory and trace are stored [count]"
+        default=3,
+        ge=0,
+        le=100,
+        description="trials whose trajectory and trace are stored",
+        json_schema_extra=about(unit="count"),
     )
     generation: int | None = Field(
         default=None, ge=0, description="take the best of this generation; unset = the final elite"
@@ -324,9 +460,19 @@ class NeuroSettings(_Frozen):
     or a NEAT net (neat-python). It does not learn online; training's ε/α are unused."""
 
     optimiser: Optimiser = Field(description="CMA-ES on an Elman net's weights, or NEAT")
-    hidden: int = Field(default=8, ge=1, le=64, description="Elman hidden units (CMA-ES) [count]")
+    hidden: int = Field(
+        default=8,
+        ge=1,
+        le=64,
+        description="Elman hidden units (CMA-ES)",
+        json_schema_extra=about(unit="count"),
+    )
     sigma0: float = Field(
-        default=0.5, gt=0.0, le=10.0, description="CMA-ES initial step size, from weights 0 [1]"
+        default=0.5,
+        gt=0.0,
+        le=10.0,
+        description="CMA-ES initial step size, from weights 0",
+        json_schema_extra=about(unit="1"),
     )
     neat: NeatParams = NeatParams()
 
