@@ -87,10 +87,7 @@ class Setting:
         if bounds and not self.choices:
             text += f"; {bounds}"
         if default and self.default is not None:
-            shown = self.default
-            if isinstance(shown, tuple):
-                shown = ",".join(map(str, shown)) or "none"
-            text += f" (default {str(shown).lower() if isinstance(shown, bool) else shown})"
+            text += f" (default {_shown(self.default)})"
         return text
 
     def step(self) -> Number:
@@ -105,6 +102,15 @@ class Setting:
 
 def _number(value: Number) -> str:
     return str(value) if isinstance(value, int) else f"{value:g}"
+
+
+def _shown(value: Any) -> str:
+    """A default as a user would type it: `true`, `0.1`, `2,3`, `none`."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        return ",".join(map(str, value)) or "none"
+    return _number(value) if isinstance(value, int | float) else str(value)
 
 
 def _kind(annotation: Any) -> tuple[Kind, tuple[str, ...]] | None:
