@@ -22,8 +22,6 @@ from app.cli_options import (
     add_setting_options,
     given_options,
     given_settings,
-    implement_settings,
-    train_settings,
 )
 from app.config import (
     BRAINS,
@@ -32,9 +30,11 @@ from app.config import (
     ImplementationSettings,
     RunConfig,
     build_config,
+    implement_settings,
     preset_layer,
     read_toml,
     to_toml,
+    train_settings,
 )
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export

@@ -12,8 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from app.config import ImplementationSettings, RunConfig
-from app.fields import Setting, sections, settings_of
+from app.fields import Setting
 
 OPTION_NAMES = {
     "training.noise_sigma": "--noise",
@@ -41,21 +40,6 @@ class SettingOption:
     @property
     def dest(self) -> str:
         return f"setting:{self.setting.key}"
-
-
-def train_settings() -> tuple[Setting, ...]:
-    """A run's settings for `train`: the seed and every section's, the implementation phase's
-    excepted (those are `implement`'s) and the neural controller's (`--brain`, `--set`)."""
-    found = list(settings_of(RunConfig))
-    for name, model in sections(RunConfig):
-        if name != "implementation":
-            found += settings_of(model, (name,))
-    return tuple(found)
-
-
-def implement_settings() -> tuple[Setting, ...]:
-    """The implementation phase's settings, for `implement`."""
-    return settings_of(ImplementationSettings, ("implementation",))
 
 
 def int_list(text: str) -> tuple[int, ...]:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Literal, Union, get_args, get_origin
 
 import annotated_types
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 from pydantic.config import JsonDict
 
 Kind = Literal["int", "float", "bool", "choice", "ints"]
@@ -127,7 +127,7 @@ def _kind(annotation: Any) -> tuple[Kind, tuple[str, ...]] | None:
     return None
 
 
-def setting(model: type[BaseModel], name: str, prefix: tuple[str, ...] = ()) -> Setting | None:
+def read_setting(model: type[BaseModel], name: str, prefix: tuple[str, ...] = ()) -> Setting | None:
     """The setting `name` of `model` (under `prefix` in a `RunConfig`), or None when it is not
     a scalar (a nested model, an arena)."""
     info = model.model_fields[name]
@@ -165,7 +165,7 @@ def setting(model: type[BaseModel], name: str, prefix: tuple[str, ...] = ()) -> 
 
 def settings_of(model: type[BaseModel], prefix: tuple[str, ...] = ()) -> tuple[Setting, ...]:
     """Every scalar setting of `model`, in the order its fields are declared."""
-    found = (setting(model, name, prefix) for name in model.model_fields)
+    found = (read_setting(model, name, prefix) for name in model.model_fields)
     return tuple(s for s in found if s is not None)
 
 
@@ -194,3 +194,25 @@ def nested(values: dict[tuple[str, ...], Any]) -> dict[str, Any]:
             target = target.setdefault(part, {})
         target[path[-1]] = value
     return layer
+
+
+def setting(
+    default: Any,
+    description: str,
+    unit: str | None = None,
+    *,
+    label: str | None = None,
+    **constraints: Any,
+) -> Any:
+    """A model field with its facts: `setting(300, "individuals", "count", ge=2, le=100_000)`.
+
+    Args:
+        default: the value when the setting is not given.
+        description: what the setting is, in a few words (help text and hints).
+        unit: its unit (see `about`).
+        label: a short name for controls (see `about`).
+        **constraints: pydantic's `Field` bounds (`ge`, `gt`, `le`, `lt`, `max_length`).
+    """
+    return Field(
+        default, description=description, json_schema_extra=about(unit, label), **constraints
+    )

@@ -13,9 +13,8 @@ from app.cli_options import (
     OPTION_NAMES,
     add_setting_options,
     given_settings,
-    implement_settings,
-    train_settings,
 )
+from app.config import implement_settings, train_settings
 from app.fields import Setting, about, settings_of
 
 
