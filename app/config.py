@@ -366,13 +366,14 @@ def describe_problems(error: ValidationError, limit: int | None = None) -> str:
     problems = []
     items = error.errors()
     for item in items[:limit]:
-        field = ".".join(str(part) for part in item["loc"]) or "(top level)"
+        field = ".".join(str(part) for part in item["loc"])
         message = str(item["msg"]).removeprefix("Value error, ")
         if item["type"] == "extra_forbidden":
             message = "unknown setting"
         given = item.get("input")
         shown = not isinstance(given, Mapping | list | tuple) and given is not None
-        problems.append(f"{field}: {message}" + (f" (got {given!r})" if shown else ""))
+        where = f"{field}: " if field else ""  # a model's own check names its fields
+        problems.append(f"{where}{message}" + (f" (got {given!r})" if shown else ""))
     more = len(items) - len(problems)
     return ("; ".join(problems) + (f" (and {more} more)" if more else "")).replace("\n", " ")
 
