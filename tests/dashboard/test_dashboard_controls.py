@@ -283,3 +283,63 @@ def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Pat
     finally:
         dashboard.stop()
         server.stop()
+
+
+@pytest.mark.parametrize(
+    ("state", "enabled"),
+    [
+        (None, {"Start"}),
+        ("running", {"Pause", "Stop"}),
+        ("paused", {"Resume", "Stop"}),
+        ("stopped", {"Start"}),
+        ("finished", {"Start"}),
+        ("failed", {"Start"}),
+    ],
+)
+def test_training_buttons_follow_the_jobs_state(state: str | None, enabled: set[str]) -> None:
+    from app.dashboard.tab_train import enabled_actions
+
+    actions = enabled_actions(state)  # type: ignore[arg-type]
+    assert {name for name, on in actions.items() if on} == enabled
+    assert set(actions) == {"Start", "Pause", "Resume", "Stop"}
+
+
+def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
+    import viser
+
+    from app.config import train_settings
+    from app.dashboard.app import Dashboard
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path)
+    try:
+        train = dashboard.train
+        controls = train.settings.controls
+        shown = {s.path for s in train_settings() if not s.optional}
+        assert set(controls) == shown  # every setting a control can hold, and nothing else
+        seed = controls[("seed",)]
+        assert (seed.min, seed.max) == (0, 2**63 - 1)  # the model's bound, not 2**31 - 1
+        c_from = controls[("reward", "c_from")]
+        assert c_from.options == ("true", "observed") and c_from.value == "true"
+        assert c_from.hint is not None and "readings C of Eq. 2.7 is judged from" in c_from.hint
+        population = controls[("training", "population")]
+        assert population.hint == "individuals [count]; 2..100000 (default 300)"
+        assert population.value == load_preset("quick").training.population
+        # A value from the page goes into the run's config; the preset fills in the rest.
+        c_from.value = "observed"
+        config = training_config("quick", train.settings.values())
+        assert config.reward.c_from == "observed"
+        assert config.training == load_preset("quick").training
+        train.apply_preset("thesis-ch5")
+        assert population.value == load_preset("thesis-ch5").training.population
+        assert c_from.value == load_preset("thesis-ch5").reward.c_from
+        buttons = train.buttons
+        assert [buttons[n].disabled for n in ("Start", "Pause", "Resume", "Stop")] == [
+            False,
+            True,
+            True,
+            True,
+        ]
+    finally:
+        dashboard.stop()
+        server.stop()
