@@ -18,6 +18,11 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import gnp
 import sim
+from app.cli_options import (
+    add_setting_options,
+    given_options,
+    given_settings,
+)
 from app.config import (
     BRAINS,
     PRESET_NAMES,
@@ -25,12 +30,15 @@ from app.config import (
     ImplementationSettings,
     RunConfig,
     build_config,
+    implement_settings,
     preset_layer,
     read_toml,
     to_toml,
+    train_settings,
 )
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
+from app.fields import nested
 from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
@@ -53,18 +61,6 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         sys.stderr.write(f"{PROG}: error: {message} (see {self.prog} --help)\n")
         raise SystemExit(EXIT_USAGE)
-
-
-def _int_list(text: str) -> tuple[int, ...]:
-    text = text.strip()
-    if text.lower() in ("", "none"):
-        return ()
-    try:
-        return tuple(int(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected sensor numbers separated by commas, like 2,3 (got {text!r})"
-        ) from None
 
 
 def _port(text: str) -> int:
@@ -104,24 +100,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
-    train.add_argument("--method", choices=gnp.METHODS, help="learning method")
     train.add_argument(
         "--brain",
         choices=BRAINS,
         help="gnp (default), or a neural net evolved by CMA-ES (Elman) or NEAT",
     )
-    fuzzy = train.add_mutually_exclusive_group()
-    fuzzy.add_argument(
-        "--fuzzy", dest="fuzzy", action="store_true", default=None, help="fuzzy judgment"
-    )
-    fuzzy.add_argument("--crisp", dest="fuzzy", action="store_false", help="crisp judgment")
-    train.add_argument("--population", type=int, metavar="N", help="individuals")
-    train.add_argument("--generations", type=int, metavar="G", help="generations")
-    train.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
-    train.add_argument(
-        "--noise", type=float, metavar="SIGMA", help=f"sensor noise σ (0..{sim.IR_MAX:g})"
-    )
-    train.add_argument("--seed", type=int, help="random seed")
+    add_setting_options(train, train_settings(), show_default=True)
     train.add_argument(
         "--set",
         dest="assignments",
@@ -157,29 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     implement.add_argument("run", metavar="RUN", help="run name in --runs-dir")
     implement.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
-    implement.add_argument(
-        "--break",
-        dest="broken",
-        type=_int_list,
-        metavar="S,S",
-        help="sensors 0..7 that break ('none' for no fault)",
-    )
-    implement.add_argument(
-        "--break-count",
-        type=int,
-        metavar="K",
-        help="K sensors that break, drawn per trial from its own seeded stream",
-    )
-    implement.add_argument("--mode", choices=sim.FAULT_MODES)
-    implement.add_argument("--fault-step", type=int, metavar="T", help="step t' of the fault")
-    implement.add_argument("--steps", type=int, metavar="T", help="life time in control steps")
-    implement.add_argument("--repeats", type=int, help="trials per start pose")
-    implement.add_argument("--noise", type=float, metavar="SIGMA", help="sensor noise σ")
-    implement.add_argument(
-        "--schedule", choices=("fixed", "changing"), help="ε/α after the fault (Eq. 4.3-4.4)"
-    )
-    implement.add_argument("--generation", type=int, help="implement the best of this one")
-    implement.add_argument("--seed", type=int, help="random seed (default: the run's)")
+    add_setting_options(implement, implement_settings(), show_default=False)
     implement.add_argument("--name", help="name of the result in the run file")
     implement.add_argument("--quiet", action="store_true", help="no progress bar")
     implement.add_argument(
@@ -211,18 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 # --- train ----------------------------------------------------------------------------------
 
-_CONFIG_OPTIONS = (
-    "preset",
-    "config",
-    "method",
-    "brain",
-    "fuzzy",
-    "population",
-    "generations",
-    "steps",
-    "noise",
-    "seed",
-)
+_CONFIG_OPTIONS = ("preset", "config", "brain")
+"""What else than setting options (and --set, --out) sets a new run's configuration."""
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
@@ -235,25 +187,9 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     if args.config:
         layers.append(read_toml(args.config))
         sources.append(args.config)
-    controller: dict[str, Any] = {}
-    training: dict[str, Any] = {}
-    options: dict[str, Any] = {"controller": controller, "training": training}
-    if args.method is not None:
-        controller["method"] = args.method
-    if args.fuzzy is not None:
-        controller["fuzzy"] = args.fuzzy
+    options = nested(given_settings(args))
     if args.brain is not None:
         options["neuro"] = None if args.brain == "gnp" else {"optimiser": args.brain}
-    for option, key in (
-        ("population", "population"),
-        ("generations", "generations"),
-        ("steps", "steps"),
-        ("noise", "noise_sigma"),
-    ):
-        if getattr(args, option) is not None:
-            training[key] = getattr(args, option)
-    if args.seed is not None:
-        options["seed"] = args.seed
     for path, value in args.assignments:
         target = options
         for part in path[:-1]:
@@ -327,6 +263,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     workers = _workers(args.workers)
     if args.resume:
         given = [f"--{name}" for name in _CONFIG_OPTIONS if getattr(args, name) is not None]
+        given += [option.flag for option in given_options(args)]
         given += ["--set"] if args.assignments else []
         given += ["--out"] if args.out else []
         if given:
@@ -373,33 +310,20 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_implement(args: argparse.Namespace) -> int:
     from app.implementation import implement
 
-    if args.break_count is not None and not 1 <= args.break_count <= sim.N_SENSORS:
+    changes = {path[-1]: value for path, value in given_settings(args).items()}
+    count = changes.get("break_count")
+    if count is not None and not 1 <= count <= sim.N_SENSORS:
         raise UsageError(
-            f"--break-count must be 1..{sim.N_SENSORS}, got {args.break_count} "
+            f"--break-count must be 1..{sim.N_SENSORS}, got {count} "
             "(for no fault, give --break none)"
         )
     path = resolve_run(args.runs_dir, args.run)
     with RunReader(path) as run:
         stored = run.config.implementation
-    changes: dict[str, Any] = {}
-    for option, key in (
-        ("broken", "broken_sensors"),
-        ("break_count", "break_count"),
-        ("mode", "fault_mode"),
-        ("fault_step", "fault_step"),
-        ("steps", "steps"),
-        ("repeats", "repeats"),
-        ("noise", "noise_sigma"),
-        ("schedule", "schedule"),
-        ("generation", "generation"),
-        ("seed", "seed"),
-    ):
-        if getattr(args, option) is not None:
-            changes[key] = getattr(args, option)
     # A fixed set and k random sensors exclude each other: the option given replaces the other.
-    if args.broken is not None and args.break_count is None:
+    if "broken_sensors" in changes and count is None:
         changes["break_count"] = 0
-    if args.break_count is not None and args.broken is None:
+    if count is not None and "broken_sensors" not in changes:
         changes["broken_sensors"] = ()
     config = build_config(
         {"implementation": stored.model_dump()},
@@ -534,7 +458,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `gnp-lab`; returns the exit status."""
-    import gnp
     import sim
     from app.implementation import ImplementationError
     from app.training import TrainingError

@@ -28,6 +28,7 @@ from pydantic import (
 import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
+from app.fields import Setting, sections, setting, settings_of
 from gnp import EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
@@ -56,19 +57,20 @@ class ControllerSettings(_Frozen):
     fuzzy: bool = Field(
         default=True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds"
     )
-    n_judgment: int = Field(default=40, ge=8, le=400, description="judgment nodes [count]")
-    n_processing: int = Field(default=20, ge=2, le=200, description="processing nodes [count]")
-    n_sub: int | None = Field(
-        default=None,
+    n_judgment: int = setting(40, "judgment nodes", "count", ge=8, le=400)
+    n_processing: int = setting(20, "processing nodes", "count", ge=2, le=200)
+    n_sub: int | None = setting(
+        None,
+        "sub nodes per node; unset = the thesis's choice for the method "
+        "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
+        "count",
         ge=1,
         le=8,
-        description="sub nodes per node [count]; unset = the thesis's choice for the method "
-        "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
     )
     n_branch: int = Field(
         default=2, ge=1, le=8, description="branch connections per connection, BS only"
     )
-    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ [1]")
+    gamma: float = setting(0.9, "Sarsa discount rate γ", "1", ge=0.0, le=1.0)
 
     @property
     def sub_nodes(self) -> int:
@@ -99,16 +101,18 @@ class TrainingSettings(_Frozen):
         description="arena: a shipped name or a JSON file, stored inline",
     )
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
-    population: int = Field(default=300, ge=2, le=100_000, description="individuals [count]")
-    generations: int = Field(default=1000, ge=1, le=1_000_000, description="generations G [count]")
-    steps: int = Field(default=1000, ge=1, le=1_000_000, description="life time T [control steps]")
-    redraw_every: int = Field(
-        default=0, ge=0, le=1_000_000, description="new start pose every R steps, 0 = never [steps]"
+    population: int = setting(300, "individuals", "count", ge=2, le=100_000)
+    generations: int = setting(1000, "generations G", "count", ge=1, le=1_000_000)
+    steps: int = setting(
+        1000, "life time T", "control steps", label="Life T (steps)", ge=1, le=1_000_000
     )
-    noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
+    redraw_every: int = setting(
+        0, "new start pose every R steps, 0 = never", "steps", ge=0, le=1_000_000
     )
-    control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
+    noise_sigma: float = setting(
+        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
+    )
+    control_period: float = setting(0.064, "control step", "s", gt=0.0, le=1.0)
     physics: Physics = Field(
         default="pymunk",
         description="the world's physics in both phases, like control_period: pymunk (the "
@@ -117,16 +121,12 @@ class TrainingSettings(_Frozen):
     schedule: ScheduleKind = Field(
         default="fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2"
     )
-    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing ε at g = 0 [1]")
-    epsilon_min: float = Field(
-        default=0.01, ge=0.0, le=1.0, description="changing ε at the last generation [1]"
-    )
-    alpha_max: float = Field(default=0.70, ge=0.0, le=1.0, description="changing α at g = 0 [1]")
-    alpha_min: float = Field(
-        default=0.10, ge=0.0, le=1.0, description="changing α at the last generation [1]"
-    )
+    epsilon: float = setting(0.1, "fixed ε-greedy", "1", ge=0.0, le=1.0)
+    alpha: float = setting(0.1, "fixed learning rate α", "1", ge=0.0, le=1.0)
+    epsilon_max: float = setting(0.15, "changing ε at g = 0", "1", ge=0.0, le=1.0)
+    epsilon_min: float = setting(0.01, "changing ε at the last generation", "1", ge=0.0, le=1.0)
+    alpha_max: float = setting(0.70, "changing α at g = 0", "1", ge=0.0, le=1.0)
+    alpha_min: float = setting(0.10, "changing α at the last generation", "1", ge=0.0, le=1.0)
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
     )
@@ -135,15 +135,16 @@ class TrainingSettings(_Frozen):
         description="progress of Eq. 4.1-4.2 at generation g = 0..G-1: g/(G-1), so the last "
         "generation uses the min (last-generation-min), or g/G as printed (g-over-G)",
     )
-    checkpoint_every: int = Field(
-        default=1, ge=1, le=1_000_000, description="full-population checkpoint period [generations]"
+    checkpoint_every: int = setting(
+        1, "full-population checkpoint period", "generations", ge=1, le=1_000_000
     )
-    shard_size: int = Field(
-        default=75,
+    shard_size: int = setting(
+        75,
+        "robots per simulated world, the unit of work a worker owns "
+        "(at most one worker per shard is used)",
+        "robots",
         ge=1,
         le=100_000,
-        description="robots per simulated world, the unit of work a worker owns "
-        "(at most one worker per shard is used) [robots]",
     )
 
     @model_validator(mode="after")
@@ -197,41 +198,38 @@ class ImplementationSettings(_Frozen):
         description="arena: a shipped name or a JSON file, stored inline",
     )
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
-    steps: int = Field(default=3000, ge=1, le=1_000_000, description="life time T [control steps]")
-    repeats: int = Field(default=300, ge=1, le=100_000, description="trials per start pose [count]")
-    noise_sigma: float = Field(
-        default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
+    steps: int = setting(3000, "life time T", "control steps", ge=1, le=1_000_000)
+    repeats: int = setting(300, "trials per start pose", "count", ge=1, le=100_000)
+    noise_sigma: float = setting(
+        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
     )
     broken_sensors: tuple[int, ...] = Field(
         default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
     )
-    break_count: int = Field(
-        default=0,
+    break_count: int = setting(
+        0,
+        "k sensors that break at the fault step, drawn per trial from its own "
+        "seeded stream (instead of a fixed `broken_sensors` set)",
+        "count",
         ge=0,
         le=N_SENSORS,
-        description="k sensors that break at the fault step, drawn per trial from its own "
-        "seeded stream (instead of a fixed `broken_sensors` set) [count]",
     )
     fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
-    fault_step: int = Field(
-        default=500, ge=0, le=1_000_000, description="fault step t' [control steps]"
-    )
+    fault_step: int = setting(500, "fault step t'", "control steps", ge=0, le=1_000_000)
     schedule: ScheduleKind = Field(
         default="fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4"
     )
-    epsilon: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed ε-greedy [1]")
-    alpha: float = Field(default=0.1, ge=0.0, le=1.0, description="fixed learning rate α [1]")
-    epsilon_max: float = Field(
-        default=0.015, ge=0.0, le=1.0, description="changing ε at t = t' [1]"
-    )
-    epsilon_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing ε at t = T [1]")
-    alpha_max: float = Field(default=0.15, ge=0.0, le=1.0, description="changing α at t = t' [1]")
-    alpha_min: float = Field(default=0.0, ge=0.0, le=1.0, description="changing α at t = T [1]")
+    epsilon: float = setting(0.1, "fixed ε-greedy", "1", ge=0.0, le=1.0)
+    alpha: float = setting(0.1, "fixed learning rate α", "1", ge=0.0, le=1.0)
+    epsilon_max: float = setting(0.015, "changing ε at t = t'", "1", ge=0.0, le=1.0)
+    epsilon_min: float = setting(0.0, "changing ε at t = T", "1", ge=0.0, le=1.0)
+    alpha_max: float = setting(0.15, "changing α at t = t'", "1", ge=0.0, le=1.0)
+    alpha_min: float = setting(0.0, "changing α at t = T", "1", ge=0.0, le=1.0)
     schedule_n: float = Field(
         default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4"
     )
-    recorded_trials: int = Field(
-        default=3, ge=0, le=100, description="trials whose trajectory and trace are stored [count]"
+    recorded_trials: int = setting(
+        3, "trials whose trajectory and trace are stored", "count", ge=0, le=100
     )
     generation: int | None = Field(
         default=None, ge=0, description="take the best of this generation; unset = the final elite"
@@ -324,10 +322,8 @@ class NeuroSettings(_Frozen):
     or a NEAT net (neat-python). It does not learn online; training's ε/α are unused."""
 
     optimiser: Optimiser = Field(description="CMA-ES on an Elman net's weights, or NEAT")
-    hidden: int = Field(default=8, ge=1, le=64, description="Elman hidden units (CMA-ES) [count]")
-    sigma0: float = Field(
-        default=0.5, gt=0.0, le=10.0, description="CMA-ES initial step size, from weights 0 [1]"
-    )
+    hidden: int = setting(8, "Elman hidden units (CMA-ES)", "count", ge=1, le=64)
+    sigma0: float = setting(0.5, "CMA-ES initial step size, from weights 0", "1", gt=0.0, le=10.0)
     neat: NeatParams = NeatParams()
 
     def net_config(self) -> neuro.NetConfig:
@@ -370,13 +366,14 @@ def describe_problems(error: ValidationError, limit: int | None = None) -> str:
     problems = []
     items = error.errors()
     for item in items[:limit]:
-        field = ".".join(str(part) for part in item["loc"]) or "(top level)"
+        field = ".".join(str(part) for part in item["loc"])
         message = str(item["msg"]).removeprefix("Value error, ")
         if item["type"] == "extra_forbidden":
             message = "unknown setting"
         given = item.get("input")
         shown = not isinstance(given, Mapping | list | tuple) and given is not None
-        problems.append(f"{field}: {message}" + (f" (got {given!r})" if shown else ""))
+        where = f"{field}: " if field else ""  # a model's own check names its fields
+        problems.append(f"{where}{message}" + (f" (got {given!r})" if shown else ""))
     more = len(items) - len(problems)
     return ("; ".join(problems) + (f" (and {more} more)" if more else "")).replace("\n", " ")
 
@@ -507,3 +504,19 @@ def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
         lines.append(f"{key} = {rendered}")
     for key, value in tables:
         _toml_table(lines, f"{name}.{key}", value)
+
+
+def train_settings() -> tuple[Setting, ...]:
+    """What `gnp-lab train` and the dashboard's Train tab set, read from the models: the seed
+    and every section's scalar settings, the implementation phase's excepted (`implement`
+    sets those) and the optional neural controller's (`--brain`)."""
+    found = list(settings_of(RunConfig))
+    for name, model in sections(RunConfig):
+        if name != "implementation":
+            found += settings_of(model, (name,))
+    return tuple(found)
+
+
+def implement_settings() -> tuple[Setting, ...]:
+    """The implementation phase's scalar settings, for `gnp-lab implement`."""
+    return settings_of(ImplementationSettings, ("implementation",))

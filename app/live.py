@@ -12,6 +12,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -21,11 +22,12 @@ import sim
 from app.config import LearningSettings
 from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
 from app.rollout import Batch
-from sim import FAULT_MODES, IR_MAX, N_SENSORS, FaultMode
+from sim import FaultMode
 
 
 class LiveError(ValueError):
-    """A live-session request that cannot be honoured (bad sensor, mode, value...)."""
+    """A live-session request that cannot be honoured (robot count, start pose); a bad sensor,
+    fault mode or noise σ is refused by the world (`sim.WorldError`) before anything changes."""
 
 
 class Ring:
@@ -271,7 +273,6 @@ class LiveSession:
         n_starts = len(arena.start_poses)
         if not 0 <= start < n_starts:
             raise LiveError(f"start pose must be in 0..{n_starts - 1}, got {start}")
-        check_noise(noise_sigma)
         self.arena = arena
         self.start = start
         self.learning = learning or LearningSettings()
@@ -317,29 +318,35 @@ class LiveSession:
             self._pending_fault = None
 
     def schedule_fault(self, step: int, sensors: Sequence[int], mode: str) -> None:
-        """Break `sensors` of every robot when they reach control step `step` (t')."""
-        checked, checked_mode = check_sensors(sensors), check_mode(mode)
-        if step < 0:
-            raise LiveError(f"the fault step must be ≥ 0, got {step}")
+        """Break `sensors` of every robot when they reach control step `step` (t').
+
+        Raises:
+            sim.WorldError: a bad step, sensor or mode (checked now, not when it fires).
+        """
+        fault = sim.Fault(step=step, sensors=tuple(sensors), mode=cast(FaultMode, mode))
         with self._lock:
-            self._pending_fault = (int(step), checked, checked_mode)
+            self._pending_fault = (fault.step, fault.sensors, fault.mode)
 
     def snapshot(self) -> tuple[RobotSnapshot, ...]:
         with self._lock:
             return tuple(robot.snapshot() for robot in self._robots)
 
     def set_noise(self, sigma: float) -> None:
-        check_noise(sigma)
+        """Sensor noise σ of every robot (the first robot's world refuses a bad σ)."""
         with self._lock:
             for robot in self._robots:
                 robot.world.noise_sigma = float(sigma)
 
     def break_sensors(self, sensors: Sequence[int], mode: str) -> None:
-        """Break `sensors` of every robot on show now, in fault `mode`."""
-        checked, checked_mode = check_sensors(sensors), check_mode(mode)
+        """Break `sensors` of every robot on show now, in fault `mode`.
+
+        Raises:
+            sim.WorldError: a bad sensor or mode; the first robot's world refuses it before
+                any robot changes.
+        """
         with self._lock:
             for robot in self._robots:
-                robot.break_sensors(checked, checked_mode)
+                robot.break_sensors(sensors, cast(FaultMode, mode))
 
     def repair(self) -> None:
         with self._lock:
@@ -349,28 +356,3 @@ class LiveSession:
     def set_learning(self, learning: LearningSettings) -> None:
         with self._lock:
             self.learning = learning
-
-
-def check_noise(sigma: float) -> float:
-    """Noise σ must be a finite number in 0..IR_MAX."""
-    if not np.isfinite(sigma) or not 0.0 <= sigma <= IR_MAX:
-        raise LiveError(f"noise σ must be in 0..{IR_MAX:g}, got {sigma}")
-    return float(sigma)
-
-
-def check_mode(mode: str) -> FaultMode:
-    """One of the fault modes: dead, saturated, stuck, random."""
-    for known in FAULT_MODES:
-        if mode == known:
-            return known
-    raise LiveError(f"fault mode must be one of {', '.join(FAULT_MODES)}, got {mode!r}")
-
-
-def check_sensors(sensors: Sequence[int]) -> tuple[int, ...]:
-    """A non-empty set of distinct sensor indices in 0..N_SENSORS-1."""
-    if len(sensors) == 0:
-        raise LiveError("choose at least one sensor to break")
-    bad = [s for s in sensors if isinstance(s, bool) or not 0 <= int(s) < N_SENSORS]
-    if bad:
-        raise LiveError(f"sensors are numbered 0..{N_SENSORS - 1}, got {bad}")
-    return tuple(sorted({int(s) for s in sensors}))

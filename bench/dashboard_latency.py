@@ -40,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             if args.during == "training":
                 set_value(dashboard.train.preset, "quick")
-                set_value(dashboard.train.generations, 10_000)  # trains for the whole measure
+                generations = dashboard.train.settings.controls[("training", "generations")]
+                set_value(generations, 10_000)  # trains for the whole measure
                 dashboard.status.guarded(None, dashboard.train.start)
 
                 def busy() -> str:

@@ -8,15 +8,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import gnp
 import sim
 from app import store
 from app.config import PRESET_NAMES, ConfigError, RunConfig, build_config, preset_layer
-from app.live import LiveError, check_mode, check_sensors
+from app.fields import nested
 
 NO_RUNS = "(none)"
 """What a list of runs offers when the runs dir holds none."""
@@ -39,10 +38,11 @@ def open_run(runs_dir: Path, name: str) -> store.RunReader:
 
 
 def parse_sensors(text: str) -> tuple[int, ...]:
-    """Sensors typed as `2,3` or `s2 s3` → (2, 3).
+    """Sensors typed as `2,3` or `s2 s3` → (2, 3); which sensors exist is the world's to say
+    (`sim.WorldError`) or the settings' (`ImplementationSettings.broken_sensors`).
 
     Raises:
-        DashboardInputError: empty, not numbers, or not sensors.
+        DashboardInputError: empty, or not numbers.
     """
     tokens = [t for t in re.split(r"[,\s;]+", text.strip()) if t]
     if not tokens:
@@ -55,17 +55,7 @@ def parse_sensors(text: str) -> tuple[int, ...]:
                 f"sensors are numbers 0..{sim.N_SENSORS - 1} separated by commas, got {token!r}"
             )
         sensors.append(int(digits))
-    try:
-        return check_sensors(sensors)
-    except LiveError as error:
-        raise DashboardInputError(str(error)) from None
-
-
-def parse_mode(mode: str) -> str:
-    try:
-        return check_mode(mode)
-    except LiveError as error:
-        raise DashboardInputError(str(error)) from None
+    return tuple(sorted(set(sensors)))
 
 
 def finite(value: float, name: str, low: float, high: float) -> float:
@@ -84,44 +74,16 @@ def whole(value: float, name: str, low: int, high: int) -> int:
     return int(value)
 
 
-@dataclass(frozen=True)
-class TrainingRequest:
-    """The Train tab's fields, as typed."""
-
-    preset: str
-    method: str
-    judgment: str  # "fuzzy" | "crisp"
-    population: float
-    generations: float
-    steps: float
-    noise_sigma: float
-    seed: float
-
-
-def training_config(request: TrainingRequest) -> RunConfig:
-    """The run configuration the Train tab describes: the preset overridden by the fields.
+def training_config(preset: str, values: Mapping[tuple[str, ...], Any]) -> RunConfig:
+    """The run the Train tab describes: `preset`, overridden by what its controls hold
+    ({setting path: value}), checked once by building the model.
 
     Raises:
-        DashboardInputError: naming the field and its allowed range.
+        DashboardInputError: naming each bad setting and what it allows.
     """
-    if request.preset not in PRESET_NAMES:
-        raise DashboardInputError(f"unknown preset {request.preset!r}")
-    if request.method not in gnp.METHODS:
-        methods = ", ".join(gnp.METHODS)
-        raise DashboardInputError(f"method must be one of {methods}, got {request.method!r}")
-    if request.judgment not in ("fuzzy", "crisp"):
-        raise DashboardInputError(f"judgment must be fuzzy or crisp, got {request.judgment!r}")
-    overrides: dict[str, Any] = {
-        "seed": whole(request.seed, "seed", 0, 2**31 - 1),
-        "controller": {"method": request.method, "fuzzy": request.judgment == "fuzzy"},
-        "training": {
-            "population": whole(request.population, "population", 2, 100_000),
-            "generations": whole(request.generations, "generations", 1, 1_000_000),
-            "steps": whole(request.steps, "steps (life time T)", 1, 1_000_000),
-            "noise_sigma": finite(request.noise_sigma, "noise σ", 0.0, sim.IR_MAX),
-        },
-    }
+    if preset not in PRESET_NAMES:
+        raise DashboardInputError(f"unknown preset {preset!r}")
     try:
-        return build_config(preset_layer(request.preset), overrides, source="the Train tab")
+        return build_config(preset_layer(preset), nested(dict(values)), source="the Train tab")
     except ConfigError as error:
         raise DashboardInputError(str(error)) from None

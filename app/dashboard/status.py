@@ -10,11 +10,19 @@ import viser
 
 import gnp
 import neuro
+import sim
 from app import store
 from app.dashboard.controls import DashboardInputError
 from app.live import LiveError
 
-REFUSALS = (DashboardInputError, LiveError, store.RunFileError, gnp.GnpError, neuro.NeuroError)
+REFUSALS = (
+    DashboardInputError,
+    LiveError,
+    sim.WorldError,
+    store.RunFileError,
+    gnp.GnpError,
+    neuro.NeuroError,
+)
 """Errors that mean "this value cannot be used": shown on the page, nothing changes."""
 
 

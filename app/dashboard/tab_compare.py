@@ -9,7 +9,7 @@ from pathlib import Path
 import viser
 
 import sim
-from app.dashboard.controls import NO_RUNS, open_run, parse_mode, parse_sensors, whole
+from app.dashboard.controls import NO_RUNS, open_run, parse_sensors, whole
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
@@ -44,7 +44,7 @@ class CompareTab:
             with open_run(self.runs_dir, name) as reader:
                 robots.append(run_robot(reader))
         sensors = parse_sensors(self.sensors.value)
-        mode = parse_mode(self.mode.value)
+        mode = self.mode.value
         step = whole(self.fault_step.value, "fault step", 0, 10**6)
         self.stage.present(
             Show(

@@ -4,21 +4,40 @@ the second stage's switch (live ablation of BS's branch connections / CS's credi
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import viser
 
-import gnp
-import sim
-from app.dashboard.controls import DashboardInputError, finite, parse_mode, parse_sensors, whole
+from app.config import ImplementationSettings
+from app.dashboard.controls import parse_sensors
+from app.dashboard.setting_controls import (
+    SettingControls,
+    add_choice,
+    add_control,
+    add_number,
+    build,
+    check,
+)
 from app.dashboard.stage import Stage
 from app.dashboard.status import Status
-from app.live import LearningSettings, brain_name
+from app.fields import settings_of
+from app.live import brain_name
 
 FIXED = "fixed"
 SCHEDULED = "scheduled from the fault (Eq. 4.3–4.4)"
-MAX_LIVE_NOISE = 300  # the slider's end; the training field goes up to sim.IR_MAX
+MAX_LIVE_NOISE = 300  # the slider's end; the setting goes up to its model's bound (sim.IR_MAX)
 SECOND_STAGE = "Second stage (BS branch / CS credit)"
+LEARNING_LABELS = {
+    "epsilon": "ε (fixed)",
+    "alpha": "α (fixed)",
+    "epsilon_max": "ε max (scheduled)",
+    "epsilon_min": "ε min (scheduled)",
+    "alpha_max": "α max (scheduled)",
+    "alpha_min": "α min (scheduled)",
+    "schedule_n": "n (exponent)",
+}
+"""The implementation phase's settings online learning takes, with their labels here; their
+range, step, default and hint come from `ImplementationSettings`."""
 
 
 @dataclass
@@ -28,30 +47,24 @@ class FaultsTab:
     stage: Stage
     status: Status
     on_break: Callable[[], None]
-    noise: viser.GuiSliderHandle[int]
+    noise: viser.GuiSliderHandle[float]
     sensors: viser.GuiTextHandle
-    mode: viser.GuiDropdownHandle[sim.FaultMode]
+    mode: viser.GuiDropdownHandle[str]
     learn: viser.GuiCheckboxHandle
     second_stage: viser.GuiCheckboxHandle
     schedule: viser.GuiDropdownHandle[str]
-    eps_fixed: viser.GuiNumberHandle[float]
-    alpha_fixed: viser.GuiNumberHandle[float]
-    eps_max: viser.GuiNumberHandle[float]
-    eps_min: viser.GuiNumberHandle[float]
-    alpha_max: viser.GuiNumberHandle[float]
-    alpha_min: viser.GuiNumberHandle[float]
-    n: viser.GuiNumberHandle[float]
+    rates: SettingControls  # ε, α and their schedule, by ImplementationSettings' field
     horizon: viser.GuiNumberHandle[int]
 
     def set_noise(self) -> None:
-        sigma = finite(self.noise.value, "noise σ", 0.0, sim.IR_MAX)
+        sigma = check(ImplementationSettings, "noise_sigma", self.noise.value, "noise σ")
         self.stage.set_noise(sigma)
         self.status.set(f"noise σ = {sigma:g} applied")
 
     def break_now(self) -> None:
         sensors = parse_sensors(self.sensors.value)
-        mode = parse_mode(self.mode.value)
-        self.stage.break_sensors(sensors, mode)
+        mode = self.mode.value
+        self.stage.break_sensors(sensors, mode)  # the world refuses a bad sensor or mode
         self.on_break()
         self.status.set(f"broke s{', s'.join(map(str, sensors))} ({mode})")
 
@@ -60,32 +73,25 @@ class FaultsTab:
         self.status.set("all sensors repaired")
 
     def apply_learning(self) -> None:
-        """ε/α are the fixed values before any fault, and after it unless scheduled."""
-        eps = finite(self.eps_fixed.value, "ε", 0.0, 1.0)
-        alpha = finite(self.alpha_fixed.value, "α", 0.0, 1.0)
-        after_fault = None
-        mode = f"fixed ε {eps}, α {alpha}"
-        if self.schedule.value != FIXED:
-            eps_max = finite(self.eps_max.value, "ε max", 0.0, 1.0)
-            alpha_max = finite(self.alpha_max.value, "α max", 0.0, 1.0)
-            eps_min = finite(self.eps_min.value, "ε min", 0.0, 1.0)
-            alpha_min = finite(self.alpha_min.value, "α min", 0.0, 1.0)
-            if eps_min > eps_max or alpha_min > alpha_max:
-                raise DashboardInputError("a schedule's min must not exceed its max")
-            n = finite(self.n.value, "n", 0.01, 100.0)
-            after_fault = (
-                gnp.Schedule(max=eps_max, min=eps_min, n=n),
-                gnp.Schedule(max=alpha_max, min=alpha_min, n=n),
-            )
-            mode += f" until a fault, then ε {eps_max}→{eps_min}, α {alpha_max}→{alpha_min}"
-        learning = LearningSettings(
+        """ε/α are the fixed values before any fault, and after it unless scheduled; the
+        values are checked by building the implementation phase's settings."""
+        horizon = check(ImplementationSettings, "steps", self.horizon.value, "T − t'")
+        values = {path[-1]: value for path, value in self.rates.values().items()}
+        scheduled = self.schedule.value != FIXED
+        values["schedule"] = "changing" if scheduled else "fixed"
+        settings = build(ImplementationSettings, values, "online learning")
+        learning = replace(
+            settings.learning(),
             online=bool(self.learn.value),
-            epsilon=eps,
-            alpha=alpha,
-            after_fault=after_fault,
-            horizon=whole(self.horizon.value, "T − t'", 1, 10**6),
+            horizon=horizon,
             second_stage=bool(self.second_stage.value),
         )
+        mode = f"fixed ε {settings.epsilon}, α {settings.alpha}"
+        if scheduled:
+            mode += (
+                f" until a fault, then ε {settings.epsilon_max}→{settings.epsilon_min}, "
+                f"α {settings.alpha_max}→{settings.alpha_min}"
+            )
         self.stage.set_learning(learning)
         self.status.set(
             f"online learning {'on' if learning.online else 'off'}, {mode}; "
@@ -117,9 +123,18 @@ def populate_faults_tab(
 
     `on_break` is called after sensors broke (the Show tab echoes that new lives are off).
     """
-    noise = gui.add_slider("Noise σ (live)", min=0, max=MAX_LIVE_NOISE, step=1, initial_value=0)
+    defaults = ImplementationSettings()
+    fields = {s.name: s for s in settings_of(ImplementationSettings)}
+    noise = gui.add_slider(
+        "Noise σ (live)",
+        min=fields["noise_sigma"].low or 0,
+        max=MAX_LIVE_NOISE,
+        step=1,
+        initial_value=defaults.noise_sigma,
+        hint=fields["noise_sigma"].help(),
+    )
     sensors = gui.add_text("Sensors to break", "2,3")
-    mode = gui.add_dropdown("Fault mode", sim.FAULT_MODES)
+    mode = add_choice(gui, fields["fault_mode"], defaults.fault_mode, "Fault mode")
     buttons = gui.add_button_group("Faults", ("Break now", "Repair all"))
     gui.add_markdown("**Online learning** (Sarsa while on show)")
     learn = gui.add_checkbox("Learn online", initial_value=stage.learning.online)
@@ -130,15 +145,19 @@ def populate_faults_tab(
         "learning Q_BS; a CS robot never skips through its credit branch and stops learning "
         "Q_CS; sub node selection (Q_SS) goes on. RL has no second stage.",
     )
-    eps_fixed = gui.add_number("ε (fixed)", 0.1, min=0.0, max=1.0, step=0.005)
-    alpha_fixed = gui.add_number("α (fixed)", 0.1, min=0.0, max=1.0, step=0.005)
+    rates = SettingControls({})
+
+    def add_rate(name: str) -> None:
+        label = LEARNING_LABELS[name]
+        rates.controls[(name,)] = add_control(gui, fields[name], getattr(defaults, name), label)
+
+    add_rate("epsilon")
+    add_rate("alpha")
     schedule = gui.add_dropdown("After a fault", (FIXED, SCHEDULED))
-    eps_max = gui.add_number("ε max (scheduled)", 0.015, min=0.0, max=1.0, step=0.005)
-    eps_min = gui.add_number("ε min (scheduled)", 0.0, min=0.0, max=1.0, step=0.005)
-    alpha_max = gui.add_number("α max (scheduled)", 0.15, min=0.0, max=1.0, step=0.005)
-    alpha_min = gui.add_number("α min (scheduled)", 0.0, min=0.0, max=1.0, step=0.005)
-    n = gui.add_number("n (exponent)", 1.0, min=0.01, max=100.0, step=0.1)
-    horizon = gui.add_number("T − t' (steps)", 2500, min=1, max=10**6, step=1)
+    for name in ("epsilon_max", "epsilon_min", "alpha_max", "alpha_min", "schedule_n"):
+        add_rate(name)
+    # T − t' as the implementation phase's defaults give it, within the bounds of its T.
+    horizon = add_number(gui, fields["steps"], defaults.learning().horizon, "T − t' (steps)")
     apply = gui.add_button("Apply learning settings")
     tab = FaultsTab(
         stage=stage,
@@ -150,13 +169,7 @@ def populate_faults_tab(
         learn=learn,
         second_stage=second_stage,
         schedule=schedule,
-        eps_fixed=eps_fixed,
-        alpha_fixed=alpha_fixed,
-        eps_max=eps_max,
-        eps_min=eps_min,
-        alpha_max=alpha_max,
-        alpha_min=alpha_min,
-        n=n,
+        rates=rates,
         horizon=horizon,
     )
 

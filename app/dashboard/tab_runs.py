@@ -18,7 +18,6 @@ from app.dashboard.controls import (
     NO_RUNS,
     DashboardInputError,
     open_run,
-    parse_mode,
     parse_sensors,
     whole,
 )
@@ -201,7 +200,7 @@ class RunsTab:
         request = ImplementationRequest(
             run=self.loaded.path,
             sensors=parse_sensors(self.sensors.value),
-            mode=parse_mode(self.mode.value),
+            mode=self.mode.value,
             fault_step=whole(self.fault_step.value, "fault step t'", 0, 10**6),
             steps=whole(self.steps.value, "steps T", 1, 10**6),
             repeats=whole(self.repeats.value, "repeats", 1, 1000),

@@ -1,5 +1,8 @@
 """The Train tab: a run's settings, Start / Pause / Resume / Stop, and its progress.
 
+The settings' controls are built from the models (`app.config.train_settings`): the common
+ones first, every other one in a folder, so a new field of a model shows up here by itself.
+The values are checked once, by building the `RunConfig` that `TrainingJob` is given.
 Training runs as `gnp-lab train` in its own process (`TrainingJob`); a `TrainingFollower`
 reads its file as it grows, and each new generation's best goes on show at once.
 """
@@ -9,23 +12,47 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import viser
 from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
 
-import gnp
-import sim
-from app.config import PRESET_NAMES, RunConfig, load_preset
-from app.dashboard.controls import DashboardInputError, TrainingRequest, training_config
+from app.config import PRESET_NAMES, RunConfig, load_preset, train_settings
+from app.dashboard.controls import DashboardInputError, training_config
 from app.dashboard.follower import TrainingFollower
+from app.dashboard.setting_controls import SettingControls, add_controls
 from app.dashboard.stage import Stage
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
-from app.dashboard.training_job import TrainingJob
+from app.dashboard.training_job import JobState, TrainingJob
 
-JUDGMENTS = ("fuzzy", "crisp")
+FIRST = (
+    "controller.method",
+    "controller.fuzzy",
+    "training.population",
+    "training.generations",
+    "training.steps",
+    "training.noise_sigma",
+    "seed",
+)
+"""The settings shown above the fold; the others are in the "All settings" folder."""
+
+ACTIONS = ("Start", "Pause", "Resume", "Stop")
+
+
+def enabled_actions(state: JobState | None) -> dict[str, bool]:
+    """Which training buttons can act in a job `state` (None: no training started or
+    followed): Start when none runs, Pause while running, Resume while paused, Stop while
+    running or paused."""
+    going = state in ("running", "paused")
+    return {
+        "Start": not going,
+        "Pause": state == "running",
+        "Resume": state == "paused",
+        "Stop": going,
+    }
 
 
 @dataclass
@@ -37,14 +64,9 @@ class TrainTab:
     plots: PlotsTab
     runs_dir: Path
     on_run_ended: Callable[[], None]  # a run file is complete: list it
-    method: viser.GuiDropdownHandle[gnp.Method]
-    judgment: viser.GuiDropdownHandle[str]
     preset: viser.GuiDropdownHandle[str]
-    population: viser.GuiNumberHandle[int]
-    generations: viser.GuiNumberHandle[int]
-    steps: viser.GuiNumberHandle[int]
-    noise: viser.GuiNumberHandle[float]
-    seed: viser.GuiNumberHandle[int]
+    settings: SettingControls
+    buttons: dict[str, viser.GuiButtonHandle]
     progress: GuiProgressBarHandle
     summary: viser.GuiMarkdownHandle
     job: TrainingJob | None = None
@@ -54,29 +76,20 @@ class TrainTab:
         """Fill the fields with a preset's values."""
         if name not in PRESET_NAMES:
             return
-        preset = load_preset(name)
-        set_value(self.method, preset.controller.method)
-        set_value(self.judgment, judgment_of(preset))
-        set_value(self.population, preset.training.population)
-        set_value(self.generations, preset.training.generations)
-        set_value(self.steps, preset.training.steps)
-        set_value(self.noise, preset.training.noise_sigma)
+        self.settings.show(load_preset(name))
+
+    def sync_buttons(self) -> None:
+        """Enable the buttons that can act on the training as it is now."""
+        state = self.job.state if self.job is not None else None
+        for name, enabled in enabled_actions(state).items():
+            button = self.buttons[name]
+            if button.disabled == enabled:  # viser sends every assignment: only changes
+                button.disabled = not enabled
 
     def start(self) -> None:
         if self.job is not None and self.job.active:
             raise DashboardInputError("a training run is already going: stop it first")
-        config = training_config(
-            TrainingRequest(
-                preset=self.preset.value,
-                method=self.method.value,
-                judgment=self.judgment.value,
-                population=self.population.value,
-                generations=self.generations.value,
-                steps=self.steps.value,
-                noise_sigma=self.noise.value,
-                seed=self.seed.value,
-            )
-        )
+        config = training_config(self.preset.value, self.settings.values())
         out = new_run_path(self.runs_dir, config)
         self.close()  # a run that ended but was not yet followed to its end
         self.job = TrainingJob(config, out)
@@ -84,6 +97,7 @@ class TrainTab:
         self.plots.set_fitness(np.zeros(0), np.zeros(0))
         self.plots.training_line = f"training: started {out.name}"
         self.status.set(f"training {out.stem} started")
+        self.sync_buttons()
 
     def act(self, action: str) -> None:
         """Pause, resume or stop the training."""
@@ -92,10 +106,12 @@ class TrainTab:
             raise DashboardInputError("no training is running")
         {"pause": job.pause, "resume": job.resume, "stop": job.stop}[action]()
         self.status.set(f"training {action}d" if action != "stop" else "training stopped")
+        self.sync_buttons()
 
     def follow(self) -> None:
         """Poll the training: plot, put each new best on show, progress; clean up at its end."""
         job, follower = self.job, self.follower
+        self.sync_buttons()
         if job is None or follower is None:
             return
         state = job.state  # before reading: a finished job's file is complete
@@ -118,6 +134,7 @@ class TrainTab:
         if not progress.ended:
             return
         self.job = self.follower = None
+        self.sync_buttons()
         self.on_run_ended()
         if state == "failed":
             self.status.set(f"⚠ training failed: {progress.error}")
@@ -142,42 +159,31 @@ def populate_train_tab(
 ) -> TrainTab:
     """Add the Train tab's controls (inside the current tab) and attach their callbacks."""
     quick = load_preset("quick")  # the fields start at the quick preset's values
-    training = quick.training
-    method = gui.add_dropdown("Method", gnp.METHODS, initial_value=quick.controller.method)
-    judgment = gui.add_dropdown("Judgment", JUDGMENTS, initial_value=judgment_of(quick))
     preset = gui.add_dropdown("Preset", PRESET_NAMES, initial_value="quick")
-    population = gui.add_number("Population", training.population, min=2, max=100_000, step=1)
-    generations = gui.add_number("Generations", training.generations, min=1, max=1_000_000, step=1)
-    steps = gui.add_number("Life T (steps)", training.steps, min=1, max=1_000_000, step=1)
-    noise = gui.add_number("Noise σ", training.noise_sigma, min=0.0, max=sim.IR_MAX, step=1.0)
-    seed = gui.add_number("Seed", quick.seed, min=0, max=2**31 - 1, step=1)
-    buttons = gui.add_button_group("Training", ("Start", "Pause", "Resume", "Stop"))
+    everything = train_settings()
+    first = [s for key in FIRST for s in everything if s.key == key]
+    settings = add_controls(gui, first, quick)
+    with gui.add_folder("All settings", expand_by_default=False):
+        rest = [s for s in everything if s.key not in FIRST]
+        settings.controls.update(add_controls(gui, rest, quick).controls)
+    buttons = {name: gui.add_button(name, disabled=name != "Start") for name in ACTIONS}
     tab = TrainTab(
         stage=stage,
         status=status,
         plots=plots,
         runs_dir=runs_dir,
         on_run_ended=on_run_ended,
-        method=method,
-        judgment=judgment,
         preset=preset,
-        population=population,
-        generations=generations,
-        steps=steps,
-        noise=noise,
-        seed=seed,
+        settings=settings,
+        buttons=buttons,
         progress=gui.add_progress_bar(0.0),
         summary=gui.add_markdown("Not training."),
     )
 
     tab.preset.on_update(lambda _: tab.apply_preset(tab.preset.value))
-    actions: dict[str, Callable[[], None]] = {
-        "Start": tab.start,
-        "Pause": lambda: tab.act("pause"),
-        "Resume": lambda: tab.act("resume"),
-        "Stop": lambda: tab.act("stop"),
-    }
-    buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
+    buttons["Start"].on_click(status.guard(tab.start))
+    for name in ACTIONS[1:]:
+        buttons[name].on_click(status.guard(partial(tab.act, name.lower())))
     return tab
 
 

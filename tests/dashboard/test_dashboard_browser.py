@@ -142,13 +142,16 @@ def test_pause_and_stop_training(page: Any) -> None:
         sent(page, new_lives.uncheck, "false")
     expect(new_lives).not_to_be_checked(timeout=TIMEOUT_MS)
     page.get_by_role("tab", name="Train").click()
+    expect_buttons(page, enabled={"Start"})  # no training: nothing to pause, resume or stop
     type_into(page, "Population", "8")
     type_into(page, "Life T (steps)", "60")
     type_into(page, "Generations", "5000")
     press(page, "Start")
     wait_for(page, r"training: running · generation [1-9]")
+    expect_buttons(page, enabled={"Pause", "Stop"})
     press(page, "Pause")
     paused = int(wait_for(page, r"training: paused · generation (\d+)").group(1))
+    expect_buttons(page, enabled={"Resume", "Stop"})
     # The page stays live while training is paused: the robot lives 45 more steps, in which
     # at most the generation in flight when SIGSTOP reached the group completes.
     before = step_of(page)
@@ -159,6 +162,19 @@ def test_pause_and_stop_training(page: Any) -> None:
     press(page, "Stop")
     stopped = wait_for(page, r"training: stopped · generation (\d+)/5000")
     assert int(stopped.group(1)) < 5000
+    expect_buttons(page, enabled={"Start"})
+
+
+def expect_buttons(page: Any, enabled: set[str]) -> None:
+    """Wait until exactly the training buttons in `enabled` can be clicked."""
+    from playwright.sync_api import expect
+
+    for name in ("Start", "Pause", "Resume", "Stop"):
+        button = expect(page.get_by_role("button", name=name, exact=True))
+        if name in enabled:
+            button.to_be_enabled(timeout=TIMEOUT_MS)
+        else:
+            button.to_be_disabled(timeout=TIMEOUT_MS)
 
 
 def test_load_a_saved_run_replay_and_implement(page: Any, screenshots: Path) -> None:

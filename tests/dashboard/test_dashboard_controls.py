@@ -14,7 +14,6 @@ from app import store
 from app.config import build_config, load_preset
 from app.dashboard.controls import (
     DashboardInputError,
-    TrainingRequest,
     finite,
     parse_sensors,
     training_config,
@@ -37,7 +36,6 @@ def test_sensor_lists_parse(text: str, sensors: tuple[int, ...]) -> None:
     [
         ("", "at least one sensor"),
         ("2,x", "numbers 0..7"),
-        ("8", "numbered 0..7"),
         ("-1", "numbers 0..7"),
     ],
 )
@@ -57,23 +55,23 @@ def test_numbers_are_checked_against_their_range() -> None:
         finite(float("nan"), "ε", 0.0, 1.0)
 
 
-def request(**changes: object) -> TrainingRequest:
-    fields: dict[str, object] = {
-        "preset": "quick",
-        "method": "BS",
-        "judgment": "crisp",
-        "population": 10,
-        "generations": 4,
-        "steps": 50,
-        "noise_sigma": 30.0,
-        "seed": 9,
+def fields(**changes: object) -> dict[tuple[str, ...], object]:
+    """What the Train tab's controls might hold, by setting path."""
+    values: dict[tuple[str, ...], object] = {
+        ("controller", "method"): "BS",
+        ("controller", "fuzzy"): False,
+        ("training", "population"): 10,
+        ("training", "generations"): 4,
+        ("training", "steps"): 50,
+        ("training", "noise_sigma"): 30.0,
+        ("seed",): 9,
     }
-    fields.update(changes)
-    return TrainingRequest(**fields)  # type: ignore[arg-type]
+    values.update({tuple(key.split(".")): value for key, value in changes.items()})
+    return values
 
 
 def test_the_train_tab_overrides_its_preset() -> None:
-    config = training_config(request())
+    config = training_config("quick", fields())
     assert config.seed == 9
     assert (config.controller.method, config.controller.fuzzy) == ("BS", False)
     training = config.training
@@ -83,21 +81,36 @@ def test_the_train_tab_overrides_its_preset() -> None:
     preset = load_preset("quick")
     assert config.implementation == preset.implementation
     assert config.training.redraw_every == preset.training.redraw_every
+    # The seed goes as far as the model allows (the tab once stopped at 2**31 - 1).
+    assert training_config("quick", fields(seed=2**63 - 1)).seed == 2**63 - 1
 
 
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"population": 1}, "population must be in 2..100000"),
-        ({"noise_sigma": 2000.0}, "noise σ must be a number in 0..1023"),
-        ({"method": "XX"}, "method must be one of RL, BS, CS"),
-        ({"preset": "nope"}, "unknown preset"),
-        ({"generations": 1.5}, "generations must be a whole number"),
+        (
+            {"training.population": 1},
+            "training.population: Input should be greater than or equal to 2",
+        ),
+        (
+            {"training.noise_sigma": 2000.0},
+            "training.noise_sigma: Input should be less than or equal to 1023",
+        ),
+        ({"controller.method": "XX"}, "controller.method: Input should be 'RL', 'BS' or 'CS'"),
+        ({"training.generations": 1.5}, "training.generations: Input should be a valid integer"),
+        ({"seed": 2**63}, "seed: Input should be less than or equal to 9223372036854775807"),
+        ({"training.epsilon_min": 0.5}, "epsilon_min (0.5) must not exceed epsilon_max"),
     ],
 )
 def test_bad_training_fields_name_the_field(changes: dict[str, object], message: str) -> None:
-    with pytest.raises(DashboardInputError, match=re.escape(message)):
-        training_config(request(**changes))
+    with pytest.raises(DashboardInputError, match=re.escape(message)) as refused:
+        training_config("quick", fields(**changes))
+    assert "\n" not in str(refused.value)
+
+
+def test_an_unknown_preset_is_refused() -> None:
+    with pytest.raises(DashboardInputError, match="unknown preset 'nope'"):
+        training_config("nope", fields())
 
 
 @pytest.mark.parametrize("method", ["RL", "BS", "CS"])
@@ -237,19 +250,96 @@ def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Pat
     dashboard = Dashboard(server, tmp_path)
     try:
         faults = dashboard.faults
-        faults.eps_fixed.value, faults.alpha_fixed.value = 0.05, 0.2
+        rate = {path[-1]: control for path, control in faults.rates.controls.items()}
+        # The controls start at the implementation phase's defaults, T − t' at 3000 − 500.
+        assert (rate["epsilon_max"].value, rate["alpha_max"].value) == (0.015, 0.15)
+        assert faults.horizon.value == 2500 and rate["schedule_n"].value == 1.0
+        rate["epsilon"].value, rate["alpha"].value = 0.05, 0.2
         faults.schedule.value = SCHEDULED
-        faults.eps_max.value, faults.eps_min.value = 0.015, 0.0
-        faults.alpha_max.value, faults.alpha_min.value = 0.15, 0.0
+        rate["epsilon_max"].value, rate["epsilon_min"].value = 0.015, 0.0
+        rate["alpha_max"].value, rate["alpha_min"].value = 0.15, 0.0
         faults.horizon.value = 1000
         dashboard.status.guarded(None, faults.apply_learning)
         learning = dashboard.stage.learning
         assert learning.rates(10, None) == (0.05, 0.2)  # no fault yet: the fixed values
         assert learning.rates(600, 100) == pytest.approx((0.0075, 0.075))  # halfway down
-        faults.eps_min.value = 0.5  # above its max
+        rate["epsilon_min"].value = 0.5  # above its max
         dashboard.status.guarded(None, faults.apply_learning)
-        assert dashboard.status.text == "⚠ a schedule's min must not exceed its max"
+        assert dashboard.status.text == (
+            "⚠ online learning: epsilon_min (0.5) must not exceed epsilon_max (0.015)"
+        )
+        rate["epsilon_min"].value = 0.0
+        faults.horizon.value = 0  # below the bounds of T
+        dashboard.status.guarded(None, faults.apply_learning)
+        assert (
+            dashboard.status.text == "⚠ T − t': Input should be greater than or equal to 1 (got 0)"
+        )
+        faults.noise.value = 2000  # the model's bound (the slider stops at 300)
+        assert dashboard.status.text.startswith("⚠ noise σ: Input should be less than or equal")
+        faults.sensors.value = "9"
+        dashboard.status.guarded(None, faults.break_now)  # the world refuses sensor 9
+        assert dashboard.status.text == "⚠ sensor index 9 is not in 0..7"
         assert dashboard.stage.learning is learning  # nothing applied
+    finally:
+        dashboard.stop()
+        server.stop()
+
+
+@pytest.mark.parametrize(
+    ("state", "enabled"),
+    [
+        (None, {"Start"}),
+        ("running", {"Pause", "Stop"}),
+        ("paused", {"Resume", "Stop"}),
+        ("stopped", {"Start"}),
+        ("finished", {"Start"}),
+        ("failed", {"Start"}),
+    ],
+)
+def test_training_buttons_follow_the_jobs_state(state: str | None, enabled: set[str]) -> None:
+    from app.dashboard.tab_train import enabled_actions
+
+    actions = enabled_actions(state)  # type: ignore[arg-type]
+    assert {name for name, on in actions.items() if on} == enabled
+    assert set(actions) == {"Start", "Pause", "Resume", "Stop"}
+
+
+def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
+    import viser
+
+    from app.config import train_settings
+    from app.dashboard.app import Dashboard
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path)
+    try:
+        train = dashboard.train
+        controls = train.settings.controls
+        shown = {s.path for s in train_settings() if not s.optional}
+        assert set(controls) == shown  # every setting a control can hold, and nothing else
+        seed = controls[("seed",)]
+        assert (seed.min, seed.max) == (0, 2**63 - 1)  # the model's bound, not 2**31 - 1
+        c_from = controls[("reward", "c_from")]
+        assert c_from.options == ("true", "observed") and c_from.value == "true"
+        assert c_from.hint is not None and "readings C of Eq. 2.7 is judged from" in c_from.hint
+        population = controls[("training", "population")]
+        assert population.hint == "individuals [count]; 2..100000 (default 300)"
+        assert population.value == load_preset("quick").training.population
+        # A value from the page goes into the run's config; the preset fills in the rest.
+        c_from.value = "observed"
+        config = training_config("quick", train.settings.values())
+        assert config.reward.c_from == "observed"
+        assert config.training == load_preset("quick").training
+        train.apply_preset("thesis-ch5")
+        assert population.value == load_preset("thesis-ch5").training.population
+        assert c_from.value == load_preset("thesis-ch5").reward.c_from
+        buttons = train.buttons
+        assert [buttons[n].disabled for n in ("Start", "Pause", "Resume", "Stop")] == [
+            False,
+            True,
+            True,
+            True,
+        ]
     finally:
         dashboard.stop()
         server.stop()

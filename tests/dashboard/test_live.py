@@ -7,7 +7,7 @@ import pytest
 
 import gnp
 import sim
-from app.live import LearningSettings, LiveError, LiveSession, Ring, RobotSpec, check_sensors
+from app.live import LearningSettings, LiveError, LiveSession, Ring, RobotSpec
 
 
 @pytest.fixture(scope="module")
@@ -87,19 +87,24 @@ def test_a_scheduled_fault_fires_at_its_step_for_both_robots(arena: sim.Arena) -
 
 def test_bad_requests_are_refused_and_change_nothing(arena: sim.Arena) -> None:
     session = LiveSession(arena, [individual("RL")])
-    with pytest.raises(LiveError, match=r"numbered 0\.\.7"):
+    # The world refuses a bad sensor, mode, noise or fault step: nothing else checks them.
+    with pytest.raises(sim.WorldError, match=r"sensor index 8 is not in 0\.\.7"):
         session.break_sensors([8], "dead")
-    with pytest.raises(LiveError, match="fault mode"):
+    with pytest.raises(sim.WorldError, match="unknown fault mode 'melted'"):
         session.break_sensors([1], "melted")
-    with pytest.raises(LiveError, match="noise σ"):
+    with pytest.raises(sim.WorldError, match="noise_sigma must be a finite number"):
         session.set_noise(-1.0)
+    with pytest.raises(sim.WorldError, match=r"Fault\.step must be ≥ 0"):
+        session.schedule_fault(-1, [1], "dead")
+    with pytest.raises(sim.WorldError, match="no sensors given"):
+        session.schedule_fault(5, [], "dead")
     with pytest.raises(LiveError, match="start pose"):
         LiveSession(arena, [individual("RL")], start=10)
     with pytest.raises(LiveError, match="one or two robots"):
         LiveSession(arena, [individual("RL")] * 3)
     session.step(1)
     assert not session.snapshot()[0].broken.any()
-    assert check_sensors([3, 1, 3]) == (1, 3)
+    assert session.robots[0].world.noise_sigma == 0.0
 
 
 def test_learning_rates_fixed_and_scheduled_after_the_fault() -> None:

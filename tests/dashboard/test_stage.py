@@ -159,7 +159,7 @@ def test_breaking_stops_new_lives_and_bad_requests_change_nothing(cs: RobotSpec)
         stage.restage(arena="moon")
     with pytest.raises(LiveError, match=r"start pose must be in 0\.\.9"):
         stage.restage(start=sim.N_START_POSES)
-    with pytest.raises(LiveError, match="noise σ"):
+    with pytest.raises(sim.WorldError, match="noise_sigma must be a finite number"):
         stage.set_noise(-1.0)
     assert (stage.show, stage.session, stage.noise_sigma) == (show, session, 0.0)
 
