@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from app.experiments import runner
+from app.experiments import planning
 from app.experiments.results import VERDICTS
 from app.experiments.spec import SCALES, ExperimentError, load_shipped, shipped_names
 
@@ -162,7 +162,7 @@ def cost_table() -> str:
     for name in shipped_names():
         spec = load_shipped(name)
         for scale, sizes in spec.scales.items():
-            cost = runner.work(spec, scale)
+            cost = planning.work(spec, scale)
             out.append(
                 f"| {name} | {scale} | {cost.runs} | {short_count(cost.robot_steps)} "
                 f"| {short_count(cost.trial_steps)} | {_cell(sizes.measured or '—')} |"
