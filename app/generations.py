@@ -17,8 +17,8 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -31,7 +31,7 @@ from app.config import RunConfig
 from app.lives import Lives, ShardLives, concat, concat_lives, owned, shard_lives, shards, take
 from app.seeds import LifeSeeds, life_seeds, n_segments
 from app.store import RunFileError, RunReader, RunTemplate, RunWriter
-from app.workers import Handler, WorkerDied, WorkerPool
+from app.workers import Handler, WorkerDied, WorkerPool, handling
 
 
 class TrainingError(RuntimeError):
@@ -119,28 +119,18 @@ class Control:
             raise KeyboardInterrupt
 
 
-@contextmanager
-def _stop_on_sigterm(control: Control) -> Iterator[None]:
+def _stop_on_sigterm(control: Control) -> AbstractContextManager[None]:
     """Turn SIGTERM into KeyboardInterrupt (as Ctrl-C) while training, in the main thread.
 
     The request is also remembered in `control`: a KeyboardInterrupt raised while numba
     compiles can be swallowed inside llvmlite, and the loop then stops at the next generation.
     """
-    try:
-        previous = signal.getsignal(signal.SIGTERM)
 
-        def handler(signum: int, frame: Any) -> None:
-            control.stopping.set()
-            raise KeyboardInterrupt
+    def handler(signum: int, frame: Any) -> None:
+        control.stopping.set()
+        raise KeyboardInterrupt
 
-        signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    return handling(signal.SIGTERM, handler)
 
 
 # --- evaluation: in this process or on the worker pool ----------------------------------------

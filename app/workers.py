@@ -51,6 +51,21 @@ def default_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+@contextlib.contextmanager
+def handling(sig: int, handler: Any) -> Iterator[None]:
+    """`handler` (a function, SIG_IGN or SIG_DFL) for signal `sig` meanwhile, then the previous
+    one back. Only the main thread can set handlers: elsewhere signals are left alone."""
+    try:
+        previous = signal.signal(sig, handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+
+
 def _sendable(error: BaseException) -> BaseException:
     """`error` if it pickles, else a RuntimeError carrying its traceback."""
     try:

@@ -12,6 +12,7 @@ from typing import Any
 from app.experiments.planning import Task
 from app.experiments.spec import ExperimentError
 from app.security import local_cluster_security
+from app.workers import default_workers, handling
 
 
 def warm_numba(tasks: list[Task], client: Any = None) -> None:
@@ -33,13 +34,6 @@ def _in_process(client: Any) -> bool:
     """Every worker of `client`'s cluster lives in this process (`processes=False`)."""
     workers = client.scheduler_info().get("workers", {})
     return bool(workers) and all(str(a).startswith("inproc://") for a in workers)
-
-
-def default_workers() -> int:
-    """One worker per core."""
-    from app.training import default_workers as cores
-
-    return cores()
 
 
 NO_DASHBOARD: dict[str, Any] = {
@@ -73,7 +67,10 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
             finally:
                 client.close()
             return
-        with _ignoring_ctrl_c():  # the worker processes inherit it
+        # Ctrl-C reaches the whole foreground process group: the worker processes started
+        # meanwhile ignore it (they inherit that), and the client alone stops (closing its
+        # cluster).
+        with handling(signal.SIGINT, signal.SIG_IGN):
             cluster = LocalCluster(
                 n_workers=workers or default_workers(),
                 threads_per_worker=1,
@@ -85,18 +82,3 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
             )
         with cluster, Client(cluster) as client:
             yield client
-
-
-@contextmanager
-def _ignoring_ctrl_c() -> Iterator[None]:
-    """Ignore SIGINT meanwhile. Ctrl-C reaches the whole foreground process group; worker
-    processes started meanwhile ignore it, and the client alone stops (closing its cluster)."""
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)

@@ -102,6 +102,14 @@ def client() -> Iterator[Any]:
         yield c
 
 
+def adapt(
+    spec: ExperimentSpec, runs: Path, client: Any, lines: list[str]
+) -> tuple[ExperimentResults, tuple[Stage, ...]]:
+    """The experiment run adaptively in stages of 3 seeds up to 6, its lines into `lines`."""
+    options = RunOptions(client=client, echo=lines.append)
+    return run_adaptive(spec, SCALE, runs, stage_seeds=3, max_seeds=6, options=options)
+
+
 @pytest.fixture(scope="module")
 def adaptive_run(
     plant: None, spec_file: Path, client: Any, tmp_path_factory: pytest.TempPathFactory
@@ -109,14 +117,7 @@ def adaptive_run(
     spec = load_file(spec_file)
     runs = tmp_path_factory.mktemp("runs")
     lines: list[str] = []
-    results, stages = run_adaptive(
-        spec,
-        SCALE,
-        runs,
-        stage_seeds=3,
-        max_seeds=6,
-        options=RunOptions(client=client, echo=lines.append),
-    )
+    results, stages = adapt(spec, runs, client, lines)
     return spec, runs, results, stages, lines
 
 
@@ -185,14 +186,7 @@ def test_a_rerun_runs_nothing_and_decides_the_same(adaptive_run: Any, client: An
     spec, runs, results, stages, _ = adaptive_run
     before = run_files(runs)
     lines: list[str] = []
-    again, stages_again = run_adaptive(
-        spec,
-        SCALE,
-        runs,
-        stage_seeds=3,
-        max_seeds=6,
-        options=RunOptions(client=client, echo=lines.append),
-    )
+    again, stages_again = adapt(spec, runs, client, lines)
     assert stages_again == stages and run_files(runs) == before
     assert not any(line.startswith("stage") for line in lines)
     assert again.seeds == results.seeds
