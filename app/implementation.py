@@ -27,13 +27,13 @@ from app.neural import BrainConfig, Individual, best_individual, copies, recorde
 from app.recording import Trajectory, TrajectoryRecorder
 from app.rollout import rollout
 from app.seeds import broken_sensor_draws, trial_seeds
-from app.sharing import share_out
 from app.store import (
     Implementation,
     RunFileError,
     RunReader,
     add_implementation,
 )
+from app.workers import share_out
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
 TRIALS_PER_WORLD = 500
@@ -182,7 +182,7 @@ def _live_all(
     progress: StepProgress,
     c_from: CFrom = "true",
 ) -> list[_Part]:
-    """Every world's trials, in this process and `workers` − 1 more (see `app.sharing`)."""
+    """Every world's trials, in this process and `workers` − 1 more (`app.workers.share_out`)."""
     total = parts[-1].stop * settings.steps
     calls = [
         (cfg, individual, settings, seed, control_period, physics, c_from, part,

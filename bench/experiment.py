@@ -21,7 +21,10 @@ from pathlib import Path
 import numpy as np
 from distributed import get_task_stream
 
-from app.experiments.runner import collect, connect, execute, plan, run_task, warm_numba
+from app.experiments.cluster import connect, warm_numba
+from app.experiments.execution import execute, run_task
+from app.experiments.harvest import collect
+from app.experiments.planning import plan
 from app.experiments.spec import ExperimentSpec, load_shipped, parse
 
 

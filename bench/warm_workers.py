@@ -16,7 +16,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from app.experiments.runner import connect, plan, run_task, warm_numba
+from app.experiments.cluster import connect, warm_numba
+from app.experiments.execution import run_task
+from app.experiments.planning import plan
 from app.experiments.spec import load_shipped
 
 

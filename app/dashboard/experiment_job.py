@@ -16,11 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from app.experiments import runner
+from app.experiments import cluster, layout, planning, runner
 from app.experiments.adaptive import Stage, run_adaptive
 from app.experiments.lock import experiment_lock
 from app.experiments.progress import Counts, Progress
 from app.experiments.results import ExperimentResults
+from app.experiments.runner import RunOptions
 from app.experiments.sequential import Design
 from app.experiments.spec import ExperimentError, ExperimentSpec
 
@@ -30,7 +31,7 @@ OUTCOME_LINES = 3  # the last finished runs' lines kept for the page
 
 
 class DaskCluster:
-    """The dashboard's LocalCluster, started on first use (`runner.connect`), closed by `close`.
+    """The dashboard's LocalCluster, started on first use (`cluster.connect`), closed by `close`.
 
     Args:
         workers: worker processes (default: one per core).
@@ -51,7 +52,7 @@ class DaskCluster:
         with self._lock:
             if self._client is None:
                 stack = contextlib.ExitStack()
-                self._client = stack.enter_context(runner.connect(workers=self.workers))
+                self._client = stack.enter_context(cluster.connect(workers=self.workers))
                 self._stack = stack
             return self._client
 
@@ -170,7 +171,7 @@ class ExperimentJob:
             if self.design is not None:
                 self._run_adaptive(self.design)
                 return
-            status = runner.scale_status(self.spec, self.scale, self.runs_dir)
+            status = planning.scale_status(self.spec, self.scale, self.runs_dir)
             if status.problems:
                 raise ExperimentError(next(iter(status.problems.values())))
             states = {t.key: s for t, s in zip(status.tasks, status.states, strict=True)}
@@ -183,15 +184,14 @@ class ExperimentJob:
             else:
                 client, self._detail = None, "every run is done: writing the summary"
             self._phase = "running"
-            with experiment_lock(runner.experiment_dir(self.runs_dir, self.spec.name)):
+            with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name)):
                 self.results = runner.run_experiment(
                     self.spec,
                     self.scale,
                     self.runs_dir,
-                    client=client,
-                    quiet=True,
-                    echo=self._echo,
-                    watch=self._watch,
+                    options=RunOptions(
+                        client=client, quiet=True, echo=self._echo, watch=self._watch
+                    ),
                 )
             self._phase, self._detail = "finished", "summary written"
         except BaseException as error:  # the job's end, whatever it is, belongs on the page
@@ -208,7 +208,7 @@ class ExperimentJob:
     def _run_adaptive(self, design: Design) -> None:
         """`run_adaptive` up to the design's last look, on the cluster once runs are due."""
         most = design.looks[-1]
-        status = runner.scale_status(self.spec, self.scale, self.runs_dir, most)
+        status = planning.scale_status(self.spec, self.scale, self.runs_dir, most)
         if status.problems:  # any look's file: refused before anything runs
             raise ExperimentError(next(iter(status.problems.values())))
         first = design.looks[0]
@@ -219,17 +219,19 @@ class ExperimentJob:
         self._seeds = first
         self._phase = "running"
         self._detail = "stage 1: starting the Dask cluster and loading numba's kernels"
-        with experiment_lock(runner.experiment_dir(self.runs_dir, self.spec.name)):
+        with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name)):
             self.results, self.stages = run_adaptive(
                 self.spec,
                 self.scale,
                 self.runs_dir,
                 stage_seeds=first,
                 max_seeds=most,
-                client=_StartedOnUse(self.cluster, self._stopping),
-                quiet=True,
-                echo=self._echo,
-                watch=self._watch,
+                options=RunOptions(
+                    client=_StartedOnUse(self.cluster, self._stopping),
+                    quiet=True,
+                    echo=self._echo,
+                    watch=self._watch,
+                ),
             )
         looks = self.stages[-1].seeds if self.stages else 0
         self._phase = "finished"

@@ -19,7 +19,7 @@ import numpy as np
 from app import store
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.plots import MAX_POINTS, MeanBand
-from app.experiments import runner
+from app.experiments import harvest, layout, planning
 from app.experiments.progress import Counts
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import (
@@ -54,7 +54,7 @@ class Entry:
         """The scales it defines (shipped) or has a summary of (saved)."""
         if self.spec is not None:
             return tuple(self.spec.scales)
-        return tuple(s for s in SCALES if runner.summary_path(runs_dir, self.name, s).exists())
+        return tuple(s for s in SCALES if layout.summary_path(runs_dir, self.name, s).exists())
 
 
 def shipped_specs() -> tuple[ExperimentSpec, ...]:
@@ -70,7 +70,7 @@ def find_experiments(runs_dir: Path, shipped: Sequence[ExperimentSpec]) -> tuple
         for path in sorted(folder.iterdir()):
             if path.is_dir() and path.name not in known and _safe_name(path.name):
                 try:
-                    entries.append(Entry(path.name, runner.saved_spec(runs_dir, path.name), False))
+                    entries.append(Entry(path.name, layout.saved_spec(runs_dir, path.name), False))
                 except ExperimentError as error:
                     entries.append(Entry(path.name, None, False, str(error)))
     return tuple(entries)
@@ -111,7 +111,7 @@ def summary_count(results: ExperimentResults) -> ScaleCount:
 def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:
     """The entry's runs done at `scale`; None when it has nothing at that scale."""
     if entry.spec is None:
-        path = runner.summary_path(runs_dir, entry.name, scale)
+        path = layout.summary_path(runs_dir, entry.name, scale)
         if not path.exists():
             return None
         try:
@@ -120,10 +120,10 @@ def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:
             return ScaleCount(0, 0, problems=1)
     if scale not in entry.spec.scales:
         return None
-    if not (runner.experiment_dir(runs_dir, entry.name) / scale).is_dir():  # nothing run yet
+    if not (layout.experiment_dir(runs_dir, entry.name) / scale).is_dir():  # nothing run yet
         runs = len(entry.spec.arms) * len(entry.spec.seed_list(cast(Scale, scale)))
         return ScaleCount(0, runs)
-    status = runner.scale_status(entry.spec, scale, runs_dir)
+    status = planning.scale_status(entry.spec, scale, runs_dir)
     return ScaleCount(status.done, len(status.tasks), len(status.problems))
 
 
@@ -211,8 +211,8 @@ def build_view(
             writes it after every look).
     """
     spec, name = entry.spec, entry.name
-    folder = runner.experiment_dir(runs_dir, name) / scale
-    summary = runner.summary_path(runs_dir, name, scale)
+    folder = layout.experiment_dir(runs_dir, name) / scale
+    summary = layout.summary_path(runs_dir, name, scale)
     problems: tuple[str, ...] = ()
     results: ExperimentResults | None = None
     count: ScaleCount | None
@@ -221,7 +221,7 @@ def build_view(
     if live:  # the job's progress counts the runs; reading every file twice is too slow
         count = None
     elif spec is not None and scale in spec.scales and folder.is_dir():
-        status = runner.scale_status(spec, scale, runs_dir)
+        status = planning.scale_status(spec, scale, runs_dir)
         count = ScaleCount(status.done, len(status.tasks), len(status.problems))
         problems = tuple(status.problems.values())
     else:
@@ -234,7 +234,7 @@ def build_view(
             if so_far:
                 verdicts = "Verdicts so far (the last look made):\n\n" + verdicts
         if (live or results is None) and spec is not None and folder.is_dir() and not problems:
-            results = runner.collect(spec, scale, runs_dir, seeds)  # the run files so far
+            results = harvest.collect(spec, scale, runs_dir, seeds)  # the run files so far
             if not so_far:
                 verdicts = "Verdicts: when the experiment finishes (its summary is written)."
     except ExperimentError as error:
@@ -363,7 +363,7 @@ def run_file(runs_dir: Path, name: str, scale: str, run: str) -> Path:
     if scale not in SCALES:
         raise DashboardInputError(f"scale must be one of {', '.join(SCALES)}, got {scale!r}")
     try:
-        folder = runner.experiment_dir(runs_dir, name) / scale  # refuses a name with a path
+        folder = layout.experiment_dir(runs_dir, name) / scale  # refuses a name with a path
     except ExperimentError as error:
         raise DashboardInputError(str(error)) from None
     return store.resolve_run(folder, run)  # refuses a run name with a path

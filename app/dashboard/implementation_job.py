@@ -1,4 +1,4 @@
-"""An implementation phase started from the dashboard, run in a child process.
+"""An implementation phase started from the dashboard, run in a worker process (`app.workers`).
 
 The child calls `app.implementation.run_implementation` on the run's final best individual (a
 GNP individual, or a neural run's net, which does not learn online) and returns the result;
@@ -8,16 +8,16 @@ nothing is written to the run file (a run on show, the bundled demo included, st
 
 from __future__ import annotations
 
-import multiprocessing
-from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.implementation import run_implementation
 from app.neural import best_individual
 from app.store import Implementation, RunFileError, RunReader
+from app.workers import Count, Handler, WorkerPool
 
 
 @dataclass(frozen=True)
@@ -75,26 +75,51 @@ def implement_run(request: ImplementationRequest) -> Implementation:
     )
 
 
+def _implementer() -> Handler:
+    """A worker's state: it implements each request it is given."""
+
+    def handle(request: ImplementationRequest, count: Count) -> Implementation:
+        return implement_run(request)
+
+    return handle
+
+
 class ImplementationJob:
-    """`implement_run(request)` in a spawned child process, so the page stays responsive."""
+    """`implement_run(request)` in a worker process of its own, so the page stays responsive."""
 
     def __init__(self, request: ImplementationRequest) -> None:
         self.request = request
         self.reported = False
-        self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-        self._future: Future[Implementation] = self._pool.submit(implement_run, request)
+        self._outcome: tuple[Any, BaseException | None] | None = None
+        self._pool = WorkerPool(1, _implementer)
+        self._pool.send(0, request)
+
+    def _wait(self, timeout: float | None) -> None:
+        if self._outcome is not None:
+            return
+        try:
+            worker, result = self._pool.receive(timeout)
+        except Exception as error:  # the request's own error, or a worker that died
+            self._outcome = (None, error)
+        else:
+            if worker < 0:
+                return
+            self._outcome = (result, None)
+        self._pool.close()
 
     @property
     def active(self) -> bool:
-        return not self._future.done()
+        self._wait(0)
+        return self._outcome is None
 
     def result(self) -> Implementation:
-        """The finished result; raises the child's error (RunFileError, DashboardInputError)."""
-        try:
-            return self._future.result()
-        finally:
-            self._pool.shutdown(wait=False)
+        """The finished result; raises the worker's error (RunFileError, DashboardInputError)."""
+        self._wait(None)
+        assert self._outcome is not None
+        result, error = self._outcome
+        if error is not None:
+            raise error
+        return result
 
     def close(self) -> None:
-        self._future.cancel()
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._pool.close()

@@ -29,7 +29,7 @@ from app.dashboard.experiment_verdicts import AdaptiveRequest
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
-from app.experiments.runner import DEFINITION
+from app.experiments.layout import DEFINITION
 from app.experiments.spec import SCALES, ExperimentSpec
 
 STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the command line

@@ -14,18 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from app.experiments.cluster import connect
+from app.experiments.harvest import collect
+from app.experiments.layout import keep_definition, summary_path
+from app.experiments.planning import inspect, plan
 from app.experiments.results import ExperimentResults
-from app.experiments.runner import (
-    Echo,
-    Watch,
-    collect,
-    connect,
-    execute,
-    inspect,
-    keep_definition,
-    plan,
-    summary_path,
-)
+from app.experiments.runner import RunOptions
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.experiments.summary import write_summary
 
@@ -55,20 +49,15 @@ def run_adaptive(
     *,
     stage_seeds: int = DEFAULT_STAGE_SEEDS,
     max_seeds: int = DEFAULT_MAX_SEEDS,
-    client: Any = None,
-    scheduler: str | None = None,
-    workers: int | None = None,
-    quiet: bool = False,
-    echo: Echo | None = None,
-    watch: Watch | None = None,
-    definition: str | None = None,
+    options: RunOptions | None = None,
 ) -> tuple[ExperimentResults, tuple[Stage, ...]]:
     """Run an experiment in stages of seeds until every claim is decided or `max_seeds`.
 
     After each stage the claims are judged (`sequential.judge`: family-wise error over every
     claim and stage); the next stage runs only the arms an undecided claim compares. The
     stages are a function of the run files, so a rerun resumes where it was cut and makes the
-    same decisions; the summary holds the seeds up to the last look made.
+    same decisions; the summary holds the seeds up to the last look made. `options` as for
+    `run_experiment`.
 
     Raises:
         ExperimentError: as `run_experiment`, or stage sizes that cannot be used.
@@ -80,13 +69,15 @@ def run_adaptive(
         design = Design.staged(stage_seeds, max_seeds)
     except ValueError as error:
         raise ExperimentError(str(error)) from None
+    options = options or RunOptions()
+    client = options.client
     spec.scale(scale)
-    if definition is not None:
+    if options.definition is not None:
         for task in plan(spec, scale, runs_dir, max_seeds):  # refuse a foreign file first
             if Path(task.path).exists():
                 inspect(task)
-        keep_definition(runs_dir, spec.name, definition)
-    say = echo or (lambda line: None if quiet else print(line, flush=True))
+        keep_definition(runs_dir, spec.name, options.definition)
+    say = options.echo or (lambda line: None if options.quiet else print(line, flush=True))
     arms = tuple(a.name for a in spec.arms)
     stages: list[Stage] = []
     errors: list[str] = []
@@ -97,9 +88,9 @@ def run_adaptive(
             todo = [t for t in tasks if not inspect(t).complete(t)]
             if todo:
                 if client is None and own is None:
-                    own = stack.enter_context(connect(scheduler, workers))
+                    own = stack.enter_context(connect(options.scheduler, options.workers))
                 say(f"stage {len(stages) + 1}: seeds 0-{n - 1} of {', '.join(arms)}")
-                errors += execute(tasks, client or own, quiet, echo, watch)
+                errors += options.execute(tasks, client or own)
             results = collect(spec, scale, runs_dir, n, design.looks)
             # After every look, so that `report` and `status` see the looks made so far.
             write_summary(results, summary_path(runs_dir, spec.name, scale))

@@ -125,7 +125,7 @@ def add_parser(commands: Any) -> None:
 def _spec(args: argparse.Namespace) -> ExperimentSpec:
     """The experiment asked for: --file, a shipped NAME, or a NAME whose file the runs dir keeps
     (a `run --file` keeps it in the experiment's folder)."""
-    from app.experiments import runner
+    from app.experiments import layout
 
     if args.file:
         spec = load_file(args.file)
@@ -148,7 +148,7 @@ def _spec(args: argparse.Namespace) -> ExperimentSpec:
     except ValueError:  # not a name a folder of the runs dir can have
         saved = None
     else:
-        saved = runner.saved_spec(args.runs_dir, args.name)
+        saved = layout.saved_spec(args.runs_dir, args.name)
     if saved is None:
         raise ExperimentError(
             f"no shipped experiment named {args.name!r}, and {args.runs_dir} keeps no file of "
@@ -186,7 +186,8 @@ def _write_report(results: ExperimentResults, out: Path) -> str:
 
 
 def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
-    from app.experiments import runner
+    from app.experiments import layout
+    from app.experiments.runner import RunOptions, run_experiment
 
     if args.scheduler and args.workers:
         raise ExperimentError("--workers sizes the local cluster; drop it with --scheduler")
@@ -195,8 +196,11 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         raise ExperimentError("--seeds fixes the seed count; --adaptive takes --max-seeds")
     if not args.adaptive and (args.max_seeds or args.stage_seeds):
         raise ExperimentError("--max-seeds and --stage-seeds go with --adaptive")
-    folder = runner.experiment_dir(args.runs_dir, spec.name)
+    folder = layout.experiment_dir(args.runs_dir, spec.name)
     with experiment_lock(folder), _scheduler_client(args.scheduler) as client:
+        options = RunOptions(
+            client=client, workers=args.workers, quiet=args.quiet, definition=definition
+        )
         if args.adaptive:
             from app.experiments.adaptive import run_adaptive
 
@@ -206,23 +210,13 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
                 args.runs_dir,
                 stage_seeds=args.stage_seeds or DEFAULT_STAGE_SEEDS,
                 max_seeds=args.max_seeds or DEFAULT_MAX_SEEDS,
-                client=client,
-                workers=args.workers,
-                quiet=args.quiet,
-                definition=definition,
+                options=options,
             )
         else:
-            results = runner.run_experiment(
-                spec,
-                args.scale,
-                args.runs_dir,
-                seeds=args.seeds,
-                client=client,
-                workers=args.workers,
-                quiet=args.quiet,
-                definition=definition,
+            results = run_experiment(
+                spec, args.scale, args.runs_dir, seeds=args.seeds, options=options
             )
-    print(f"summary: {runner.summary_path(args.runs_dir, spec.name, args.scale)}")
+    print(f"summary: {layout.summary_path(args.runs_dir, spec.name, args.scale)}")
     print(_write_report(results, folder / f"report-{args.scale}"))
     return 0
 
@@ -230,11 +224,11 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     import tempfile
 
-    from app.experiments import runner
+    from app.experiments import harvest
     from app.experiments.values import read_values_csv
 
     with tempfile.TemporaryDirectory(prefix="gnp-lab-empty-") as empty:
-        template = runner.collect(spec, args.scale, empty)  # the shape, every value NaN
+        template = harvest.collect(spec, args.scale, empty)  # the shape, every value NaN
     results = read_values_csv(args.from_values, spec, template)
     if args.format == "json":
         return _print_json(results)
@@ -258,7 +252,7 @@ def _print_json(results: ExperimentResults) -> int:
 def _scheduler_client(address: str | None) -> Iterator[Any]:
     """A client of the --scheduler asked for (checked and contacted even when every run is
     done, so a wrong address is never silently ignored), or None for a local cluster."""
-    from app.experiments import runner
+    from app.experiments import cluster
     from app.security import AddressError, check_scheduler_address, plain_tcp_warning
 
     if address is None:
@@ -272,7 +266,7 @@ def _scheduler_client(address: str | None) -> Iterator[Any]:
     if warning:
         sys.stderr.write(f"gnp-lab: {warning}\n")
     try:
-        connection = runner.connect(address)
+        connection = cluster.connect(address)
         client = connection.__enter__()
     except ExperimentError:
         raise
@@ -288,19 +282,19 @@ def _scheduler_client(address: str | None) -> Iterator[Any]:
 
 
 def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
-    from app.experiments import runner
+    from app.experiments import layout, planning
     from app.experiments.summary import write_summary
 
     if args.from_values:
         return _from_values(spec, args)
     results = _collected(spec, args)
-    folder = runner.experiment_dir(args.runs_dir, spec.name)
-    if not any(Path(t.path).exists() for t in runner.plan(spec, args.scale, args.runs_dir)):
+    folder = layout.experiment_dir(args.runs_dir, spec.name)
+    if not any(Path(t.path).exists() for t in planning.plan(spec, args.scale, args.runs_dir)):
         raise ExperimentError(
             f"no runs of {spec.name!r} at scale {args.scale!r} in {folder}; "
             f"start them with: gnp-lab experiment run {spec.name} --scale {args.scale}"
         )
-    write_summary(results, runner.summary_path(args.runs_dir, spec.name, args.scale))
+    write_summary(results, layout.summary_path(args.runs_dir, spec.name, args.scale))
     if args.format == "json":
         return _print_json(results)
     out = Path(args.out) if args.out else folder / f"report-{args.scale}"
@@ -311,25 +305,25 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 def _collected(spec: ExperimentSpec, args: argparse.Namespace) -> ExperimentResults:
     """The results to report: of an adaptive run when the summary says it was one (its looks,
     and the seeds up to its last look), else of the asked seeds."""
-    from app.experiments import runner
+    from app.experiments import harvest, layout
     from app.experiments.summary import SummaryError, read_summary
 
     looks: tuple[int, ...] = ()
     seeds = args.seeds
     if not seeds:
         try:
-            summary = read_summary(runner.summary_path(args.runs_dir, spec.name, args.scale))
+            summary = read_summary(layout.summary_path(args.runs_dir, spec.name, args.scale))
         except SummaryError:
             summary = None
         if summary is not None and summary.looks:
             looks, seeds = summary.looks, len(summary.seeds)
-    return runner.collect(spec, args.scale, args.runs_dir, seeds, looks)
+    return harvest.collect(spec, args.scale, args.runs_dir, seeds, looks)
 
 
 def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
-    from app.experiments import runner
+    from app.experiments import layout, planning
 
-    status = runner.scale_status(spec, args.scale, args.runs_dir, args.seeds)
+    status = planning.scale_status(spec, args.scale, args.runs_dir, args.seeds)
     tasks, states, problems = status.tasks, status.states, status.problems
     generations = sum(s.generations_done for s in states), sum(s.generations for s in states)
     conditions = sum(len(s.conditions) for s in states), sum(len(t.conditions) for t in tasks)
@@ -349,13 +343,13 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
             f"  {task.name:16} {state.generations_done:6}/{state.generations} generations  "
             f"conditions {len(state.conditions)}/{len(task.conditions)}  {what}"
         )
-    summary = runner.summary_path(args.runs_dir, spec.name, args.scale)
+    summary = layout.summary_path(args.runs_dir, spec.name, args.scale)
     print(f"summary: {summary if summary.exists() else 'not written yet'}")
     return 0
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from app.experiments import runner
+    from app.experiments import planning
     from app.experiments.reproduced import short_count
 
     for name in shipped_names():
@@ -365,7 +359,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         arms = ", ".join(f"{a.name} ({a.label})" for a in spec.arms)
         print(f"  arms: {arms}; conditions: {', '.join(c.name for c in spec.conditions)}")
         for scale, sizes in spec.scales.items():
-            cost = runner.work(spec, scale)
+            cost = planning.work(spec, scale)
             t = spec.run_config(spec.arms[0].name, scale, 0).training
             print(
                 f"  {scale:6} {cost.runs} runs × {t.generations} generations × {t.population} "

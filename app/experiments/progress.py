@@ -7,11 +7,12 @@ subscribes and feeds `Progress.event`, and marks a run complete when its task re
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from app.experiments.runner import RunState, Task
+    from app.experiments.planning import RunState, Task
 
 TOPIC = "gnp-lab-progress"
 
@@ -139,3 +140,9 @@ def outcome_line(outcome: dict[str, Any]) -> str:
     for name, (mean, after) in outcome["conditions"].items():
         parts.append(f"{name} {mean:.4f} (after fault {after:.4f})")
     return "; ".join(parts)
+
+
+Echo = Callable[[str], None]
+"""Given each run's outcome line (or a failure's)."""
+Watch = Callable[[Progress], None]
+"""Given the live `Progress` once an experiment's tasks are submitted."""

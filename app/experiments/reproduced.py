@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from app.experiments import runner
+from app.experiments import planning
 from app.experiments.questions import answers_table
 from app.experiments.results import VERDICTS
 from app.experiments.spec import SCALES, ExperimentError, load_shipped, shipped_names
@@ -171,7 +171,7 @@ def cost_table() -> str:
     for name in shipped_names():
         spec = load_shipped(name)
         for scale, sizes in spec.scales.items():
-            cost = runner.work(spec, scale)
+            cost = planning.work(spec, scale)
             out.append(
                 f"| {name} | {scale} | {cost.runs} | {short_count(cost.robot_steps)} "
                 f"| {short_count(cost.trial_steps)} | {_cell(sizes.measured or '—')} |"
@@ -196,7 +196,7 @@ def spent_table(reports: Reports) -> str:
         spec = load_shipped(name)
         if scale not in spec.scales:
             continue
-        planned = runner.work(spec, scale)  # every arm costs the same per run
+        planned = planning.work(spec, scale)  # every arm costs the same per run
         runs = sum(runs_made(report).values())
         looks = ", ".join(str(s) for s in report["looks_made"])
         out.append(

@@ -2,7 +2,7 @@
 
 A cold worker spends its first task's first seconds importing the lab and loading numba's
 compiled kernels (compiling them, if the cache is cold). `WarmWorkers`, registered on a client
-once the client process has filled numba's cache (`app.experiments.runner.warm_numba`; workers
+once the client process has filled numba's cache (`app.experiments.cluster.warm_numba`; workers
 compiling the same cache at once can race, numba#4807), has every worker, present and future,
 live a tiny run of each controller at start, so no task pays for it.
 """

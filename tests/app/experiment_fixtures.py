@@ -105,6 +105,54 @@ recorded_trials = 1
 """
 
 
+COPY_ARM = """
+[[arms]]
+name = "{name}"
+label = "Fuzzy GNP-TSRL (BS), copy {name}"
+config = {{ controller = {{ method = "BS" }} }}
+"""
+CALM_AND_BREAK_1 = """
+[[conditions]]
+name = "calm"
+label = "no fault"
+
+[[conditions]]
+name = "break-1"
+label = "1 random sensor"
+implementation = { break_count = 1 }
+"""
+SMOKE_SECONDS = """
+[scales.smoke.config.training]
+population = 6
+generations = 2
+steps = 40
+shard_size = 3
+[scales.smoke.config.implementation]
+steps = 60
+fault_step = 20
+repeats = 1
+recorded_trials = 1
+"""
+
+
+def copies_toml(name: str, arms: str, comparisons: str, control: str | None = None) -> str:
+    """An experiment whose arms (one letter each) are copies of one BS arm, so that every seed
+    gives every arm the same values (Δ = 0 exactly between any two): conditions "calm" and
+    "break-1", the given comparisons, a smoke scale of seconds."""
+    head = f'''
+name = "{name}"
+description = "{len(arms)} copies of one arm"
+source = "tests"
+preset = "thesis-ch3"
+seeds = 2
+'''
+    if control is not None:
+        head += f'control = "{control}"\n'
+    head += "\n[config.implementation]\nbroken_sensors = []\n"
+    arms_text = "".join(COPY_ARM.format(name=arm) for arm in arms)
+    return head + arms_text + CALM_AND_BREAK_1 + comparisons + SMOKE_SECONDS
+
+
 def tiny_data() -> dict[str, Any]:
     """The tiny experiment as a fresh dict (to mutate into bad files)."""
     return copy.deepcopy(tomllib.loads(TINY_TOML))

@@ -20,8 +20,10 @@ from lab_fixtures import assert_same_data, datasets, file_digest, tiny_config
 import sim
 from app.config import ImplementationSettings, build_config, to_toml
 from app.implementation import implement
+from app.lives import shards
+from app.seeds import life_seeds, n_segments
 from app.store import RunFileError, RunReader
-from app.training import life_seeds, n_segments, resume, shards, train
+from app.training import resume, train
 
 
 @given(st.sets(st.integers(0, 500), min_size=1, max_size=20), st.integers(0, 3))
@@ -229,11 +231,19 @@ def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path
 
     out = tmp_path / "stopped.h5"
 
+    control = training.Control()
+
     def swallowed_sigterm(summary: training.GenerationSummary) -> None:
-        training._stop_requested.set()  # what the handler does before its lost raise
+        control.stopping.set()  # what the handler does before its lost raise
 
     with pytest.raises(training.Interrupted) as stop:
-        train(tiny_config(generations=3), out, workers=1, progress=swallowed_sigterm)
+        train(
+            tiny_config(generations=3),
+            out,
+            workers=1,
+            progress=swallowed_sigterm,
+            control=control,
+        )
     assert stop.value.generations_done == 1
     with RunReader(out) as run:
         assert run.generations_done == 1 and not run.finished

@@ -17,45 +17,22 @@ from typing import Any
 
 import numpy as np
 import pytest
+from experiment_fixtures import copies_toml
 
 from app.cli import main
-from app.experiments import adaptive, runner
+from app.experiments import adaptive, cluster, harvest
 from app.experiments.adaptive import Stage, needed_arms, run_adaptive
 from app.experiments.results import ExperimentResults
+from app.experiments.runner import RunOptions
 from app.experiments.spec import ExperimentSpec, load_file
 from app.experiments.summary import read_summary
 
 SCALE = "smoke"
 PLANTED = 1000.0  # added to arm X's final best fitness: far beyond any spread of tiny runs
-ARM = """
-[[arms]]
-name = "{name}"
-label = "Fuzzy GNP-TSRL (BS), copy {name}"
-config = {{ controller = {{ method = "BS" }} }}
-"""
-SAME_TOML = (
+SAME_TOML = copies_toml(
+    "same",
+    "XYZ",
     """
-name = "same"
-description = "three copies of one arm"
-source = "tests"
-preset = "thesis-ch3"
-seeds = 2
-control = "calm"
-
-[config.implementation]
-broken_sensors = []
-"""
-    + "".join(ARM.format(name=name) for name in "XYZ")
-    + """
-[[conditions]]
-name = "calm"
-label = "no fault"
-
-[[conditions]]
-name = "break-1"
-label = "1 random sensor"
-implementation = { break_count = 1 }
-
 [[comparisons]]
 name = "planted"
 a = "X"
@@ -83,18 +60,8 @@ metric = "fault_effect"
 condition = "break-1"
 direction = "greater"
 source = "tests"
-
-[scales.smoke.config.training]
-population = 6
-generations = 2
-steps = 40
-shard_size = 3
-[scales.smoke.config.implementation]
-steps = 60
-fault_step = 20
-repeats = 1
-recorded_trials = 1
-"""
+""",
+    control="calm",
 )
 
 
@@ -109,13 +76,13 @@ def planted(results: ExperimentResults) -> ExperimentResults:
 @pytest.fixture(scope="module")
 def plant() -> Iterator[None]:
     """Every collect of this module's runs (the stages', the CLI's) carries the planted effect."""
-    collect = runner.collect
+    collect = harvest.collect
 
     def collect_planted(*args: Any, **kwargs: Any) -> ExperimentResults:
         return planted(collect(*args, **kwargs))
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(runner, "collect", collect_planted)
+        patch.setattr(harvest, "collect", collect_planted)
         patch.setattr(adaptive, "collect", collect_planted)
         yield
 
@@ -131,8 +98,16 @@ def spec_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def client() -> Iterator[Any]:
     from distributed import Client
 
-    with Client(processes=False, n_workers=1, threads_per_worker=2, **runner.NO_DASHBOARD) as c:
+    with Client(processes=False, n_workers=1, threads_per_worker=2, **cluster.NO_DASHBOARD) as c:
         yield c
+
+
+def adapt(
+    spec: ExperimentSpec, runs: Path, client: Any, lines: list[str]
+) -> tuple[ExperimentResults, tuple[Stage, ...]]:
+    """The experiment run adaptively in stages of 3 seeds up to 6, its lines into `lines`."""
+    options = RunOptions(client=client, echo=lines.append)
+    return run_adaptive(spec, SCALE, runs, stage_seeds=3, max_seeds=6, options=options)
 
 
 @pytest.fixture(scope="module")
@@ -142,9 +117,7 @@ def adaptive_run(
     spec = load_file(spec_file)
     runs = tmp_path_factory.mktemp("runs")
     lines: list[str] = []
-    results, stages = run_adaptive(
-        spec, SCALE, runs, stage_seeds=3, max_seeds=6, client=client, echo=lines.append
-    )
+    results, stages = adapt(spec, runs, client, lines)
     return spec, runs, results, stages, lines
 
 
@@ -213,9 +186,7 @@ def test_a_rerun_runs_nothing_and_decides_the_same(adaptive_run: Any, client: An
     spec, runs, results, stages, _ = adaptive_run
     before = run_files(runs)
     lines: list[str] = []
-    again, stages_again = run_adaptive(
-        spec, SCALE, runs, stage_seeds=3, max_seeds=6, client=client, echo=lines.append
-    )
+    again, stages_again = adapt(spec, runs, client, lines)
     assert stages_again == stages and run_files(runs) == before
     assert not any(line.startswith("stage") for line in lines)
     assert again.seeds == results.seeds

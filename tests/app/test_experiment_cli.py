@@ -12,8 +12,8 @@ from lab_fixtures import file_digest, tiny_config
 
 from app.cli import main
 from app.config import build_config
+from app.experiments.planning import plan
 from app.experiments.results import VERDICTS
-from app.experiments.runner import plan
 from app.experiments.spec import load_file
 from app.experiments.summary import read_summary
 from app.implementation import implement

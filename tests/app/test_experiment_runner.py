@@ -22,16 +22,12 @@ import pytest
 from experiment_fixtures import write_tiny
 from lab_fixtures import assert_same_data
 
+from app.experiments.cluster import NO_DASHBOARD
+from app.experiments.harvest import collect, convergence_generation
+from app.experiments.layout import summary_path
+from app.experiments.planning import inspect, plan
 from app.experiments.results import ExperimentResults
-from app.experiments.runner import (
-    NO_DASHBOARD,
-    collect,
-    convergence_generation,
-    inspect,
-    plan,
-    run_experiment,
-    summary_path,
-)
+from app.experiments.runner import RunOptions, run_experiment
 from app.experiments.spec import ExperimentError, ExperimentSpec, load_file
 from app.experiments.summary import FORMAT, read_summary, write_summary
 from app.store import RunReader
@@ -53,7 +49,9 @@ def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) ->
 
     runs = tmp_path_factory.mktemp("reference")
     with Client(processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD) as client:
-        run_experiment(spec, SCALE, runs, client=client, quiet=True, echo=lambda line: None)
+        run_experiment(
+            spec, SCALE, runs, options=RunOptions(client=client, quiet=True, echo=lambda line: None)
+        )
     return runs
 
 
@@ -168,7 +166,9 @@ def test_summary_round_trip_and_partial_results(spec: ExperimentSpec, tmp_path: 
 def test_rerun_is_idempotent(spec: ExperimentSpec, reference: Path) -> None:
     files = _run_files(spec, reference)
     before = [(p.stat().st_ino, p.stat().st_mtime_ns) for p in files]
-    results = run_experiment(spec, SCALE, reference, quiet=True)  # no cluster needed
+    results = run_experiment(
+        spec, SCALE, reference, options=RunOptions(quiet=True)
+    )  # no cluster needed
     assert [(p.stat().st_ino, p.stat().st_mtime_ns) for p in files] == before
     assert_same_results(results, read_summary(summary_path(reference, spec.name, SCALE)))
 
@@ -192,7 +192,9 @@ def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: P
         with pytest.raises(
             ExperimentError, match=r"1 run\(s\) failed; the first: BS-seed1: RunFileError"
         ):
-            run_experiment(spec, "smoke", tmp_path, client=c, quiet=True, echo=lines.append)
+            run_experiment(
+                spec, "smoke", tmp_path, options=RunOptions(client=c, quiet=True, echo=lines.append)
+            )
     assert sum("failed" in line for line in lines) == 1
     assert sum("final best fitness" in line for line in lines) == 3
     results = read_summary(summary_path(tmp_path, spec.name, "smoke"))
@@ -206,7 +208,9 @@ def test_two_worker_processes_give_identical_results(
     spec: ExperimentSpec, reference: Path, tmp_path: Path
 ) -> None:
     lines: list[str] = []
-    run_experiment(spec, SCALE, tmp_path, workers=2, quiet=True, echo=lines.append)
+    run_experiment(
+        spec, SCALE, tmp_path, options=RunOptions(workers=2, quiet=True, echo=lines.append)
+    )
     assert len(lines) == 4 and all("final best fitness" in line for line in lines)
     assert_same_experiment(spec, tmp_path, reference)
 
@@ -243,7 +247,9 @@ def test_killed_worker_task_is_retried_with_identical_results(
 
         def experiment() -> None:
             try:
-                run_experiment(spec, SCALE, tmp_path, client=client, quiet=True, echo=print)
+                run_experiment(
+                    spec, SCALE, tmp_path, options=RunOptions(client=client, quiet=True, echo=print)
+                )
             except BaseException as error:
                 errors.append(error)
 
@@ -385,7 +391,7 @@ def test_the_cluster_it_starts_listens_on_loopback_only() -> None:
     """Safe by default: the LocalCluster `run` starts binds every server to 127.0.0.1."""
     import psutil
 
-    from app.experiments.runner import connect
+    from app.experiments.cluster import connect
 
     with connect(workers=1) as client:
         workers = set(client.run(os.getpid).values())

@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from app.experiments.cluster import NO_DASHBOARD
 from app.experiments.report_page import write_report
 from app.experiments.results import METRICS, VERDICTS
-from app.experiments.runner import NO_DASHBOARD, run_experiment
+from app.experiments.runner import RunOptions, run_experiment
 from app.experiments.spec import SCALES, ConditionSpec, ExperimentSpec, load_shipped, shipped_names
 from app.experiments.thesis_data import TableRow, ThesisData, load_thesis_data
 
@@ -235,7 +236,9 @@ def client() -> Iterator[Any]:
 @pytest.mark.parametrize("name", SHIPPED)
 def test_runs_end_to_end_at_smoke_scale(name: str, client: Any, tmp_path: Path) -> None:
     spec = load_shipped(name)
-    results = run_experiment(spec, "smoke", tmp_path, client=client, quiet=True, echo=print)
+    results = run_experiment(
+        spec, "smoke", tmp_path, options=RunOptions(client=client, quiet=True, echo=print)
+    )
     assert results.seeds == spec.seed_list("smoke")
     faults = {c.name for c in results.conditions if c.fault_step is not None}
     for (metric, arm, condition), values in results.scalars.items():

@@ -20,7 +20,7 @@ from lab_fixtures import assert_same_data, file_digest, tiny_config
 
 from app.cli import main
 from app.config import to_toml
-from app.experiments.runner import plan
+from app.experiments.planning import plan
 from app.experiments.spec import load_file
 from app.implementation import implement
 from app.store import RunReader
@@ -204,8 +204,8 @@ def test_experiment_killed_at_ten_moments_resumes_to_identical_data(tmp_path: Pa
 
 
 def test_a_second_experiment_run_is_refused_while_one_runs(tmp_path: Path) -> None:
+    from app.experiments.layout import experiment_dir
     from app.experiments.lock import experiment_lock
-    from app.experiments.runner import experiment_dir
 
     spec_file = write_tiny(tmp_path)
     with experiment_lock(experiment_dir(tmp_path / "runs", "tiny")):
@@ -227,11 +227,12 @@ def test_a_killed_worker_of_the_tls_cluster_is_replaced_and_results_identical(
 ) -> None:
     import threading
 
-    from app.experiments.runner import connect, run_experiment
+    from app.experiments.cluster import connect
+    from app.experiments.runner import RunOptions, run_experiment
 
     spec = load_file(write_tiny(tmp_path))
     reference = tmp_path / "reference"
-    run_experiment(spec, "smoke", reference, quiet=True, client=None, workers=1)
+    run_experiment(spec, "smoke", reference, options=RunOptions(quiet=True, client=None, workers=1))
     runs = tmp_path / "runs"
     with connect(workers=2) as client:
         assert client.scheduler.address.startswith("tls://")
@@ -239,7 +240,7 @@ def test_a_killed_worker_of_the_tls_cluster_is_replaced_and_results_identical(
 
         def experiment() -> None:
             try:
-                run_experiment(spec, "smoke", runs, client=client, quiet=True)
+                run_experiment(spec, "smoke", runs, options=RunOptions(client=client, quiet=True))
             except BaseException as error:
                 errors.append(error)
 

@@ -23,7 +23,7 @@ from app.arenas import arena_of
 from app.config import ImplementationSettings, RunConfig, build_config, to_toml
 from app.export import ExportError, export_replay, export_run
 from app.implementation import implement
-from app.neuro_training import live_nets
+from app.lives import live_nets
 from app.seeds import life_seeds
 from app.store import RunFileError, RunReader, list_runs
 from app.training import resume, train
@@ -71,13 +71,15 @@ def test_a_stopped_neural_run_resumes_to_the_uninterrupted_one(
     random.seed(1)
     numpy_state, python_state = np.random.get_state()[1].copy(), random.getstate()  # noqa: NPY002
 
+    control = training.Control()
+
     def stop(summary: training.GenerationSummary) -> None:
         if summary.generation == 1:
-            training._stop_requested.set()  # what SIGTERM's handler does
+            control.stopping.set()  # what SIGTERM's handler does
 
     out = tmp_path / "stopped.h5"
     with pytest.raises(training.Interrupted) as stopped:
-        train(config, out, workers=1, progress=stop)
+        train(config, out, workers=1, progress=stop, control=control)
     assert stopped.value.generations_done == 2
     resume(out, workers=1)
     assert_same_data(out, reference)
@@ -88,11 +90,13 @@ def test_a_stopped_neural_run_resumes_to_the_uninterrupted_one(
 def test_a_resume_whose_replay_differs_is_refused(tmp_path: Path) -> None:
     out = tmp_path / "tampered.h5"
 
+    control = training.Control()
+
     def stop(summary: training.GenerationSummary) -> None:
-        training._stop_requested.set()
+        control.stop()
 
     with pytest.raises(training.Interrupted):
-        train(neural_config("cmaes"), out, workers=1, progress=stop)
+        train(neural_config("cmaes"), out, workers=1, progress=stop, control=control)
     with h5py.File(out, "r+") as handle:
         told = handle["generations/fitness"][0]
         handle["generations/fitness"][0] = -told  # reversed ranks: not what the optimiser was told

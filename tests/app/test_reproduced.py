@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from app.experiments import runner
+from app.experiments import planning
 from app.experiments.questions import load_questions
 from app.experiments.reproduced import (
     SECTIONS,
@@ -154,8 +154,8 @@ def test_reports_are_keyed_by_experiment_and_scale() -> None:
 def test_the_stated_work_is_what_the_planned_runs_step(name: str, tmp_path: Path) -> None:
     spec = load_shipped(name)
     for scale in spec.scales:
-        tasks = runner.plan(spec, scale, tmp_path)
-        cost = runner.work(spec, scale)
+        tasks = planning.plan(spec, scale, tmp_path)
+        cost = planning.work(spec, scale)
         assert cost.runs == len(tasks)
         trained = sum(t.config.training.generations * t.generation_cost for t in tasks)
         assert cost.robot_steps == trained

@@ -1,4 +1,4 @@
-"""`app.sharing.share_out`: results in call order whoever computes them, errors surface."""
+"""`app.workers.share_out`: results in call order whoever computes them, errors surface."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from app.sharing import WorkerDied, share_out, start_method
+from app.workers import WorkerDied, share_out, start_method
 
 PARENT = os.getpid()  # a forked child inherits this value and knows it is not the parent
 

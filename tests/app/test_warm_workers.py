@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 from experiment_fixtures import write_tiny
 
-from app.experiments.runner import connect, plan, warm_numba
+from app.experiments.cluster import connect, warm_numba
+from app.experiments.planning import plan
 from app.experiments.spec import load_file
 
 

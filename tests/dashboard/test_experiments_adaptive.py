@@ -17,13 +17,15 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from experiment_fixtures import copies_toml
 
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob
 from app.dashboard.experiment_verdicts import AdaptiveRequest, badge, claim_row, seed_count
-from app.experiments import runner
+from app.experiments import layout
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
+from app.experiments.cluster import NO_DASHBOARD
 from app.experiments.report import analyse, format_number
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import Design
@@ -31,35 +33,10 @@ from app.experiments.spec import ExperimentSpec, load_file
 from app.experiments.summary import read_summary
 
 SCALE, STAGE, MOST = "smoke", 2, 4
-ARM = """
-[[arms]]
-name = "{name}"
-label = "Fuzzy GNP-TSRL (BS), copy {name}"
-config = {{ controller = {{ method = "BS" }} }}
-"""
-TWINS_TOML = (
+TWINS_TOML = copies_toml(
+    "twins",
+    "XY",
     """
-name = "twins"
-description = "two copies of one arm"
-source = "tests"
-preset = "thesis-ch3"
-seeds = 2
-
-[config.implementation]
-broken_sensors = []
-"""
-    + ARM.format(name="X")
-    + ARM.format(name="Y")
-    + """
-[[conditions]]
-name = "calm"
-label = "no fault"
-
-[[conditions]]
-name = "break-1"
-label = "1 random sensor"
-implementation = { break_count = 1 }
-
 [[comparisons]]
 name = "open"
 a = "X"
@@ -88,18 +65,7 @@ condition = "calm"
 condition_b = "break-1"
 direction = "greater"
 source = "tests"
-
-[scales.smoke.config.training]
-population = 6
-generations = 2
-steps = 40
-shard_size = 3
-[scales.smoke.config.implementation]
-steps = 60
-fault_step = 20
-repeats = 1
-recorded_trials = 1
-"""
+""",
 )
 
 
@@ -112,7 +78,7 @@ class InProcessCluster(DaskCluster):
         with self._lock:
             if self._client is None:
                 self._client = Client(
-                    processes=False, n_workers=1, threads_per_worker=2, **runner.NO_DASHBOARD
+                    processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD
                 )
             return self._client
 
@@ -205,7 +171,7 @@ def test_the_verdict_tables_split_questions_and_sanity_claims(
     job: Any, spec: ExperimentSpec
 ) -> None:
     view = ev.build_view(ev.Entry("twins", spec), SCALE, job.runs_dir)
-    report = analyse(read_summary(runner.summary_path(job.runs_dir, "twins", SCALE)))
+    report = analyse(read_summary(layout.summary_path(job.runs_dir, "twins", SCALE)))
     questions, sanity = view.verdicts.split("**Within one arm (sanity)** (1)")
     assert questions.startswith("**The thesis's questions** (2)")
     by_name = {c.comparison.name: c for c in report.comparisons}
@@ -237,7 +203,7 @@ def test_a_verdict_is_marked_in_the_reports_colours() -> None:
 
 
 def test_a_live_adaptive_view_shows_the_looks_made_so_far(job: Any, spec: ExperimentSpec) -> None:
-    summary = runner.summary_path(job.runs_dir, "twins", SCALE)
+    summary = layout.summary_path(job.runs_dir, "twins", SCALE)
     written = summary.stat().st_mtime
     live = ev.build_view(ev.Entry("twins", spec), SCALE, job.runs_dir, True, 2, written - 1)
     assert live.verdicts.startswith("Verdicts so far (the last look made):")
@@ -249,7 +215,7 @@ def test_a_live_adaptive_view_shows_the_looks_made_so_far(job: Any, spec: Experi
 
 
 def test_a_run_that_is_not_adaptive_has_one_look(job: Any, spec: ExperimentSpec) -> None:
-    results = read_summary(runner.summary_path(job.runs_dir, "twins", SCALE))
+    results = read_summary(layout.summary_path(job.runs_dir, "twins", SCALE))
     one_look = type(results)(**{**results.__dict__, "looks": ()})
     _, stages = ev.verdicts_and_stages(one_look)
     assert stages == "**Stages**: one look at 4 seeds per arm (not adaptive)."
@@ -268,7 +234,7 @@ def dashboard(job: Any, tmp_path: Path) -> Iterator[Any]:
 
     runs = tmp_path / "runs"
     shutil.copytree(job.runs_dir, runs)
-    runner.keep_definition(runs, "twins", TWINS_TOML)
+    layout.keep_definition(runs, "twins", TWINS_TOML)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     board = Dashboard(server, runs)
     board.experiments.cluster = InProcessCluster()

@@ -21,7 +21,7 @@ import pytest
 from page_helpers import TIMEOUT_MS, choose, field, open_page, press, sent, type_into, wait_for_line
 
 from app.dashboard.headless import start_dashboard, stop_dashboard
-from app.experiments import runner
+from app.experiments import layout
 from app.experiments.report import analyse
 from app.experiments.results import VERDICTS
 from app.experiments.spec import load_shipped
@@ -150,7 +150,7 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
         page, PROGRESS, r"finished: summary written after (\d) look\(s\), (\d) seeds per arm"
     )
     # The stages on the page are the summary's looks (the report is the oracle).
-    report = analyse(read_summary(runner.summary_path(runs, NAME, SCALE)))
+    report = analyse(read_summary(layout.summary_path(runs, NAME, SCALE)))
     looks = len(report.looks)
     assert done.groups() == (str(looks), str(report.looks[-1])) and report.looks[0] == 2
     header = page.get_by_role("columnheader", name="decided", exact=True)

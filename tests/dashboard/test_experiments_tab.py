@@ -27,7 +27,7 @@ from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob
 from app.dashboard.experiment_verdicts import badge
 from app.dashboard.plots import MAX_POINTS
-from app.experiments import runner
+from app.experiments import execution, harvest, layout, planning
 from app.experiments.figures import mean_and_ci
 from app.experiments.progress import Counts
 from app.experiments.report import analyse, format_number, interval_text
@@ -50,9 +50,9 @@ def spec() -> ExperimentSpec:
 def finished(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A runs dir holding ch3-bs-rl at smoke scale, every run done, and its summary."""
     runs = tmp_path_factory.mktemp("experiment-runs")
-    for task in runner.plan(spec, SCALE, runs):
-        runner.run_task(task)
-    write_summary(runner.collect(spec, SCALE, runs), runner.summary_path(runs, NAME, SCALE))
+    for task in planning.plan(spec, SCALE, runs):
+        execution.run_task(task)
+    write_summary(harvest.collect(spec, SCALE, runs), layout.summary_path(runs, NAME, SCALE))
     return runs
 
 
@@ -66,11 +66,11 @@ def runs(finished: Path, tmp_path: Path) -> Path:
 def save_other(runs: Path, spec: ExperimentSpec, name: str = "mine") -> None:
     """A saved experiment the dashboard has no file of: ch3's summary under another name,
     with BS seed 1's runs unfinished."""
-    results = read_summary(runner.summary_path(runs, NAME, SCALE))
+    results = read_summary(layout.summary_path(runs, NAME, SCALE))
     scalars = dict(results.scalars)
     scalars[("final_best_fitness", "BS", "")] = np.array([0.5, np.nan])
     other = dataclasses.replace(results, name=name, scalars=scalars)
-    write_summary(other, runner.summary_path(runs, name, SCALE))
+    write_summary(other, layout.summary_path(runs, name, SCALE))
 
 
 def test_the_catalogue_lists_shipped_and_saved_experiments_with_runs_done(
@@ -94,9 +94,9 @@ def test_a_saved_experiment_that_keeps_its_file_is_offered_with_it(
     runs: Path, spec: ExperimentSpec
 ) -> None:
     text = resources.files(SHIPPED_PACKAGE).joinpath(f"{NAME}.toml").read_text()
-    runner.keep_definition(runs, "kept", text.replace(f'name = "{NAME}"', 'name = "kept"', 1))
+    layout.keep_definition(runs, "kept", text.replace(f'name = "{NAME}"', 'name = "kept"', 1))
     (runs / "experiments" / "broken").mkdir()
-    (runs / "experiments" / "broken" / runner.DEFINITION).write_text("name = ")
+    (runs / "experiments" / "broken" / layout.DEFINITION).write_text("name = ")
     rows = ev.catalogue(runs, ev.shipped_specs())
     entries = {e.name: e for e, _ in rows}
     kept, broken = entries["kept"], entries["broken"]
@@ -126,7 +126,7 @@ def test_a_foreign_run_file_is_reported_not_raised(
 
 def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec) -> None:
     view = ev.build_view(ev.Entry(NAME, spec), SCALE, finished)
-    results = read_summary(runner.summary_path(finished, NAME, SCALE))
+    results = read_summary(layout.summary_path(finished, NAME, SCALE))
     assert view.count == ev.ScaleCount(4, 4) and not view.problems
     assert view.runs == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
     # The verdict tables hold the report's own numbers and verdicts: questions, then sanity.
@@ -201,7 +201,7 @@ def test_progress_lines_count_runs_generations_and_conditions() -> None:
 
 def test_an_experiments_run_resolves_inside_the_runs_dir(runs: Path, spec: ExperimentSpec) -> None:
     path = ev.run_file(runs, NAME, SCALE, "BS-seed1")
-    assert path == Path(runner.plan(spec, SCALE, runs)[1].path)
+    assert path == Path(planning.plan(spec, SCALE, runs)[1].path)
     assert path.resolve().is_relative_to(runs.resolve())
 
 
@@ -238,7 +238,7 @@ def dashboard(runs: Path, spec: ExperimentSpec) -> Iterator[Any]:
 
     save_other(runs, spec)
     (runs / "experiments" / "broken").mkdir()  # keeps a file that is not an experiment
-    (runs / "experiments" / "broken" / runner.DEFINITION).write_text("name = ")
+    (runs / "experiments" / "broken" / layout.DEFINITION).write_text("name = ")
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     board = Dashboard(server, runs)
     yield board
@@ -326,7 +326,7 @@ def test_starting_a_finished_experiment_writes_its_summary_without_a_cluster(
     dashboard: Any,
 ) -> None:
     tab = dashboard.experiments
-    summary = runner.summary_path(tab.runs_dir, NAME, SCALE)
+    summary = layout.summary_path(tab.runs_dir, NAME, SCALE)
     summary.unlink()
     until(dashboard, lambda: NAME in tab.entries)
     choose(dashboard, NAME, SCALE)

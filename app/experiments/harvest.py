@@ -1,0 +1,113 @@
+"""An experiment's results gathered from its run files (NaN where a run or condition is
+missing), as the `ExperimentResults` the summary, the report and the dashboard read.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from app.experiments.planning import inspect, plan, work
+from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
+from app.experiments.spec import ExperimentSpec
+from app.store import RunReader
+
+
+def convergence_generation(best_fitness: np.ndarray) -> float:
+    """The first generation (from 1) whose best fitness reaches CONVERGENCE_SHARE of the last."""
+    final = best_fitness[-1]
+    reached = np.flatnonzero(best_fitness >= CONVERGENCE_SHARE * final)
+    return float(reached[0] + 1)
+
+
+def _fault_effects(
+    spec: ExperimentSpec,
+    conditions: tuple[Condition, ...],
+    scalars: dict[tuple[str, str, str], np.ndarray],
+    curves: dict[tuple[str, str, str], np.ndarray],
+) -> None:
+    """fault_effect of every fault condition: its reward per step from the fault step on minus
+    the control's over the same steps, run by run (NaN where either is missing)."""
+    if spec.control is None:
+        return
+    for arm in spec.arms:
+        control = curves[("reward_per_step", arm.name, spec.control)]
+        for c in conditions:
+            if c.fault_step is None:
+                continue
+            ours = curves[("reward_per_step", arm.name, c.name)]
+            scalars[("fault_effect", arm.name, c.name)] = ours[:, c.fault_step :].mean(
+                axis=1
+            ) - control[:, c.fault_step :].mean(axis=1)
+
+
+def collect(
+    spec: ExperimentSpec,
+    scale: str,
+    runs_dir: str | Path,
+    seeds: int | None = None,
+    looks: tuple[int, ...] = (),
+) -> ExperimentResults:
+    """The experiment's results from its run files (NaN where a run or condition is missing).
+
+    `looks` are the seeds per arm at each planned look of an adaptive run (see `run_adaptive`).
+    """
+    tasks = plan(spec, scale, runs_dir, seeds)
+    seed_list = spec.seed_list(scale, seeds)  # type: ignore[arg-type]
+    n = len(seed_list)
+    conditions = spec.conditions_info(scale)
+    scalars: dict[tuple[str, str, str], np.ndarray] = {}
+    curves: dict[tuple[str, str, str], np.ndarray] = {}
+    fault_steps = {c.name: c.steps if c.fault_step is None else c.fault_step for c in conditions}
+    for arm in spec.arms:
+        generations = spec.run_config(arm.name, scale, 0).training.generations
+        scalars[("final_best_fitness", arm.name, "")] = np.full(n, np.nan)
+        scalars[("convergence_generation", arm.name, "")] = np.full(n, np.nan)
+        curves[("best_fitness_curve", arm.name, "")] = np.full((n, generations), np.nan)
+        for c in conditions:
+            for metric in ("mean_reward", "mean_reward_before_fault", "mean_reward_after_fault"):
+                scalars[(metric, arm.name, c.name)] = np.full(n, np.nan)
+            curves[("reward_per_step", arm.name, c.name)] = np.full((n, c.steps), np.nan)
+    for task in tasks:
+        row = seed_list.index(task.seed)
+        state = inspect(task)
+        if not Path(task.path).exists():
+            continue
+        with RunReader(task.path) as run:
+            history = run.history()
+            curves[("best_fitness_curve", task.arm, "")][row, : len(history.best_fitness)] = (
+                history.best_fitness
+            )
+            if state.finished:
+                scalars[("final_best_fitness", task.arm, "")][row] = history.best_fitness[-1]
+                scalars[("convergence_generation", task.arm, "")][row] = convergence_generation(
+                    np.asarray(history.best_fitness)
+                )
+            for name in state.conditions:
+                result = run.implementation(name, recorded=False)
+                scalars[("mean_reward", task.arm, name)][row] = result.mean_reward
+                before = result.reward_per_step[: fault_steps[name]]  # every trial is as long
+                scalars[("mean_reward_before_fault", task.arm, name)][row] = (
+                    before.mean() if len(before) else np.nan  # a fault at step 0: no before
+                )
+                scalars[("mean_reward_after_fault", task.arm, name)][row] = result.mean_after_fault
+                curves[("reward_per_step", task.arm, name)][row] = result.reward_per_step
+    _fault_effects(spec, conditions, scalars, curves)
+    cost = work(spec, scale)
+    return ExperimentResults(
+        name=spec.name,
+        description=spec.description,
+        source=spec.source,
+        scale=scale,
+        arms=spec.arms_info(),
+        seeds=seed_list,
+        conditions=conditions,
+        comparisons=spec.comparisons_info(),
+        thesis=spec.thesis_info(),
+        control=spec.control,
+        looks=looks,
+        steps_per_run=(cost.robot_steps + cost.trial_steps) / cost.runs,
+        scalars=scalars,
+        curves=curves,
+    )

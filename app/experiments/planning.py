@@ -1,0 +1,182 @@
+"""The plan of an experiment's runs: one task per (arm, seed), what it costs, what its run
+file holds of it.
+
+A task is plain data (what a Dask worker needs); `inspect` reads its run file's state and
+refuses a file that holds another config than the experiment's (never overwritten).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+from app.config import RunConfig
+from app.experiments.layout import experiment_dir
+from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.store import RunFileError, RunReader
+from sim.arena import ArenaSpec
+
+
+@dataclass(frozen=True)
+class Task:
+    """One (arm, seed): what a Dask task needs, as plain data."""
+
+    arm: str
+    seed: int
+    path: str
+    config_json: str
+    conditions: tuple[tuple[str, str], ...]  # (name, ImplementationSettings JSON)
+    generation_cost: int  # robot-steps of one generation
+    condition_cost: int  # trial-steps of one condition
+
+    @property
+    def name(self) -> str:
+        return f"{self.arm}-seed{self.seed}"
+
+    @property
+    def key(self) -> str:
+        """A Dask key, unique per run file and the same on every rerun."""
+        digest = hashlib.sha1(self.path.encode()).hexdigest()[:10]
+        return f"gnp-lab-run-{self.name}-{digest}"
+
+    @property
+    def config(self) -> RunConfig:
+        return RunConfig.model_validate_json(self.config_json)
+
+
+def plan(
+    spec: ExperimentSpec, scale: str, runs_dir: str | Path, seeds: int | None = None
+) -> list[Task]:
+    """Every (arm, seed) task of the experiment at `scale`, arms outer, seeds inner."""
+    folder = experiment_dir(runs_dir, spec.name) / scale
+    tasks = []
+    starts: dict[str, int] = {}
+    for arm in spec.arms:
+        for seed in spec.seed_list(scale, seeds):  # type: ignore[arg-type]
+            config = spec.run_config(arm.name, scale, seed)
+            settings = [
+                (c.name, spec.condition_settings(c, config, scale)) for c in spec.conditions
+            ]
+            trials = [_start_poses(s.arena, starts) * s.repeats for _, s in settings]
+            tasks.append(
+                Task(
+                    arm=arm.name,
+                    seed=seed,
+                    path=str(folder / f"{arm.name}-seed{seed}.h5"),
+                    config_json=config.model_dump_json(),
+                    conditions=tuple((n, s.model_dump_json()) for n, s in settings),
+                    generation_cost=config.training.population * config.training.steps,
+                    condition_cost=max(
+                        [n * s.steps for n, (_, s) in zip(trials, settings, strict=True)] or [0]
+                    ),
+                )
+            )
+    return tasks
+
+
+def _start_poses(arena: ArenaSpec, known: dict[str, int]) -> int:
+    """How many start poses `arena` (an inline spec, see `app.arenas`) has."""
+    return len(arena.start_poses)
+
+
+@dataclass(frozen=True)
+class Work:
+    """What an experiment costs at one scale, in simulated steps."""
+
+    runs: int
+    robot_steps: int  # training: generations × population × life time, summed over the runs
+    trial_steps: int  # implementation: conditions × trials × steps, summed over the runs
+
+
+def work(spec: ExperimentSpec, scale: str) -> Work:
+    """The simulated work of `spec` at `scale` (its default seeds; a seed changes no size)."""
+    seeds = len(spec.seed_list(scale))  # type: ignore[arg-type]
+    robot_steps = trial_steps = 0
+    starts: dict[str, int] = {}
+    for arm in spec.arms:
+        config = spec.run_config(arm.name, scale, 0)
+        t = config.training
+        robot_steps += seeds * t.generations * t.population * t.steps
+        for condition in spec.conditions:
+            s = spec.condition_settings(condition, config, scale)
+            trial_steps += seeds * _start_poses(s.arena, starts) * s.repeats * s.steps
+    return Work(runs=seeds * len(spec.arms), robot_steps=robot_steps, trial_steps=trial_steps)
+
+
+@dataclass
+class RunState:
+    """What a run file holds of its task."""
+
+    generations_done: int = 0
+    generations: int = 0
+    finished: bool = False
+    conditions: tuple[str, ...] = ()
+
+    def complete(self, task: Task) -> bool:
+        return self.finished and all(name in self.conditions for name, _ in task.conditions)
+
+
+def inspect(task: Task) -> RunState:
+    """The state of a task's run file (empty if absent).
+
+    Raises:
+        ExperimentError: the file holds another config, or another condition under a name.
+    """
+    path = Path(task.path)
+    config = task.config
+    state = RunState(generations=config.training.generations)
+    if not path.exists():
+        return state
+    try:
+        with RunReader(path) as run:
+            if run.config != config:
+                raise ExperimentError(
+                    f"{path} holds a run with another config than the experiment's "
+                    f"{task.name} (left untouched; move it away or use another --runs-dir)"
+                )
+            names = run.implementation_names()
+            for name, settings_json in task.conditions:
+                stored = (
+                    run.implementation(name, recorded=False).settings if name in names else None
+                )
+                if stored is not None and stored.model_dump_json() != settings_json:
+                    raise ExperimentError(
+                        f"{path} holds an implementation {name!r} with other settings than "
+                        "the experiment's condition (left untouched)"
+                    )
+            state.generations_done = run.generations_done
+            state.finished = run.finished
+            state.conditions = tuple(n for n, _ in task.conditions if n in names)
+    except RunFileError as error:
+        raise ExperimentError(f"{path}: {error}") from None
+    return state
+
+
+@dataclass(frozen=True)
+class ScaleStatus:
+    """What an experiment's folder holds at one scale, run by run."""
+
+    tasks: tuple[Task, ...]
+    states: tuple[RunState, ...]  # empty for a run whose file cannot be used
+    problems: dict[str, str]  # task key → why its file cannot be used
+
+    @property
+    def done(self) -> int:
+        """Runs trained with every condition implemented."""
+        return sum(s.complete(t) for s, t in zip(self.states, self.tasks, strict=True))
+
+
+def scale_status(
+    spec: ExperimentSpec, scale: str, runs_dir: str | Path, seeds: int | None = None
+) -> ScaleStatus:
+    """Every run's state at `scale`; a foreign or half-replaced file is a problem, not an error."""
+    tasks = plan(spec, scale, runs_dir, seeds)
+    states, problems = [], {}
+    for task in tasks:
+        try:
+            states.append(inspect(task))
+        except ExperimentError as error:  # a foreign file, or one being replaced right now
+            states.append(RunState(generations=task.config.training.generations))
+            problems[task.key] = str(error)
+    return ScaleStatus(tuple(tasks), tuple(states), problems)

@@ -1,0 +1,305 @@
+"""The lab's one worker pool: persistent child processes that serve jobs over pipes.
+
+Every phase that works in more than one process goes through here (training's shards, the
+implementation's trial worlds, the dashboard's implementation), so the start method, the
+workers' signal handling and the shutdown are decided once:
+
+- Start method: `fork` where it is available and this process runs no other thread (nothing
+  can hold a lock across the fork, and a child is spared a fresh interpreter's imports), else
+  `spawn`.
+- Signals: Ctrl-C and SIGTERM reach the whole process group; workers ignore them, the parent
+  decides and stops its workers itself. A worker whose parent died sees its pipe close and exits.
+- Shutdown: `close` asks each worker to end, waits a little (not at all when interrupted
+  mid-job: its results are not wanted) and kills what is left.
+
+A worker builds its state once (`setup(*args)`, in the child) and then answers each job with
+`state(job, count)`; `count(n)` reports work done as it goes. Which job goes to which worker is
+the caller's choice, so results do not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import pickle
+import signal
+import threading
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+Count = Callable[[int], None]
+#: What a worker's `setup` returns: answers one job, reporting work done with `count`.
+Handler = Callable[[Any, Count], Any]
+
+
+class WorkerDied(RuntimeError):
+    """A worker process ended without answering the job it had."""
+
+
+def start_method() -> str:
+    """`fork` where it is available and this process runs no other thread, else `spawn`."""
+    if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
+        return "fork"
+    return "spawn"
+
+
+def default_workers() -> int:
+    """One worker per core."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def handling(sig: int, handler: Any) -> Iterator[None]:
+    """`handler` (a function, SIG_IGN or SIG_DFL) for signal `sig` meanwhile, then the previous
+    one back. Only the main thread can set handlers: elsewhere signals are left alone."""
+    try:
+        previous = signal.signal(sig, handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+
+
+def _sendable(error: BaseException) -> BaseException:
+    """`error` if it pickles, else a RuntimeError carrying its traceback."""
+    try:
+        pickle.dumps(error)
+    except Exception:
+        return RuntimeError(traceback.format_exc())
+    return error
+
+
+def _serve(conn: Connection, setup: Callable[..., Handler], args: tuple[Any, ...]) -> None:
+    """A worker's loop: build the state, then answer each job `conn` brings until None."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    try:
+        handle = setup(*args)
+
+        def count(done: int) -> None:
+            conn.send(("count", done))
+
+        while (job := conn.recv()) is not None:
+            try:
+                conn.send(("done", handle(job, count)))
+            except Exception as error:  # sent to the parent, raised there
+                conn.send(("error", _sendable(error)))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+
+
+class WorkerPool:
+    """`workers` persistent child processes, each with its state from `setup(*args)`.
+
+    Args:
+        workers: how many children.
+        setup: a module-level function (a spawned child imports it), called once in each child;
+            returns the handler of that child's jobs.
+        args: `setup`'s arguments (picklable).
+        method: the start method (default: `start_method()`).
+    """
+
+    def __init__(
+        self,
+        workers: int,
+        setup: Callable[..., Handler],
+        args: tuple[Any, ...] = (),
+        method: str | None = None,
+    ) -> None:
+        context: Any = multiprocessing.get_context(method or start_method())
+        self._conns: list[Connection] = []
+        self._procs: list[Any] = []
+        self.pending: dict[int, int] = {}  # worker → jobs given and not yet answered
+        try:
+            for _ in range(workers):
+                parent, child = context.Pipe()
+                proc = context.Process(target=_serve, args=(child, setup, args), daemon=True)
+                proc.start()
+                child.close()
+                self._conns.append(parent)
+                self._procs.append(proc)
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def size(self) -> int:
+        return len(self._procs)
+
+    @property
+    def busy(self) -> list[int]:
+        """The workers with jobs to answer."""
+        return [worker for worker, n in sorted(self.pending.items()) if n]
+
+    def send(self, worker: int, job: Any) -> None:
+        """Give `worker` a job (queued behind the ones it has; answered in order)."""
+        try:
+            self._conns[worker].send(job)
+        except (BrokenPipeError, OSError):
+            raise self._died() from None
+        self.pending[worker] = self.pending.get(worker, 0) + 1
+
+    def receive(self, timeout: float | None = None, count: Count | None = None) -> tuple[int, Any]:
+        """The next answer of a busy worker as (worker, result), waiting up to `timeout` s
+        (None: no answer yet). Counts reported meanwhile go to `count`.
+
+        Raises:
+            WorkerDied: a busy worker died; an exception in a job is raised again here.
+        """
+        while True:
+            ready = wait([self._conns[i] for i in self.busy], timeout)
+            if not ready:
+                return -1, None
+            for conn in ready:
+                assert isinstance(conn, Connection)
+                worker = self._conns.index(conn)
+                try:
+                    kind, value = conn.recv()
+                except (EOFError, OSError):
+                    raise self._died() from None
+                if kind == "count":
+                    if count is not None:
+                        count(value)
+                    continue
+                self.pending[worker] -= 1
+                if isinstance(value, BaseException) and kind == "error":
+                    raise value
+                return worker, value
+
+    def map(self, jobs: Sequence[Any], cancelled: Callable[[], bool] | None = None) -> list[Any]:
+        """Job i to worker i (all at once); their results in that order.
+
+        Raises:
+            KeyboardInterrupt: `cancelled()` turned true meanwhile (looked at a few times a
+                second); the jobs under way are dropped at `close`.
+        """
+        for i, job in enumerate(jobs):
+            self.send(i, job)
+        out: dict[int, Any] = {}
+        while len(out) < len(jobs):
+            worker, result = self.receive(None if cancelled is None else 0.2)
+            if worker >= 0:
+                out[worker] = result
+            elif cancelled is not None and cancelled():
+                raise KeyboardInterrupt
+        return [out[i] for i in range(len(jobs))]
+
+    def _died(self) -> WorkerDied:
+        for proc in self._procs:
+            proc.join(timeout=0.5 if proc.is_alive() else 0)
+        codes = [proc.exitcode for proc in self._procs]
+        return WorkerDied(f"a worker process died (exit codes {codes})")
+
+    def close(self) -> None:
+        """End every worker: at once if one was mid-job (its result is not wanted), else after
+        it finishes its loop; what does not end is killed."""
+        interrupted = bool(self.busy)
+        for conn in self._conns:
+            with contextlib.suppress(BrokenPipeError, OSError):
+                conn.send(None)
+        for proc in self._procs:
+            proc.join(timeout=0 if interrupted else 5)
+            if proc.is_alive():
+                proc.kill()
+                proc.join()
+        for conn in self._conns:
+            conn.close()
+        self._conns, self._procs = [], []
+        self.pending.clear()
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@contextlib.contextmanager
+def pool(
+    workers: int, setup: Callable[..., Handler], args: tuple[Any, ...] = ()
+) -> Iterator[WorkerPool]:
+    """A `WorkerPool` closed on leaving (also on an error or Ctrl-C)."""
+    with WorkerPool(workers, setup, args) as started:
+        yield started
+
+
+# --- calls of one function, shared out over this process and the pool -------------------------
+
+
+def _calls_of(function: Callable[..., Any]) -> Handler:
+    """A share_out worker's state: `function(*call, count)` for each call it is given."""
+    return lambda call, count: function(*call, count)
+
+
+def share_out(
+    function: Callable[..., Any],
+    calls: Sequence[tuple[Any, ...]],
+    workers: int,
+    report: Count = lambda done: None,
+    method: str | None = None,
+) -> list[Any]:
+    """`[function(*call, count) for call in calls]`, on this process and `workers` − 1 children.
+
+    The calling process works too (it is warm: modules imported, numba kernels loaded), and
+    every process takes the next call as soon as it is free, so a child that starts late or a
+    slow call costs little. Results come back in call order, whoever computed them.
+
+    Args:
+        function: A module-level function (a spawned child imports it); its last argument is
+            `count`, to call with each amount of work done.
+        calls: Every call's other arguments (picklable, for a spawned child).
+        workers: Processes in all, this one included.
+        report: Called in this process with the work done so far, by every process.
+        method: The children's start method (default: `start_method()`).
+
+    Raises:
+        WorkerDied: a child process died; an exception in a call is raised again here.
+    """
+    total = 0
+
+    def count(done: int) -> None:
+        nonlocal total
+        total += done
+        report(total)
+
+    out: dict[int, Any] = {}
+    children = min(workers, len(calls)) - 1
+    if children <= 0:
+        return [function(*call, count) for call in calls]
+    with WorkerPool(children, _calls_of, (function,), method) as helpers:
+        given: dict[int, list[int]] = {w: [] for w in range(helpers.size)}  # calls, in order
+        taken = 0
+
+        def hand_out() -> None:
+            # A child gets a second call queued while plenty are left, so that it goes on
+            # while this process is busy with its own; near the end, one at a time.
+            nonlocal taken
+            for worker in range(helpers.size):
+                depth = 2 if len(calls) - taken > helpers.size + 1 else 1
+                while len(given[worker]) < depth and taken < len(calls):
+                    helpers.send(worker, calls[taken])
+                    given[worker].append(taken)
+                    taken += 1
+
+        def collect(timeout: float | None) -> None:
+            worker, result = helpers.receive(timeout, count)
+            while worker >= 0:
+                out[given[worker].pop(0)] = result
+                worker, result = helpers.receive(0, count)
+
+        hand_out()
+        while taken < len(calls):
+            mine = taken
+            taken += 1
+            out[mine] = function(*calls[mine], count)
+            collect(0)
+            hand_out()
+        while helpers.busy:
+            collect(None)
+    return [out[i] for i in range(len(calls))]
