@@ -23,9 +23,7 @@ import viser
 import gnp
 import neuro
 from app import store
-from app.dashboard import geometry as geo
 from app.dashboard.network_view import NetworkView
-from app.dashboard.scene import ArenaView, GraphView
 from app.dashboard.stage import Show, Stage, random_show
 from app.dashboard.status import Status
 from app.dashboard.tab_compare import populate_compare_tab
@@ -36,6 +34,8 @@ from app.dashboard.tab_runs import populate_runs_tab
 from app.dashboard.tab_show import populate_show_tab
 from app.dashboard.tab_train import populate_train_tab
 from app.live import LiveSession
+from app.views import geometry as geo
+from app.views.graph_view import ArenaView, GraphView
 
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5

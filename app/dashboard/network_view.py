@@ -13,7 +13,6 @@ import numpy as np
 import viser
 
 import neuro
-from app.dashboard import geometry as geo
 from app.dashboard.network import (
     CONTEXT,
     HIDDEN,
@@ -26,8 +25,9 @@ from app.dashboard.network import (
     node_values,
     weight_colors,
 )
-from app.dashboard.scene import disc_mesh
 from app.live import RobotSnapshot
+from app.views import geometry as geo
+from app.views.graph_view import disc_mesh
 
 RIM_COLOR = (90, 90, 100)
 

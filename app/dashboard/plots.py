@@ -14,8 +14,8 @@ import numpy as np
 import viser
 
 import sim
-from app.dashboard.scene import ROBOT_COLORS
 from app.live import RobotSnapshot
+from app.views.graph_view import ROBOT_COLORS
 
 MAX_POINTS = 600
 SMOOTH = 50

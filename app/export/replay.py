@@ -20,13 +20,13 @@ import viser
 import gnp
 import sim
 from app.arenas import arena_of
-from app.dashboard import geometry as geo
-from app.dashboard.genome import genome_view
-from app.dashboard.scene import ArenaView, GraphView
 from app.implementation import faults
 from app.live import RobotSnapshot
 from app.recording import Trajectory
 from app.store import Implementation, RunReader
+from app.views import geometry as geo
+from app.views.genome import genome_view
+from app.views.graph_view import ArenaView, GraphView
 
 RECORDING = "replay.viser"
 MAX_FRAMES = 250

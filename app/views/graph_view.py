@@ -12,10 +12,10 @@ import numpy as np
 import viser
 
 import sim
-from app.dashboard import geometry as geo
-from app.dashboard.genome import GenomeView
-from app.dashboard.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
-from app.dashboard.graph_view import (
+from app.live import RobotSnapshot
+from app.views import geometry as geo
+from app.views.genome import GenomeView
+from app.views.graph_counts import (
     FULL,
     GRAPH_MODES,
     SIMPLIFIED,
@@ -23,7 +23,7 @@ from app.dashboard.graph_view import (
     edge_shades,
     graph_counts,
 )
-from app.live import RobotSnapshot
+from app.views.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
 """Robot 1 blue, robot 2 orange (also their reward curves)."""
