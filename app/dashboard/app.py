@@ -34,8 +34,9 @@ from app.dashboard.tab_runs import populate_runs_tab
 from app.dashboard.tab_show import populate_show_tab
 from app.dashboard.tab_train import populate_train_tab
 from app.live import LiveSession
-from app.views import geometry as geo
-from app.views.graph_view import ArenaView, GraphView
+from app.views.arena_view import ArenaView
+from app.views.graph_view import GraphView
+from app.views.scene import aim_camera, scene_frame
 
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5
@@ -106,27 +107,13 @@ class Dashboard:
 
     def _build_scene(self) -> None:
         """Arena on top, graph below it (they share the width), camera looking straight down."""
-        bounds = np.array([a.bounds for a in self.stage.arenas.values()]) * geo.MM
-        xmin, ymin = bounds[:, :2].min(axis=0)
-        xmax, ymax = bounds[:, 2:].max(axis=0)
-        width = xmax - xmin
+        frame = scene_frame(list(self.stage.arenas.values()))
         self.arena_view = ArenaView(self.server, self.stage.arenas["training"])
-        graph_height = 0.62 * width
-        graph_origin = (xmin, ymin - 0.12 * width - graph_height)
-        self.graph_view = GraphView(self.server, graph_origin, width, graph_height)
+        graph_box = (frame.graph_origin, frame.width, frame.graph_height)
+        self.graph_view = GraphView(self.server, *graph_box)
         # A neural net on show draws its network in the same place (one of the two is hidden).
-        self.network_view = NetworkView(self.server, graph_origin, width, graph_height)
-        bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.03 * width
-        center = ((xmin + xmax) / 2, (bottom + top) / 2)
-        fov = np.radians(50.0)
-        distance = 1.08 * (top - bottom) / 2 / np.tan(fov / 2)
-        self.server.scene.set_up_direction("+y")
-        camera = self.server.initial_camera
-        camera.up = (0.0, 1.0, 0.0)
-        camera.look_at = (center[0], center[1], 0.0)
-        camera.position = (center[0], center[1], distance)
-        camera.fov = fov
-        camera.far = 100.0
+        self.network_view = NetworkView(self.server, *graph_box)
+        aim_camera(self.server, frame, headroom=0.03)
 
         @self.graph_view.nodes_handle.on_click
         def _(event: viser.SceneNodePointerEvent[Any]) -> None:

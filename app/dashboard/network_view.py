@@ -27,7 +27,6 @@ from app.dashboard.network import (
 )
 from app.live import RobotSnapshot
 from app.views import geometry as geo
-from app.views.graph_view import disc_mesh
 
 RIM_COLOR = (90, 90, 100)
 
@@ -70,7 +69,7 @@ class NetworkView:
         )
         self._nodes = server.scene.add_batched_meshes_simple(
             f"{root}/nodes",
-            *disc_mesh(0.025 * self._size),
+            *geo.disc_mesh(0.025 * self._size),
             batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
             batched_positions=np.zeros((1, 3)),
             material="toon3",

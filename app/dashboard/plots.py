@@ -15,7 +15,7 @@ import viser
 
 import sim
 from app.live import RobotSnapshot
-from app.views.graph_view import ROBOT_COLORS
+from app.views.arena_view import ROBOT_COLORS
 
 MAX_POINTS = 600
 SMOOTH = 50
