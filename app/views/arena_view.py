@@ -13,6 +13,7 @@ import viser
 import sim
 from app.live import RobotSnapshot
 from app.views import geometry as geo
+from sim.sensors import ir_distances
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
 """Robot 1 blue, robot 2 orange (also their reward curves)."""
@@ -119,8 +120,10 @@ class ArenaView:
 
         origins, directions = sim.sensor_rays(pose)
         readings = robot.seen_readings
-        # A ray is drawn as long as the range, brighter the higher what the controller saw.
-        ends = origins[0] + directions[0] * sim.IR_RANGE_MM
+        # A ray ends where it meets a wall (its true reading says how far; through nothing it is
+        # as long as the range), brighter the higher what the controller saw.
+        reach = ir_distances(robot.true_readings)
+        ends = origins[0] + directions[0] * reach[:, None]
         rays = geo.flat_to_3d(np.stack([origins[0], ends], axis=1) * geo.MM, z=0.001)
         ray_colors = np.repeat(geo.reading_colors(readings)[:, None, :], 2, axis=1)
         ray_colors[robot.broken] = BROKEN_RED
