@@ -38,6 +38,8 @@ from app.views.arena_view import ArenaView
 from app.views.graph_view import GraphView
 from app.views.scene import aim_camera, scene_frame
 
+TAB_NAMES = ("Show", "Train", "Faults", "Runs", "Compare", "Experiments")
+PANEL_WIDTH = 370
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5
 FOLLOW_SECONDS = 0.5
@@ -64,17 +66,11 @@ class Dashboard:
         gui.configure_theme(control_width="large", show_share_button=False)
         gui.set_panel_label("GNP Lab")
         gui.main_panel.dock_right()
-        gui.main_panel.set_width(370)
+        gui.main_panel.set_width(PANEL_WIDTH)
         self.status = Status(gui, self.lock)
         tabs = gui.add_tab_group()
-        show, train, faults, runs, compare, experiments = (
-            tabs.add_tab("Show", viser.Icon.EYE),
-            tabs.add_tab("Train", viser.Icon.SCHOOL),
-            tabs.add_tab("Faults", viser.Icon.BOLT),
-            tabs.add_tab("Runs", viser.Icon.DATABASE),
-            tabs.add_tab("Compare", viser.Icon.ARROWS_LEFT_RIGHT),
-            tabs.add_tab("Experiments", viser.Icon.FLASK),
-        )
+        # Names without icons: with them the six tabs took two rows of the panel.
+        show, train, faults, runs, compare, experiments = (tabs.add_tab(name) for name in TAB_NAMES)
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
             self.show = populate_show_tab(
