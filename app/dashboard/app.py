@@ -40,6 +40,8 @@ from app.views.scene import aim_camera, scene_frame
 
 TAB_NAMES = ("Show", "Train", "Faults", "Runs", "Compare", "Experiments")
 PANEL_WIDTH = 370
+TIGHT_TABS = "<style>[role=tab][data-dock-tab] { padding: 0 0.55em !important; }</style>"
+"""Less room around a tab's name than viser's 0.9em (its tabs set it inline)."""
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5
 FOLLOW_SECONDS = 0.5
@@ -68,8 +70,9 @@ class Dashboard:
         gui.main_panel.dock_right()
         gui.main_panel.set_width(PANEL_WIDTH)
         self.status = Status(gui, self.lock)
+        gui.add_html(TIGHT_TABS)
         tabs = gui.add_tab_group()
-        # Names without icons: with them the six tabs took two rows of the panel.
+        # Names without icons, closer together: else the six tabs take two rows of the panel.
         show, train, faults, runs, compare, experiments = (tabs.add_tab(name) for name in TAB_NAMES)
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
