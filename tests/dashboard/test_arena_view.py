@@ -94,7 +94,7 @@ def test_the_drawn_rays_stop_at_the_walls(server: object) -> None:
     true = sim.ir_readings(pose[None], ARENA.wall_grid)[0]
     assert (true > 0).any() and (true == 0).any()  # some rays see the wall, some nothing
     view.update((dataclasses.replace(snapshot, pose=pose, true_readings=true),))
-    rays = view._robots[0]["rays"].points[:, :, :2] / geo.MM  # type: ignore[attr-defined]
+    rays = view._robots[0]["rays"].points[:, :, :2] / geo.MM
     starts, ends = rays[:, 0].astype(np.float64), rays[:, 1].astype(np.float64)
     lengths = np.linalg.norm(ends - starts, axis=1)
     sees = true > 0
@@ -104,3 +104,25 @@ def test_the_drawn_rays_stop_at_the_walls(server: object) -> None:
     np.testing.assert_allclose(lengths[~sees], sim.IR_RANGE_MM, rtol=1e-5)
     for start, end in zip(starts[~sees], ends[~sees], strict=True):
         assert not crosses_a_wall(start, end, ARENA.walls)
+
+
+def test_the_frame_holds_every_arena_with_the_graph_below(server: object) -> None:
+    """Bounds in mm → scene metres, by hand: x −0.1..1.0, y 0..0.8, so the width is 1.1."""
+    from types import SimpleNamespace
+
+    from app.views.scene import aim_camera, scene_frame
+
+    arenas = [
+        SimpleNamespace(bounds=(0, 0, 1000, 500)),
+        SimpleNamespace(bounds=(-100, 0, 900, 800)),
+    ]
+    frame = scene_frame(arenas)  # type: ignore[arg-type]
+    assert (frame.xmin, frame.xmax, frame.ymax) == pytest.approx((-0.1, 1.0, 0.8))
+    assert frame.width == pytest.approx(1.1) and frame.graph_height == pytest.approx(0.682)
+    assert frame.graph_origin == pytest.approx((-0.1, -0.12 * 1.1 - 0.682))
+    aim_camera(server, frame, headroom=0.03)  # type: ignore[arg-type]
+    camera = server.initial_camera  # type: ignore[attr-defined]
+    bottom, top = -0.814 - 0.05 * 1.1, 0.8 + 0.03 * 1.1
+    assert tuple(camera.look_at) == pytest.approx((0.45, (bottom + top) / 2, 0.0))
+    distance = 1.08 * (top - bottom) / 2 / np.tan(np.radians(50.0) / 2)
+    assert tuple(camera.position) == pytest.approx((0.45, (bottom + top) / 2, distance))
