@@ -23,10 +23,10 @@ import viser
 import gnp
 import sim
 from app import store
-from app.dashboard.genome import genome_view
-from app.dashboard.graph_view import GRAPH_MODES
-from app.dashboard.scene import GraphView
 from app.live import LiveSession, RobotSpec
+from app.views.genome import genome_view
+from app.views.graph_counts import GRAPH_MODES
+from app.views.graph_view import GraphView
 
 
 def robot_spec(run: Path | None) -> RobotSpec:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim import kernels
-from sim.khepera import N_SENSORS, SENSOR_HEADINGS_RAD, SENSOR_ORIGINS_MM
+from sim.khepera import IR_MAX, IR_RANGE_MM, N_SENSORS, SENSOR_HEADINGS_RAD, SENSOR_ORIGINS_MM
 
 GRID_CELL_MM = 20.0
 """Side of a ``WallGrid`` cell: small against the reach (80 mm), so a cell lists few more walls
@@ -101,3 +101,16 @@ def sensor_rays(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     angles = poses[:, 2:3] + SENSOR_HEADINGS_RAD
     directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
     return origins, directions
+
+
+def ir_distances(readings: np.ndarray) -> np.ndarray:
+    """How far each ray reaches, in mm from its sensor, given its true reading (for drawing).
+
+    The inverse of reading = IR_MAX · max(0, 1 − d / IR_RANGE_MM): a ray that sees a wall ends
+    on it; one reading 0 sees nothing within ``IR_RANGE_MM`` and is that long.
+
+    Args:
+        readings: true readings (any shape), in 0..IR_MAX (noise or faults would lie).
+    """
+    clipped = np.clip(np.asarray(readings, dtype=np.float64), 0.0, IR_MAX)
+    return IR_RANGE_MM * (1.0 - clipped / IR_MAX)

@@ -23,9 +23,7 @@ import viser
 import gnp
 import neuro
 from app import store
-from app.dashboard import geometry as geo
 from app.dashboard.network_view import NetworkView
-from app.dashboard.scene import ArenaView, GraphView
 from app.dashboard.stage import Show, Stage, random_show
 from app.dashboard.status import Status
 from app.dashboard.tab_compare import populate_compare_tab
@@ -36,7 +34,14 @@ from app.dashboard.tab_runs import populate_runs_tab
 from app.dashboard.tab_show import populate_show_tab
 from app.dashboard.tab_train import populate_train_tab
 from app.live import LiveSession
+from app.views.arena_view import ArenaView
+from app.views.graph_view import GraphView
+from app.views.scene import aim_camera, scene_frame
 
+TAB_NAMES = ("Show", "Train", "Faults", "Runs", "Compare", "Experiments")
+PANEL_WIDTH = 370
+TIGHT_TABS = "<style>[role=tab][data-dock-tab] { padding: 0 0.55em !important; }</style>"
+"""Less room around a tab's name than viser's 0.9em (its tabs set it inline)."""
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5
 FOLLOW_SECONDS = 0.5
@@ -63,17 +68,12 @@ class Dashboard:
         gui.configure_theme(control_width="large", show_share_button=False)
         gui.set_panel_label("GNP Lab")
         gui.main_panel.dock_right()
-        gui.main_panel.set_width(370)
+        gui.main_panel.set_width(PANEL_WIDTH)
         self.status = Status(gui, self.lock)
+        gui.add_html(TIGHT_TABS)
         tabs = gui.add_tab_group()
-        show, train, faults, runs, compare, experiments = (
-            tabs.add_tab("Show", viser.Icon.EYE),
-            tabs.add_tab("Train", viser.Icon.SCHOOL),
-            tabs.add_tab("Faults", viser.Icon.BOLT),
-            tabs.add_tab("Runs", viser.Icon.DATABASE),
-            tabs.add_tab("Compare", viser.Icon.ARROWS_LEFT_RIGHT),
-            tabs.add_tab("Experiments", viser.Icon.FLASK),
-        )
+        # Names without icons, closer together: else the six tabs take two rows of the panel.
+        show, train, faults, runs, compare, experiments = (tabs.add_tab(name) for name in TAB_NAMES)
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
             self.show = populate_show_tab(
@@ -106,27 +106,13 @@ class Dashboard:
 
     def _build_scene(self) -> None:
         """Arena on top, graph below it (they share the width), camera looking straight down."""
-        bounds = np.array([a.bounds for a in self.stage.arenas.values()]) * geo.MM
-        xmin, ymin = bounds[:, :2].min(axis=0)
-        xmax, ymax = bounds[:, 2:].max(axis=0)
-        width = xmax - xmin
+        frame = scene_frame(list(self.stage.arenas.values()))
         self.arena_view = ArenaView(self.server, self.stage.arenas["training"])
-        graph_height = 0.62 * width
-        graph_origin = (xmin, ymin - 0.12 * width - graph_height)
-        self.graph_view = GraphView(self.server, graph_origin, width, graph_height)
+        graph_box = (frame.graph_origin, frame.width, frame.graph_height)
+        self.graph_view = GraphView(self.server, *graph_box)
         # A neural net on show draws its network in the same place (one of the two is hidden).
-        self.network_view = NetworkView(self.server, graph_origin, width, graph_height)
-        bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.03 * width
-        center = ((xmin + xmax) / 2, (bottom + top) / 2)
-        fov = np.radians(50.0)
-        distance = 1.08 * (top - bottom) / 2 / np.tan(fov / 2)
-        self.server.scene.set_up_direction("+y")
-        camera = self.server.initial_camera
-        camera.up = (0.0, 1.0, 0.0)
-        camera.look_at = (center[0], center[1], 0.0)
-        camera.position = (center[0], center[1], distance)
-        camera.fov = fov
-        camera.far = 100.0
+        self.network_view = NetworkView(self.server, *graph_box)
+        aim_camera(self.server, frame, headroom=0.03)
 
         @self.graph_view.nodes_handle.on_click
         def _(event: viser.SceneNodePointerEvent[Any]) -> None:

@@ -3,8 +3,10 @@
 The verdict tables are the report's own numbers (`report.analyse`): the thesis's questions,
 then the sanity claims, each claim with Δ and its interval, the runs on each side at the look
 that decided it, its verdict marked in the report's colours, and for an undecided claim the
-seeds per arm it would need at the thesis's effect. Four narrow columns, so that the table
-reads in the side panel; the claim's sentence and its arms' means are in the claim's tooltip.
+seeds per arm it would need at the thesis's effect. Three columns, the claim's name over its Δ
+in the first, none broken inside a word or number, so that the table reads in the 370 px side
+panel (a claim's name in a column of its own was broken at every hyphen); the claim's sentence
+and its arms' means are in the claim's tooltip.
 The stages table is `report.stages_json`: per look the seeds per arm, the runs each arm had,
 what that look decided and how many claims stayed open.
 """
@@ -34,6 +36,8 @@ from app.experiments.sequential import POWER, Design
 from app.experiments.spec import ScaleSpec
 
 KINDS = (("question", "The thesis's questions"), ("sanity", "Within one arm (sanity)"))
+CLAIM_HEADER = "claim: Δ [interval]"
+NOWRAP = "white-space:nowrap"
 
 
 @dataclass(frozen=True)
@@ -102,18 +106,25 @@ def _claim_cell(c: ComparisonReport) -> str:
         for name, s in zip(names, (c.stats.a, c.stats.b), strict=True)
     )
     tip = f"{c.sentence} ({c.comparison.source}); mean ± sd: {sides}"
-    return f'<span title="{_attribute(tip)}">{html.escape(c.comparison.name)}</span>'
+    name = html.escape(c.comparison.name)
+    return f'<span title="{_attribute(tip)}" style="{NOWRAP}">{name}</span>'
+
+
+def whole(text: str) -> str:
+    """`text` kept on one line (escaped)."""
+    return f'<span style="{NOWRAP}">{html.escape(text)}</span>'
 
 
 def claim_row(c: ComparisonReport) -> list[str]:
-    """One claim's cells: claim, Δ [interval], runs (a, b), verdict (and what it needs)."""
+    """One claim's cells: the claim over its Δ [interval], runs (a, b), verdict (and what it
+    needs)."""
     iv = c.claim.judged.interval
-    interval = f"[{format_number(iv.low)}, {format_number(iv.high)}]"
+    delta = f"{format_number(iv.difference)} [{format_number(iv.low)}, {format_number(iv.high)}]"
     verdict = badge(c.claim.verdict)
     if c.claim.verdict == "undecided" and c.claim.need is not None:
-        verdict += f"<br><small>need {_seeds(c.claim.need.seeds_at_thesis)}</small>"
-    runs = f"{c.claim.runs[0]}, {c.claim.runs[1]}"
-    return [_claim_cell(c), f"{format_number(iv.difference)}<br>{interval}", runs, verdict]
+        verdict += f"<br><small>{whole(f'need {_seeds(c.claim.need.seeds_at_thesis)}')}</small>"
+    runs = whole(f"{c.claim.runs[0]}, {c.claim.runs[1]}")
+    return [f"{_claim_cell(c)}<br><small>{whole(delta)}</small>", runs, verdict]
 
 
 def verdict_tables(report: ExperimentReport) -> str:
@@ -125,7 +136,7 @@ def verdict_tables(report: ExperimentReport) -> str:
         claims = report.of_kind(kind)
         if not claims:
             continue
-        rows = ["| claim | Δ [interval] | runs | verdict |", "|---|---|---|---|"]
+        rows = [f"| {CLAIM_HEADER} | runs | verdict |", "|---|---|---|"]
         rows += ["| " + " | ".join(claim_row(c)) + " |" for c in claims]
         parts.append(f"**{title}** ({len(claims)})\n\n" + "\n".join(rows))
     counts = Counter(c.claim.verdict for c in report.comparisons)
@@ -158,7 +169,7 @@ def stages_table(report: ExperimentReport) -> str:
     planned = ", ".join(map(str, report.design.looks))
     rows = ["| look | seeds | runs | decided | open |", "|---|---|---|---|---|"]
     for stage in stages_json(report):
-        runs = " · ".join(f"{arm} {n}" for arm, n in stage["runs"].items())
+        runs = " · ".join(whole(f"{arm} {n}") for arm, n in stage["runs"].items())
         cells = [str(stage["look"]), str(stage["seeds_per_arm"]), runs]
         cells += [_decided_cell(stage["decided"]), str(stage["open_after"])]
         rows.append("| " + " | ".join(cells) + " |")

@@ -13,7 +13,6 @@ import numpy as np
 import viser
 
 import neuro
-from app.dashboard import geometry as geo
 from app.dashboard.network import (
     CONTEXT,
     HIDDEN,
@@ -26,8 +25,8 @@ from app.dashboard.network import (
     node_values,
     weight_colors,
 )
-from app.dashboard.scene import disc_mesh
 from app.live import RobotSnapshot
+from app.views import geometry as geo
 
 RIM_COLOR = (90, 90, 100)
 
@@ -70,7 +69,7 @@ class NetworkView:
         )
         self._nodes = server.scene.add_batched_meshes_simple(
             f"{root}/nodes",
-            *disc_mesh(0.025 * self._size),
+            *geo.disc_mesh(0.025 * self._size),
             batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
             batched_positions=np.zeros((1, 3)),
             material="toon3",

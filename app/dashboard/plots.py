@@ -12,13 +12,19 @@ from typing import Any
 
 import numpy as np
 import viser
+from viser.uplot import Axis
 
 import sim
-from app.dashboard.scene import ROBOT_COLORS
 from app.live import RobotSnapshot
+from app.views.arena_view import ROBOT_COLORS
 
 MAX_POINTS = 600
 SMOOTH = 50
+BIN = 10
+"""Steps per point of the reward chart."""
+REWARD_RANGE = (0.0, 1.08)
+REWARD_TICKS = (0.25, 0.5)
+HIDDEN_N_AXIS: Axis = {"scale": "n", "show": False}
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
 WHOLE_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0)
 """Tick spacings for a generation or step axis (no 2.5th generation)."""
@@ -38,14 +44,27 @@ def _reward_series(labels: Sequence[str]) -> tuple[dict[str, Any], ...]:
     for i, label in enumerate(labels):
         color = ROBOT_COLORS[i]
         short = label if len(label) <= 14 else label[:13] + "…"
-        series.append({"label": short, "stroke": _rgb(color, 0.25), "width": 1.0})
+        # The raw reward is mostly 0 or 1 step by step: drawn as is it is a wall of vertical
+        # lines. Its BIN-step means, a light area, say as much and read at a glance.
+        series.append(
+            {
+                "label": f"{short} ({BIN}-step)",
+                "stroke": _rgb(color, 0.35),
+                "fill": _rgb(color, 0.12),
+                "width": 1.0,
+            }
+        )
         series.append({"label": f"{SMOOTH}-step mean", "stroke": _rgb(color), "width": 2.5})
     series.append({"label": "broken sensors", "scale": "n", **FAULT_STYLE})
     return tuple(series)
 
 
 def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
-    """Reward per step of the robots on show; broken-sensor count on the right axis."""
+    """Reward per step of the robots on show; the broken-sensor count as a dashed line.
+
+    The reward axis runs a little past 1 so its top tick is not cut off; the broken-sensor count
+    has its own hidden scale (0 to all sensors; its value is in the legend).
+    """
     series = _reward_series(["robot"])
     return gui.add_uplot(
         data=_empty(len(series)),
@@ -53,10 +72,10 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         title="Reward per step (robots on show)",
         scales={
             **X_NOT_TIME,
-            "y": {"range": (0.0, 1.0)},
+            "y": {"range": REWARD_RANGE},
             "n": {"range": (0.0, float(sim.N_SENSORS))},
         },
-        axes=({}, {"scale": "y"}, {"scale": "n", "side": 1, "grid": {"show": False}}),
+        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}, HIDDEN_N_AXIS),
         aspect=1.9,
     )
 
@@ -81,17 +100,30 @@ def moving_mean(values: np.ndarray, window: int) -> np.ndarray:
     return (cumulative[index] - cumulative[lower]) / (index - lower)
 
 
+def step_bins(steps: np.ndarray, width: int) -> np.ndarray:
+    """Start index of each run of consecutive `steps` in the same block of `width` steps
+    (blocks are aligned on whole multiples of `width`, so they stay put as the history slides)."""
+    block = np.asarray(steps, np.int64) // width
+    return np.flatnonzero(np.diff(block, prepend=block[:1] - 1))
+
+
 def set_rewards(plot: viser.GuiUplotHandle, robots: Sequence[RobotSnapshot]) -> None:
-    """Feed the chart the robots' reward histories (they step together: shared x)."""
+    """Feed the chart the robots' reward histories (they step together: shared x), one point per
+    BIN-step block at its last step: the block's mean reward, the trailing SMOOTH-step mean and
+    the most sensors broken in the block."""
     n = min(len(r.rewards) for r in robots)
     if n == 0:
         return
-    steps = robots[0].reward_steps[-n:].astype(np.float64)
-    data: list[np.ndarray] = [steps]
+    steps = robots[0].reward_steps[-n:]
+    starts = step_bins(steps, BIN)
+    ends = np.append(starts[1:], n) - 1
+    data: list[np.ndarray] = [steps[ends].astype(np.float64)]
     for robot in robots:
-        rewards = robot.rewards[-n:]
-        data += [rewards, moving_mean(rewards, SMOOTH)]
-    data.append(robots[0].broken_counts[-n:].astype(np.float64))
+        rewards = np.asarray(robot.rewards[-n:], np.float64)
+        block_mean = np.add.reduceat(rewards, starts) / np.diff(np.append(starts, n))
+        data += [block_mean, moving_mean(rewards, SMOOTH)[ends]]
+    broken = robots[0].broken_counts[-n:]
+    data.append(np.maximum.reduceat(broken, starts).astype(np.float64))
     if len(data) == len(plot.series):
         plot.data = tuple(data)
 
@@ -144,7 +176,7 @@ def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         series=series,
         title="Implementation phase",
         scales={**X_NOT_TIME, "n": {"range": (0.0, 1.0)}},
-        axes=({}, {}, {"scale": "n", "show": False}),
+        axes=({}, {}, HIDDEN_N_AXIS),
         aspect=2.3,
     )
 

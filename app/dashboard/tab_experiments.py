@@ -147,13 +147,13 @@ class ExperimentsTab:
         """Draw the chosen condition's reward curves (from results already in memory)."""
         view, condition = self.view, self.condition.value
         if view is None or not view.rewards or condition == NO_CONDITIONS:
-            plots.set_mean_bands(self.reward, ev.NO_CHART.x, ())
+            draw_chart(self.reward, ev.NO_CHART)
             self.reward_caption.content = "Implementation: no curves yet."
             return
         if condition not in view.rewards:
             raise DashboardInputError(f"{view.name} has no condition {condition!r}")
         chart = view.rewards[condition]
-        plots.set_mean_bands(self.reward, chart.x, chart.lines)
+        draw_chart(self.reward, chart)
         self.reward_caption.content = chart.caption
 
     def load_run(self) -> None:
@@ -249,7 +249,7 @@ class ExperimentsTab:
             lines.append(f"{view.scale}: {view.count} runs done")
         lines += [f"⚠ {problem}" for problem in view.problems]
         self.about.content = "  \n".join(lines)
-        plots.set_mean_bands(self.fitness, view.fitness.x, view.fitness.lines)
+        draw_chart(self.fitness, view.fitness)
         set_options(self.condition, list(view.rewards), NO_CONDITIONS)
         self.show_condition()
         self.stages.content = view.stages
@@ -269,6 +269,13 @@ class ExperimentsTab:
         if counts is not None and counts.generations:
             done = counts.generations_done + counts.conditions_done
             set_value(self.progress, 100.0 * done / (counts.generations + counts.conditions))
+
+
+def draw_chart(plot: viser.GuiUplotHandle, chart: ev.Chart) -> None:
+    """Draw a chart's curves; without any (nothing picked, nothing run yet) hide it rather than
+    show empty axes."""
+    plots.set_mean_bands(plot, chart.x, chart.lines)
+    plot.visible = bool(chart.lines)
 
 
 def populate_experiments_tab(
@@ -311,6 +318,7 @@ def populate_experiments_tab(
         reward=plots.band_plot(gui, "Implementation: reward per step", "step"),
         run=gui.add_dropdown("Run (arm-seed)", (ev.NO_RUNS,)),
     )
+    tab.fitness.visible = tab.reward.visible = False  # until an experiment with runs is shown
     load = gui.add_button("Load run on stage")
 
     actions: dict[str, Callable[[], None]] = {

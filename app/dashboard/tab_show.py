@@ -9,15 +9,16 @@ import viser
 import gnp
 import sim
 from app.dashboard.controls import DashboardInputError, finite
-from app.dashboard.genome import genome_view, node_label, node_markdown
-from app.dashboard.graph_view import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
 from app.dashboard.network import net_markdown
 from app.dashboard.network_view import NetworkView
-from app.dashboard.scene import ROBOT_COLORS, TRANSITION_STYLES, GraphView
 from app.dashboard.stage import Show, Stage
 from app.dashboard.status import Status, hex_color, set_value
 from app.live import brain_name, is_net
 from app.neural import BrainConfig
+from app.views.arena_view import ROBOT_COLORS
+from app.views.genome import genome_view, node_label, node_markdown
+from app.views.graph_counts import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
+from app.views.graph_view import TRANSITION_STYLES, GraphView
 
 MAX_SPEED = 200
 NO_NODES = "— a net has no GNP nodes"

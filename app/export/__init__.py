@@ -7,6 +7,7 @@ existing non-empty folder is never touched and a failed export leaves nothing ha
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import shutil
@@ -57,10 +58,12 @@ def check_out(out: Path) -> None:
 def _publish(out: Path, fill: Callable[[Path], object]) -> Path:
     """Fill a fresh folder next to `out`, then move it to `out` (which must be absent or empty)."""
     check_out(out)
+    # The folders made for it, innermost first: a failed export takes them away again.
+    made = [folder for folder in (out.parent, *out.parent.parents) if not folder.exists()]
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = out.parent / f".{out.name}.export-{os.getpid()}-{secrets.token_hex(4)}"
-    staging.mkdir()  # with the umask's permissions, as `out` would have
     try:
+        staging.mkdir()  # with the umask's permissions, as `out` would have
         fill(staging)
         check_out(out)  # still absent or empty
         if out.is_dir():
@@ -68,6 +71,9 @@ def _publish(out: Path, fill: Callable[[Path], object]) -> Path:
         staging.rename(out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
+        for folder in made:
+            with contextlib.suppress(OSError):  # not empty: something else wrote there meanwhile
+                folder.rmdir()
         raise
     return out
 

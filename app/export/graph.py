@@ -1,9 +1,9 @@
 """`graph.dot`: an individual's node-transition graph for GraphViz.
 
-Nodes are grouped in clusters as the dashboard draws them in columns (app/dashboard/
+Nodes are grouped in clusters as the dashboard draws them in columns (app/views/
 graph_layout.py): the start node, the judgment nodes per sensor s0..s7, the processing nodes per
 wheel. There is one edge per distinct (from, to) pair of the individual's connections (both
-branches, every BS branch connection, CS credit branches: app/dashboard/genome.py), weighted by
+branches, every BS branch connection, CS credit branches: app/views/genome.py), weighted by
 how often the recorded life took it.
 """
 
@@ -14,8 +14,8 @@ from collections import Counter
 import numpy as np
 
 import gnp
-from app.dashboard.genome import genome_view
-from app.dashboard.graph_layout import JUDGMENT, START, WHEEL_NAMES, graph_layout
+from app.views.genome import genome_view
+from app.views.graph_layout import JUDGMENT, START, WHEEL_NAMES, graph_layout
 
 Transitions = Counter[tuple[int, int]]
 

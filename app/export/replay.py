@@ -1,5 +1,5 @@
 """A replay folder any static web server shows: the recorded life of a run's final elite (and one
-recorded implementation trial with its fault) drawn by the dashboard's own scene code on a
+recorded implementation trial with its fault) drawn by the dashboard's views (app.views) on a
 private viser server, recorded with viser's scene serializer, beside viser's bundled client.
 
 The folder holds `replay.viser` (the recording), `index.html` (viser's client build, which plays
@@ -20,13 +20,14 @@ import viser
 import gnp
 import sim
 from app.arenas import arena_of
-from app.dashboard import geometry as geo
-from app.dashboard.genome import genome_view
-from app.dashboard.scene import ArenaView, GraphView
 from app.implementation import faults
 from app.live import RobotSnapshot
 from app.recording import Trajectory
 from app.store import Implementation, RunReader
+from app.views.arena_view import ArenaView
+from app.views.genome import genome_view
+from app.views.graph_view import GraphView
+from app.views.scene import aim_camera, scene_frame
 
 RECORDING = "replay.viser"
 MAX_FRAMES = 250
@@ -108,31 +109,16 @@ class ReplayScene:
 
     def __init__(self, server: viser.ViserServer, arenas: list[sim.Arena]) -> None:
         self.server = server
-        bounds = np.array([a.bounds for a in arenas]) * geo.MM
-        xmin, ymin = bounds[:, :2].min(axis=0)
-        xmax, ymax = bounds[:, 2:].max(axis=0)
-        width = xmax - xmin
+        frame = scene_frame(arenas)
         self.arena = ArenaView(server, arenas[0], max_robots=1)
-        graph_height = 0.62 * width
-        graph_origin = (xmin, ymin - 0.12 * width - graph_height)
-        self.graph = GraphView(server, graph_origin, width, graph_height)
+        self.graph = GraphView(server, frame.graph_origin, frame.width, frame.graph_height)
         self.caption = server.scene.add_label(
             "/replay/caption",
             "",
-            position=(float(xmin), float(ymax + 0.03 * width), 0.0),
+            position=(float(frame.xmin), float(frame.ymax + 0.03 * frame.width), 0.0),
             anchor="bottom-left",
         )
-        bottom, top = graph_origin[1] - 0.05 * width, ymax + 0.06 * width
-        center = ((xmin + xmax) / 2, (bottom + top) / 2)
-        fov = np.radians(50.0)
-        distance = 1.08 * (top - bottom) / 2 / np.tan(fov / 2)
-        server.scene.set_up_direction("+y")
-        camera = server.initial_camera
-        camera.up = (0.0, 1.0, 0.0)
-        camera.look_at = (center[0], center[1], 0.0)
-        camera.position = (center[0], center[1], distance)
-        camera.fov = fov
-        camera.far = 100.0
+        aim_camera(server, frame, headroom=0.06)  # room for the caption
 
     def play(self, life: Life, recording: viser.infra.StateSerializer) -> int:
         """Record the life's frames (subsampled to MAX_FRAMES); returns the frames recorded."""

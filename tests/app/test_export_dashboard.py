@@ -66,3 +66,32 @@ def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path)
     finally:
         dashboard.stop()
         server.stop()
+
+
+def test_a_failed_replay_export_leaves_no_folder(finished_run: Path, tmp_path: Path) -> None:
+    """A run whose elite life cannot be read: the replay fails, and neither the replay's folder
+    nor the `exports` folder made for it stays behind (it used to leave `exports/` empty)."""
+    import h5py
+    import viser
+
+    from app.dashboard.app import Dashboard
+    from app.store import RunFileError
+
+    shutil.copy(finished_run, tmp_path / "tiny.h5")
+    with h5py.File(tmp_path / "tiny.h5", "r+") as handle:
+        del handle["elite/poses"]  # loading and replaying the best never read it; a replay does
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    dashboard = Dashboard(server, tmp_path, "tiny")
+    try:
+        tab = dashboard.runs
+        with dashboard.lock:
+            tab.export(replay=True)
+        assert tab.exporting is not None
+        with pytest.raises(RunFileError, match="corrupt run file"):
+            tab.exporting.result(timeout=120)
+        assert dashboard.status.text.startswith("⚠ exporting the replay of tiny: corrupt run file")
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.h5"]
+        assert tab.last_export is None
+    finally:
+        dashboard.stop()
+        server.stop()

@@ -19,8 +19,8 @@ from app.dashboard.controls import (
     training_config,
     whole,
 )
-from app.dashboard.genome import genome_view, node_label, node_markdown
 from app.dashboard.training_job import TrainingJob
+from app.views.genome import genome_view, node_label, node_markdown
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ from experiment_fixtures import copies_toml
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob
-from app.dashboard.experiment_verdicts import AdaptiveRequest, badge, claim_row, seed_count
+from app.dashboard.experiment_verdicts import AdaptiveRequest, badge, claim_row, seed_count, whole
 from app.experiments import layout
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.cluster import NO_DASHBOARD
@@ -161,7 +161,8 @@ def test_the_stages_table_shows_each_look(job: Any, spec: ExperimentSpec) -> Non
     assert rows[0] == "| look | seeds | runs | decided | open |"
     first = [cell.strip() for cell in rows[1].strip("| ").split(" | ")]
     second = [cell.strip() for cell in rows[2].strip("| ").split(" | ")]
-    assert first[:3] == ["1", "2", "X 2 · Y 2"] and second[:3] == ["2", "4", "X 4 · Y 4"]
+    assert first[:3] == ["1", "2", f"{whole('X 2')} · {whole('Y 2')}"]
+    assert second[:3] == ["2", "4", f"{whole('X 4')} · {whole('Y 4')}"]
     assert "far (ruled out)" in first[3] and f"1 {badge('ruled out')}" in first[3]
     # "far" is decided at the first look; "open" and the sanity claim stay open to the end.
     assert first[4] == second[4] == "2" and second[3] == "–"
@@ -181,16 +182,16 @@ def test_the_verdict_tables_split_questions_and_sanity_claims(
     for name, table in (("far", questions), ("open", questions), ("X-calm-above-break", sanity)):
         row = "| " + " | ".join(claim_row(by_name[name])) + " |"
         assert row in table.splitlines(), name
-    # The cells, by hand: Δ with its interval, the runs, the coloured verdict.
+    # The cells, by hand: the claim over Δ with its interval, the runs, the coloured verdict.
     iv = far.claim.judged.interval
     cells = claim_row(far)
-    assert cells[1] == f"{format_number(iv.difference)}<br>[{format_number(iv.low)}, " + (
-        f"{format_number(iv.high)}]"
-    )
+    delta = f"{format_number(iv.difference)} [{format_number(iv.low)}, {format_number(iv.high)}]"
+    assert cells[0].startswith('<span title="') and ">far</span><br>" in cells[0]
+    assert cells[0].endswith(f"<br><small>{whole(delta)}</small>")
     assert iv.difference == 0.0 and iv.high < 1000.0  # twins: Δ = 0, and the margin excluded
-    assert cells[2] == "2, 2" and cells[3] == badge("ruled out")
+    assert cells[1] == whole("2, 2") and cells[2] == badge("ruled out")
     # Undecided, without a margin: no effect to power for, so the seeds needed are "–".
-    assert claim_row(still)[3] == badge("undecided") + "<br><small>need –</small>"
+    assert claim_row(still)[2] == badge("undecided") + f"<br><small>{whole('need –')}</small>"
     assert still.claim.need is not None
 
 

@@ -20,6 +20,7 @@ import psutil
 import pytest
 from page_helpers import TIMEOUT_MS, choose, field, open_page, press, sent, type_into, wait_for_line
 
+from app.dashboard.experiment_verdicts import CLAIM_HEADER
 from app.dashboard.headless import start_dashboard, stop_dashboard
 from app.experiments import layout
 from app.experiments.report import analyse
@@ -31,6 +32,19 @@ pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
 NAME, SCALE = "ch3-bs-rl", "smoke"  # 4 runs of 2 generations and a few conditions: seconds
 PROGRESS = "experiment: "
+BROKEN_TEXT = """(table) => {
+  const broken = [];
+  const walker = document.createTreeWalker(table, NodeFilter.SHOW_TEXT);
+  for (let node = walker.nextNode(); node; node = walker.nextNode()) {
+    if (!node.textContent.trim()) continue;
+    const range = document.createRange();
+    range.selectNodeContents(node);
+    const lines = new Set([...range.getClientRects()].map((r) => Math.round(r.top)));
+    if (lines.size > 1) broken.push(node.textContent);
+  }
+  return broken;
+}"""
+"""The texts of a table laid out on more than one line (a name broken at each hyphen, say)."""
 
 
 def totals() -> tuple[str, str, str]:
@@ -161,7 +175,7 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
     expect(first.nth(2)).to_have_text("BS 2 · RL 2")
     # The verdicts: questions then sanity claims, each named by one of the four verdicts.
     page.get_by_text("The thesis's questions").first.wait_for()
-    header = page.get_by_role("columnheader", name="Δ [interval]", exact=True)
+    header = page.get_by_role("columnheader", name=CLAIM_HEADER, exact=True)
     verdicts = page.locator("table", has=header)
     expect(verdicts).to_have_count(2)
     for table, kind in zip((verdicts.nth(0), verdicts.nth(1)), ("question", "sanity"), strict=True):
@@ -169,8 +183,13 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
         expect(table.locator("tr")).to_have_count(1 + len(claims))
         box = table.bounding_box()  # it fits the side panel: nothing off the page's right edge
         assert box is not None and box["x"] + box["width"] <= page.viewport_size["width"]
-        cells = table.locator("tr td:nth-child(4)").all_inner_texts()
+        cells = table.locator("tr td:nth-child(3)").all_inner_texts()
         assert [cell.splitlines()[0] for cell in cells] == [c.claim.verdict for c in claims]
+        names = table.locator("tr td:nth-child(1)").all_inner_texts()
+        assert [cell.splitlines()[0] for cell in names] == [c.comparison.name for c in claims]
+    # Nothing in the tables is broken inside a name, a number or an interval.
+    for table in (*verdicts.all(), stages):
+        assert table.evaluate(BROKEN_TEXT) == []
     page.get_by_text("Stages").first.evaluate(
         "(element) => element.scrollIntoView({block: 'start'})"
     )

@@ -25,7 +25,7 @@ from app import store
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob
-from app.dashboard.experiment_verdicts import badge
+from app.dashboard.experiment_verdicts import badge, whole
 from app.dashboard.plots import MAX_POINTS
 from app.experiments import execution, harvest, layout, planning
 from app.experiments.figures import mean_and_ci
@@ -37,7 +37,8 @@ from app.experiments.summary import read_summary, write_summary
 
 NAME, SCALE = "ch3-bs-rl", "smoke"
 VERDICT = re.compile(
-    r">(" + "|".join(VERDICTS) + r")</span>(<br><small>need [^<]+</small>)? \|$", re.MULTILINE
+    r">(" + "|".join(VERDICTS) + r")</span>(<br><small><span [^>]+>need [^<]+</span></small>)? \|$",
+    re.MULTILINE,
 )
 
 
@@ -139,15 +140,17 @@ def test_the_view_of_a_finished_experiment(finished: Path, spec: ExperimentSpec)
     )
     for row, comparison in zip(rows, ordered, strict=True):
         cells = [cell.strip() for cell in row.strip("|").split(" | ")]
-        assert cells[0].endswith(f">{comparison.comparison.name}</span>")
+        # The claim's name over its Δ and interval, each kept on one line.
+        assert f">{comparison.comparison.name}</span><br><small>" in cells[0]
         c = comparison.comparison
         side = f"{c.a} ({c.side_names()[0]})" if c.paired else c.a  # one arm, two sides
         mean_a = f"{side} {format_number(comparison.stats.a.mean)} ± "
         assert mean_a + format_number(comparison.stats.a.sd) in cells[0]  # in its tooltip
         difference = format_number(comparison.stats.difference)
-        assert cells[1] == f"{difference}<br>{interval_text(comparison.claim)}"
-        assert cells[2] == ", ".join(map(str, comparison.claim.runs))
-        assert cells[3].startswith(badge(comparison.claim.verdict))
+        delta = whole(f"{difference} {interval_text(comparison.claim)}")
+        assert cells[0].endswith(f"<br><small>{delta}</small>")
+        assert cells[1] == whole(", ".join(map(str, comparison.claim.runs)))
+        assert cells[2].startswith(badge(comparison.claim.verdict))
         assert comparison.claim.verdict in VERDICTS
     assert view.stages == "**Stages**: one look at 2 seeds per arm (not adaptive)."
     # Fitness: per arm the mean over seeds per generation and its 95% half-width.

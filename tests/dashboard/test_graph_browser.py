@@ -73,7 +73,7 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
 def test_the_simplified_graph_draws_less_and_still_marks_the_walk(
     served: Any, browser: Any, screenshots: Path
 ) -> None:
-    from app.dashboard.graph_view import FULL, SIMPLIFIED
+    from app.views.graph_counts import FULL, SIMPLIFIED
 
     dashboard = served
     graph = dashboard.graph_view

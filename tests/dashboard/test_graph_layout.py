@@ -7,8 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.dashboard import geometry as geo
-from app.dashboard.graph_layout import (
+from app.dashboard.plots import block_mean, moving_mean
+from app.views import geometry as geo
+from app.views.graph_layout import (
     JUDGMENT,
     PROCESSING,
     START,
@@ -16,8 +17,7 @@ from app.dashboard.graph_layout import (
     graph_layout,
     node_kinds,
 )
-from app.dashboard.plots import block_mean, moving_mean
-from app.dashboard.scene import (
+from app.views.graph_view import (
     BRANCH_SWITCH,
     CREDIT_SKIP,
     NORMAL,

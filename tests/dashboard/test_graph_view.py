@@ -10,9 +10,9 @@ import pytest
 
 import gnp
 import sim
-from app.dashboard.graph_view import FULL, SIMPLIFIED, edge_shades, graph_counts
 from app.dashboard.status import set_value
 from app.live import LiveSession, RobotSpec
+from app.views.graph_counts import FULL, SIMPLIFIED, edge_shades, graph_counts
 
 
 def history(*nodes: int) -> np.ndarray:
@@ -79,8 +79,8 @@ def live_robot(method: str, steps: int) -> LiveSession:
 
 
 def test_the_simplified_graph_draws_what_the_robot_runs(server: object) -> None:
-    from app.dashboard.genome import genome_view
-    from app.dashboard.scene import GraphView
+    from app.views.genome import genome_view
+    from app.views.graph_view import GraphView
 
     graph = GraphView(server, (0.0, -1.0), 1.0, 0.6)  # type: ignore[arg-type]
     session = live_robot("CS", 150)

@@ -112,3 +112,13 @@ def segment_colors(point_colors: np.ndarray) -> np.ndarray:
     """Per-point colours (P, 3) to per-vertex colours of the P - 1 joining segments."""
     point_colors = np.asarray(point_colors, np.uint8).reshape(-1, 3)
     return np.stack([point_colors[:-1], point_colors[1:]], axis=1)
+
+
+def disc_mesh(radius: float, n_sides: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """A flat disc in the z = 0 plane: (vertices (n + 1, 3), faces (n, 3))."""
+    angles = np.linspace(0.0, 2.0 * np.pi, n_sides, endpoint=False)
+    rim = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(n_sides)], 1)
+    vertices = np.concatenate([np.zeros((1, 3)), rim]).astype(np.float32)
+    index = np.arange(n_sides)
+    faces = np.stack([np.zeros(n_sides, np.int64), 1 + index, 1 + (index + 1) % n_sides], 1)
+    return vertices, faces.astype(np.uint32)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import gnp
-from app.dashboard.graph_layout import JUDGMENT, START, WHEEL_NAMES
+from app.views.graph_layout import JUDGMENT, START, WHEEL_NAMES
 
 
 @dataclass(frozen=True)

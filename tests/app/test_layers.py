@@ -1,0 +1,174 @@
+"""The packages import only downwards, and no module imports itself back through others.
+
+Every `import` and `from … import` in sim/, gnp/, neuro/ and app/ is read with `ast` (those inside
+functions too: a lazy import is still a dependency). Layers, lowest first:
+
+0. `sim`, `gnp`, `neuro`: the world and the brains; none imports another nor anything above.
+1. the lab core: app's own modules (`app/*.py`) with `app/store/` and `app/presets/`.
+2. `app.experiments` and `app.views` (what the dashboard and the export both draw).
+3. `app.export`.
+4. `app.dashboard`.
+5. `app.cli`, which wires everything into `gnp-lab`.
+
+A folder may import its own modules and any folder of a lower layer, never one of its own layer
+or above, so the folders cannot import each other in a loop.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("sim", "gnp", "neuro", "app")
+CORE = "app"
+LAYER = {
+    "sim": 0,
+    "gnp": 0,
+    "neuro": 0,
+    CORE: 1,
+    "app.experiments": 2,
+    "app.views": 2,
+    "app.export": 3,
+    "app.dashboard": 4,
+    "app.cli": 5,
+}
+KNOWN_CYCLES = (
+    # Lazy imports (inside a function) that close a loop between two modules; each pair is to be
+    # split by its own room's work (#22): new loops are not allowed.
+    frozenset({"gnp.engine", "gnp.first_stage"}),
+    frozenset({"app.training", "app.neuro_training"}),
+    frozenset({"app.experiments.progress", "app.experiments.runner"}),
+)
+
+
+def module_name(path: Path) -> str:
+    """`app/views/scene.py` → `app.views.scene`; a package's `__init__.py` → the package."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    """Each module of the packages → the modules of the packages it imports (itself excluded).
+
+    `from a.b import c` counts as an import of `a.b.c` when that is a module, else of `a.b`.
+    """
+    files = {module_name(p): p for pkg in PACKAGES for p in sorted((root / pkg).rglob("*.py"))}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                assert node.level == 0, f"{name}: relative import (the project imports absolutely)"
+                assert node.module is not None
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    targets.add(full if full in files else node.module)
+        graph[name] = {t for t in targets if t in files and t != name}
+    return graph
+
+
+def folder(module: str) -> str:
+    """The layer-bearing folder of a module: `sim.world` → `sim`, `app.views.scene` →
+    `app.views`, `app.config` and `app.store.reader` → the core."""
+    parts = module.split(".")
+    if parts[0] != "app":
+        return parts[0]
+    candidate = ".".join(parts[:2])
+    return candidate if candidate in LAYER else CORE
+
+
+def layer_violations(graph: Mapping[str, Iterable[str]]) -> list[str]:
+    """Imports from one folder into another of the same or a higher layer."""
+    bad = []
+    for source, targets in graph.items():
+        for target in targets:
+            a, b = folder(source), folder(target)
+            if a != b and LAYER[b] >= LAYER[a]:
+                bad.append(f"{source} (layer {LAYER[a]}) imports {target} (layer {LAYER[b]})")
+    return sorted(bad)
+
+
+def cycles(graph: Mapping[str, Iterable[str]]) -> list[frozenset[str]]:
+    """The strongly connected components of more than one node (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[frozenset[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(frozenset(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph()
+
+
+def test_every_folder_imports_only_lower_layers(graph: dict[str, set[str]]) -> None:
+    assert layer_violations(graph) == []
+
+
+def test_no_import_loop_between_modules(graph: dict[str, set[str]]) -> None:
+    new = [sorted(c) for c in cycles(graph) if c not in KNOWN_CYCLES]
+    assert new == []
+
+
+def test_views_are_drawn_by_both_and_import_neither(graph: dict[str, set[str]]) -> None:
+    into_views = {folder(s) for s, ts in graph.items() for t in ts if folder(t) == "app.views"}
+    assert {"app.dashboard", "app.export"} <= into_views
+    from_views = {folder(t) for s, ts in graph.items() if folder(s) == "app.views" for t in ts}
+    assert not from_views & {"app.dashboard", "app.export"}
+    # The export no longer reaches into the dashboard (it used to: a loop between folders).
+    from_export = {folder(t) for s, ts in graph.items() if folder(s) == "app.export" for t in ts}
+    assert "app.dashboard" not in from_export
+
+
+def test_the_checks_catch_what_they_are_for() -> None:
+    """A hand-made graph with an upward import and a loop: both are reported."""
+    bad = {
+        "app.views.scene": {"app.dashboard.stage"},  # views reaching up into the dashboard
+        "app.dashboard.stage": {"app.views.scene"},
+        "sim.world": {"gnp.engine"},  # sim and gnp never import each other
+        "gnp.engine": set(),
+        "app.config": {"app.store.reader"},  # the core with its store: one layer, fine
+        "app.store.reader": set(),
+    }
+    assert layer_violations(bad) == [
+        "app.views.scene (layer 2) imports app.dashboard.stage (layer 4)",
+        "sim.world (layer 0) imports gnp.engine (layer 0)",
+    ]
+    assert cycles(bad) == [frozenset({"app.views.scene", "app.dashboard.stage"})]
+    assert folder("app.store.reader") == folder("app.config") == CORE
+    assert folder("app.views.graph_view") == "app.views"
