@@ -23,6 +23,7 @@ SMOOTH = 50
 BIN = 10
 """Steps per point of the reward chart."""
 REWARD_RANGE = (0.0, 1.08)
+"""A reward per step (and so a fitness, Eq. 2.8) lies in 0..1: headroom keeps the 1.0 tick."""
 REWARD_TICKS = (0.25, 0.5)
 HIDDEN_N_AXIS: Axis = {"scale": "n", "show": False}
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
@@ -138,8 +139,8 @@ def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
             {"label": "mean", "stroke": "#5aa05a", "width": 2.0},
         ),
         title="Fitness per generation",
-        scales=X_NOT_TIME,
-        axes=({"incrs": WHOLE_STEPS}, {}),
+        scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}},
+        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}),
         aspect=2.3,
     )
 

@@ -6,6 +6,7 @@ import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
+import viser
 
 import gnp
 import sim
@@ -40,3 +41,14 @@ def test_the_chart_gets_block_means_the_smooth_mean_and_the_broken_count() -> No
     # The trailing 50-step mean at each block's end: all the history so far.
     np.testing.assert_allclose(smooth, [1 / 2, 6 / 12, 14 / 20])
     np.testing.assert_array_equal(n_broken, [0, 2, 2])
+
+
+def test_the_fitness_chart_shows_the_whole_fitness_range_with_its_top_tick() -> None:
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        plot = plots.fitness_plot(server.gui)
+        low, high = plot.scales["y"]["range"]
+        assert low == 0.0 and 1.0 < high < 1.2  # fitness is a mean reward per step, 0..1
+        assert plot.axes[1]["scale"] == "y"
+    finally:
+        server.stop()
