@@ -47,8 +47,9 @@ def test_the_fitness_chart_shows_the_whole_fitness_range_with_its_top_tick() -> 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         plot = plots.fitness_plot(server.gui)
+        assert plot.scales is not None and plot.axes is not None
         low, high = plot.scales["y"]["range"]
-        assert low == 0.0 and 1.0 < high < 1.2  # fitness is a mean reward per step, 0..1
+        assert (low, high) == plots.REWARD_RANGE and high > 1.0  # fitness: mean reward, 0..1
         assert plot.axes[1]["scale"] == "y"
     finally:
         server.stop()
