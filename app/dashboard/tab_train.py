@@ -4,7 +4,8 @@ The settings' controls are built from the models (`app.config.train_settings`): 
 ones first, every other one in a folder, so a new field of a model shows up here by itself.
 The values are checked once, by building the `RunConfig` that `TrainingJob` is given.
 Training runs the CLI's loop in a thread of this process, its lives on the worker pool
-(`TrainingJob`); a `TrainingFollower` reads its file as it grows, and each new generation's best goes on show at once.
+(`TrainingJob`); a `TrainingFollower` reads its file as it grows, and each new generation's
+best goes on show at once.
 """
 
 from __future__ import annotations
