@@ -19,6 +19,9 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import gnp
 import sim
 from app.cli_options import (
+    add_quiet,
+    add_run_name,
+    add_runs_dir,
     add_setting_options,
     given_options,
     given_settings,
@@ -116,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="any other setting, e.g. training.redraw_every=500 (repeatable)",
     )
     train.add_argument("--out", metavar="FILE", help="new run file (default: in --runs-dir)")
-    train.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_runs_dir(train)
     train.add_argument(
         "--workers",
         type=int,
@@ -126,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--resume", metavar="FILE", help="continue an interrupted run with its own settings"
     )
-    train.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(train)
     train.add_argument(
         "--print-config", action="store_true", help="print the resulting config as TOML and stop"
     )
@@ -139,11 +142,11 @@ def build_parser() -> argparse.ArgumentParser:
         "of --break fail at --fault-step. Results are stored in the run file. Unset options "
         "take the run's implementation settings.",
     )
-    implement.add_argument("run", metavar="RUN", help="run name in --runs-dir")
-    implement.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_run_name(implement)
+    add_runs_dir(implement)
     add_setting_options(implement, implement_settings(), show_default=False)
     implement.add_argument("--name", help="name of the result in the run file")
-    implement.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(implement)
     implement.add_argument(
         "--workers",
         type=int,
@@ -153,12 +156,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     runs = commands.add_parser("runs", help="list run files, or inspect one")
     runs.add_argument("name", nargs="?", metavar="NAME", help="a run to inspect")
-    runs.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_runs_dir(runs)
 
     serve = commands.add_parser("serve", help="open the dashboard (viser)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind")
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
-    serve.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_runs_dir(serve)
     serve.add_argument("--run", metavar="NAME", help="run to open first")
     serve.add_argument(
         "--allow-remote",

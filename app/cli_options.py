@@ -1,4 +1,5 @@
-"""The `train` and `implement` options that set a run's settings, built from the models' fields.
+"""The `train` and `implement` options that set a run's settings, built from the models' fields,
+and the few options that several subcommands share (`--runs-dir`, a run's name, `--quiet`).
 
 Each scalar setting becomes `--field-name` (a few keep the shorter names the CLI always had);
 its help is the field's description, unit, range and default, and its value is checked by
@@ -105,3 +106,22 @@ def given_options(args: argparse.Namespace) -> dict[SettingOption, Any]:
 def given_settings(args: argparse.Namespace) -> dict[tuple[str, ...], Any]:
     """{setting path: value} of the setting options given on the command line."""
     return {option.setting.path: value for option, value in given_options(args).items()}
+
+
+RUNS_DIR = "saved_runs"
+"""The folder of run files when `--runs-dir` is not given."""
+
+
+def add_runs_dir(parser: argparse.ArgumentParser) -> None:
+    """`--runs-dir DIR` (default `RUNS_DIR`)."""
+    parser.add_argument("--runs-dir", default=RUNS_DIR, help="folder of run files")
+
+
+def add_run_name(parser: argparse.ArgumentParser) -> None:
+    """The positional `RUN`: a run's name in `--runs-dir`."""
+    parser.add_argument("run", metavar="RUN", help="run name in --runs-dir")
+
+
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """`--quiet`: no progress bar."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")

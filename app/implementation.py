@@ -169,31 +169,6 @@ def _live_trials(
     )
 
 
-def _live_all(
-    cfg: BrainConfig,
-    individual: Individual,
-    settings: ImplementationSettings,
-    seed: int,
-    control_period: float,
-    physics: sim.Physics,
-    parts: list[slice],
-    recorded: int,
-    workers: int,
-    progress: StepProgress,
-    c_from: CFrom = "true",
-) -> list[_Part]:
-    """Every world's trials, in this process and `workers` − 1 more (`app.workers.share_out`)."""
-    total = parts[-1].stop * settings.steps
-    calls = [
-        (cfg, individual, settings, seed, control_period, physics, c_from, part,
-         part.start == 0 and recorded > 0)
-        for part in parts
-    ]  # fmt: skip
-    results = share_out(_live_trials, calls, workers, lambda done: progress(done, total))
-    progress(total, total)
-    return results
-
-
 def run_implementation(
     cfg: BrainConfig,
     individual: Individual,
@@ -220,19 +195,16 @@ def run_implementation(
     trials = n_starts * settings.repeats
     recorded = min(settings.recorded_trials, trials)
     parts = trial_worlds(trials, recorded)
-    results = _live_all(
-        cfg,
-        individual,
-        settings,
-        seed,
-        control_period,
-        physics,
-        parts,
-        recorded,
-        workers,
-        progress or (lambda done, total: None),
-        c_from,
-    )
+    report = progress or (lambda done, total: None)
+    total = parts[-1].stop * settings.steps
+    calls = [
+        (cfg, individual, settings, seed, control_period, physics, c_from, part,
+         part.start == 0 and recorded > 0)
+        for part in parts
+    ]  # fmt: skip
+    # every world's trials, in this process and `workers` − 1 more
+    results = share_out(_live_trials, calls, workers, lambda done: report(done, total))
+    report(total, total)
     steps = settings.steps
     after_steps = steps - min(settings.fault_step, steps)
     trial_mean = np.concatenate([r.trial_sums for r in results]) / steps

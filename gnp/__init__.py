@@ -12,7 +12,7 @@ from gnp.config import (
     Method,
     Schedule,
 )
-from gnp.controller_file import load_controller, save_controller
+from gnp.controller_file import controller_body, controller_from_body
 from gnp.engine import (
     TRACE_DTYPE,
     TRACE_FIELDS,
@@ -56,6 +56,8 @@ __all__ = [
     "StepTrace",
     "check_population",
     "concat",
+    "controller_body",
+    "controller_from_body",
     "crossover",
     "epsilon_alpha_after_fault",
     "epsilon_alpha_over_generations",
@@ -64,13 +66,11 @@ __all__ = [
     "field_shapes",
     "init_population",
     "init_state",
-    "load_controller",
     "mutate",
     "nonuniform_mutation",
     "population_from_arrays",
     "population_to_arrays",
     "reset_episode",
-    "save_controller",
     "schedule_after_fault",
     "schedule_over_generations",
     "step",

@@ -1,14 +1,13 @@
-"""One controller as a JSON document: an individual with its Q tables, usable without a run file.
+"""One controller's genome and Q tables as the body of a controller document, and back.
 
-The schema (version 1) is in docs/controller-format.md. Every gene and Q value of the individual
-is written, unused parts included, so `load_controller` gives back a population that steps
+The schema (version 1) is in docs/controller-format.md; the file around the body (format,
+version, settings) is written and read by `app.controller_file`. Every gene and Q value of the
+individual is written, unused parts included, so the body gives back a population that steps
 bit-identically to the original.
 """
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,8 +15,6 @@ import numpy as np
 from gnp.config import JUDGMENT, PROCESSING, START, GnpConfig, GnpError
 from gnp.population import Population, population_from_arrays
 
-FORMAT = "gnp-lab-controller"
-VERSION = 1
 _TYPE_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}
 _BRANCHES = ("A", "B")
 
@@ -37,39 +34,23 @@ def _sub_node(pop: Population, node: int, sub: int) -> dict[str, Any]:
     }
 
 
-def controller_document(
-    cfg: GnpConfig, individual: Population, settings: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """The JSON-ready document of a 1-individual population (see docs/controller-format.md)."""
+def controller_body(cfg: GnpConfig, individual: Population) -> tuple[dict[str, Any], list[Any]]:
+    """The `gnp` and `nodes` entries of a 1-individual population's controller document.
+
+    Raises:
+        GnpError: `individual` is not one individual.
+    """
     if individual.size != 1:
         raise GnpError(f"a controller is one individual, got {individual.size}")
-    return {
-        "format": FORMAT,
-        "version": VERSION,
-        "gnp": cfg.model_dump(),
-        "settings": settings or {},
-        "nodes": [
-            {
-                "id": node,
-                "type": _TYPE_NAMES[int(cfg.node_type[node])],
-                "sub_nodes": [_sub_node(individual, node, sub) for sub in range(cfg.n_sub)],
-            }
-            for node in range(cfg.n_nodes)
-        ],
-    }
-
-
-def save_controller(
-    path: str | Path,
-    cfg: GnpConfig,
-    individual: Population,
-    settings: dict[str, Any] | None = None,
-) -> Path:
-    """Write a 1-individual population as `path` (JSON); `settings` is stored as given."""
-    path = Path(path)
-    document = controller_document(cfg, individual, settings)
-    path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
-    return path
+    nodes = [
+        {
+            "id": node,
+            "type": _TYPE_NAMES[int(cfg.node_type[node])],
+            "sub_nodes": [_sub_node(individual, node, sub) for sub in range(cfg.n_sub)],
+        }
+        for node in range(cfg.n_nodes)
+    ]
+    return cfg.model_dump(), nodes
 
 
 def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray]:
@@ -105,32 +86,12 @@ def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray
     return arrays
 
 
-def load_controller(path: str | Path) -> tuple[GnpConfig, Population, dict[str, Any]]:
-    """Read a controller file: its gnp config, a validated 1-individual population, settings.
+def controller_from_body(gnp_entry: Any, nodes: Any) -> tuple[GnpConfig, Population]:
+    """The gnp config and validated 1-individual population of a document's `gnp` and `nodes`.
 
     Raises:
-        GnpError: the file is missing, not JSON, not a controller of a known version, or holds
-            an invalid genome (the message names the problem).
+        GnpError: the nodes do not fit the config, or the genome is invalid (named).
+        KeyError, TypeError, ValueError: the entries are malformed.
     """
-    path = Path(path)
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise GnpError(f"controller file not found: {path}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise GnpError(f"{path} is not a JSON controller file: {error}") from None
-    if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise GnpError(f"{path} is not a gnp-lab controller (no format {FORMAT!r})")
-    if document.get("version") != VERSION:
-        raise GnpError(
-            f"{path} is controller format version {document.get('version')!r}; "
-            f"this gnp reads version {VERSION}"
-        )
-    try:
-        cfg = GnpConfig.model_validate(document["gnp"])
-        arrays = _arrays(cfg, document["nodes"])
-    except GnpError:
-        raise
-    except (KeyError, TypeError, ValueError) as error:
-        raise GnpError(f"{path}: malformed controller ({type(error).__name__}: {error})") from None
-    return cfg, population_from_arrays(cfg, arrays), dict(document.get("settings", {}))
+    cfg = GnpConfig.model_validate(gnp_entry)
+    return cfg, population_from_arrays(cfg, _arrays(cfg, nodes))

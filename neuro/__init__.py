@@ -6,7 +6,7 @@ libraries (CMA-ES: pycma, `neuro.cmaes`; NEAT: neat-python, `neuro.neat`) and ke
 draw in a seeded state of their own. See docs/architecture.md.
 """
 
-from neuro.controller_file import load_net, save_net
+from neuro.controller_file import net_body, net_from_body
 from neuro.nets import (
     N_INPUTS,
     N_OUTPUTS,
@@ -37,8 +37,8 @@ __all__ = [
     "field_dtype",
     "from_flat",
     "init_state",
-    "load_net",
-    "save_net",
+    "net_body",
+    "net_from_body",
     "step",
     "take",
     "to_flat",

@@ -1,77 +1,47 @@
-"""One neural controller as a JSON document: its net's shape and every weight, exactly.
+"""One neural controller as the body of a controller document: its net's shape and every weight.
 
-{"format": "gnp-lab-neural-controller", "version": 1, "net": {...ElmanConfig or
-RecurrentConfig...}, "settings": {...}, "arrays": {name: nested lists, without the batch
-axis}}. Floats are written as Python's shortest round-trip repr, so `load_net` gives back
-arrays equal bit for bit and a net that steps identically.
+The body is {"net": {...ElmanConfig or RecurrentConfig...}, "arrays": {name: nested lists,
+without the batch axis}}; the file around it (format, version, settings) is written and read by
+`app.controller_file`. Floats are written as Python's shortest round-trip repr, so the body gives
+back arrays equal bit for bit and a net that steps identically.
 """
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
-from pydantic import TypeAdapter, ValidationError
+from pydantic import TypeAdapter
 
 from neuro.nets import NetConfig, NeuroError, check_arrays, field_dtype
 
-FORMAT = "gnp-lab-neural-controller"
-VERSION = 1
-_NET: TypeAdapter[NetConfig] = TypeAdapter(NetConfig)
+# a union, which mypy (cache-dependently) refuses as a type argument; pydantic takes it
+_NET: TypeAdapter[NetConfig] = TypeAdapter(cast(Any, NetConfig))
 
 
-def save_net(
-    path: str | Path,
-    cfg: NetConfig,
-    arrays: dict[str, np.ndarray],
-    settings: dict[str, Any] | None = None,
-) -> Path:
-    """Write one net (arrays with a leading axis of 1) as `path`; `settings` stored as given."""
-    if check_arrays(cfg, arrays) != 1:
-        raise NeuroError("a controller file holds one net")
-    document = {
-        "format": FORMAT,
-        "version": VERSION,
-        "net": cfg.model_dump(),
-        "settings": settings or {},
-        "arrays": {name: arrays[name][0].tolist() for name in cfg.shapes()},
-    }
-    path = Path(path)
-    path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
-    return path
-
-
-def load_net(path: str | Path) -> tuple[NetConfig, dict[str, np.ndarray], dict[str, Any]]:
-    """Read a neural controller file: (net config, arrays with a leading axis 1, settings).
+def net_body(
+    cfg: NetConfig, arrays: dict[str, np.ndarray]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The `net` and `arrays` entries of one net's document (arrays with a leading axis of 1).
 
     Raises:
-        NeuroError: missing, not JSON, another format or version, or malformed (named).
+        NeuroError: the arrays do not fit `cfg` or hold more than one net.
     """
-    path = Path(path)
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise NeuroError(f"controller file not found: {path}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise NeuroError(f"{path} is not a JSON controller file: {error}") from None
-    if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise NeuroError(f"{path} is not a gnp-lab neural controller (no format {FORMAT!r})")
-    if document.get("version") != VERSION:
-        raise NeuroError(
-            f"{path} is neural controller version {document.get('version')!r}; "
-            f"this gnp-lab reads version {VERSION}"
-        )
-    try:
-        cfg = _NET.validate_python(document["net"])
-        arrays = {
-            name: np.array(values, dtype=field_dtype(name))[None]
-            for name, values in document["arrays"].items()
-        }
-        check_arrays(cfg, arrays)
-    except NeuroError as error:
-        raise NeuroError(f"{path}: {error}") from None
-    except (KeyError, TypeError, ValueError, ValidationError) as error:
-        raise NeuroError(f"{path}: malformed controller ({type(error).__name__})") from None
-    return cfg, arrays, dict(document.get("settings", {}))
+    if check_arrays(cfg, arrays) != 1:
+        raise NeuroError("a controller file holds one net")
+    return cfg.model_dump(), {name: arrays[name][0].tolist() for name in cfg.shapes()}
+
+
+def net_from_body(net_entry: Any, arrays: Any) -> tuple[NetConfig, dict[str, np.ndarray]]:
+    """The net config and arrays (leading axis 1) of a document's `net` and `arrays`.
+
+    Raises:
+        NeuroError: the arrays do not fit the config (named).
+        KeyError, TypeError, ValueError: the entries are malformed.
+    """
+    cfg = _NET.validate_python(net_entry)
+    loaded = {
+        name: np.array(values, dtype=field_dtype(name))[None] for name, values in arrays.items()
+    }
+    check_arrays(cfg, loaded)
+    return cfg, loaded

@@ -14,6 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from app.cli_options import add_quiet, add_runs_dir
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
 from app.experiments.results import ExperimentResults
@@ -55,7 +56,7 @@ def add_parser(commands: Any) -> None:
     def common(verb: argparse.ArgumentParser, scale: bool = True) -> None:
         verb.add_argument("name", nargs="?", metavar="NAME", help="a shipped experiment")
         verb.add_argument("--file", metavar="FILE", help="an experiment TOML file instead")
-        verb.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+        add_runs_dir(verb)
         if scale:
             verb.add_argument(
                 "--scale", choices=SCALES, default=DEFAULT_SCALE, help="size of the runs"
@@ -78,7 +79,7 @@ def add_parser(commands: Any) -> None:
         metavar="W",
         help="worker processes of the local cluster (default: one per core)",
     )
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(run)
     run.add_argument(
         "--adaptive",
         action="store_true",
@@ -111,7 +112,7 @@ def add_parser(commands: Any) -> None:
     status = verbs.add_parser("status", help="what the experiment's folder holds so far")
     common(status)
     listing = verbs.add_parser("list", help="the shipped experiments and their cost per scale")
-    listing.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_runs_dir(listing)
     page = verbs.add_parser(
         "reproduced",
         help="rewrite the tables of the 'thesis, reproduced' page from the committed reports",

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from app.cli_options import add_run_name, add_runs_dir
 from app.store import resolve_run
 
 EXIT_ERROR = 1
@@ -22,12 +23,12 @@ def add_export_parser(commands: Any) -> argparse.ArgumentParser:
         "implementation-<name>.csv; with --replay instead a static folder that plays the "
         "recorded life in a browser (see docs/export.md).",
     )
-    export.add_argument("run", metavar="RUN", help="run name in --runs-dir")
+    add_run_name(export)
     export.add_argument(
         "--generation", type=int, metavar="G", help="export the best of this generation"
     )
     export.add_argument("--out", required=True, metavar="DIR", help="new (or empty) folder")
-    export.add_argument("--runs-dir", default="saved_runs", help="folder of run files")
+    add_runs_dir(export)
     export.add_argument(
         "--replay", action="store_true", help="write a static replay folder (viser) instead"
     )

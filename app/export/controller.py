@@ -1,6 +1,6 @@
 """`controller.json`: one generation's best individual as a gnp-lab controller file.
 
-The document is `gnp.save_controller`'s (docs/controller-format.md); its `settings` say what
+The document is `app.controller_file`'s (docs/controller-format.md); its `settings` say what
 the lab ran the controller with, so someone can run it in their own code without the run file.
 """
 
@@ -9,8 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import gnp
-import neuro
+from app.controller_file import GnpController, NetController, save_controller
 from app.store import RunReader
 
 
@@ -35,7 +34,7 @@ def controller_settings(reader: RunReader, generation: int) -> dict[str, Any]:
 
 def write_controller(reader: RunReader, generation: int, path: Path) -> Path:
     """Write the best individual of `generation` (Q tables included) as `path`; a neural run's
-    net as `neuro.save_net`'s document."""
+    best net."""
     settings = reader.config.neuro
     if settings is not None:
         net = settings.net_config()
@@ -44,6 +43,7 @@ def write_controller(reader: RunReader, generation: int, path: Path) -> Path:
         for gnp_only in ("method", "fuzzy", "epsilon", "alpha", "schedule"):
             del about[gnp_only]  # a net learns nothing online
         about["brain"] = settings.optimiser
-        return neuro.save_net(path, net, arrays, about)
+        return save_controller(path, NetController(net, arrays, about))
     cfg, individual = reader.best_genome(generation)
-    return gnp.save_controller(path, cfg, individual, controller_settings(reader, generation))
+    about = controller_settings(reader, generation)
+    return save_controller(path, GnpController(cfg, individual, about))

@@ -1,4 +1,4 @@
-"""Helpers of the lab's tests: tiny configs, file digests, dataset comparison."""
+"""Helpers of the lab's tests: tiny configs, file digests, dataset comparison, CLI errors."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from typing import Any
 
 import h5py
 import numpy as np
+import pytest
 
 from app.config import RunConfig, build_config
 
@@ -56,3 +57,15 @@ def assert_same_data(a: Path, b: Path, skip: tuple[str, ...] = ()) -> None:
             continue
         assert left[name].dtype == right[name].dtype, name
         assert np.array_equal(left[name], right[name], equal_nan=left[name].dtype.kind == "f"), name
+
+
+def one_error_line(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
+    """The one `gnp-lab: error:` line the command wrote to stderr (and nothing else), holding
+    every one of `needles`."""
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("gnp-lab: error: "), err
+    for needle in needles:
+        assert needle in lines[0], err
+    return lines[0]

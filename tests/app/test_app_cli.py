@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from lab_fixtures import file_digest
+from lab_fixtures import file_digest, one_error_line
 
 from app.cli import main
 from app.store import RunReader
@@ -26,15 +26,6 @@ def runs_dir(tmp_path: Path, finished_run: Path) -> Path:
     (tmp_path / "bad.toml").write_text("[training]\npopulation = 'many'\n")
     (tmp_path / "broken.toml").write_text("[training\n")
     return runs
-
-
-def _one_error_line(capsys: pytest.CaptureFixture[str], *needles: str) -> None:
-    err = capsys.readouterr().err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("gnp-lab: error: "), err
-    for needle in needles:
-        assert needle in lines[0], err
 
 
 def test_train_implement_and_inspect(
@@ -117,7 +108,7 @@ def test_user_mistakes(
     if argv[0] == "train" and "--out" not in argv and "--resume" not in argv:
         argv += ["--out", str(runs_dir / "fresh.h5")]
     assert main(argv) != 0
-    _one_error_line(capsys, *needles)
+    one_error_line(capsys, *needles)
     assert {p.name: file_digest(p) for p in runs_dir.iterdir()} == before
 
 
@@ -128,7 +119,7 @@ def test_implementation_name_taken(runs_dir: Path, capsys: pytest.CaptureFixture
     capsys.readouterr()
     before = file_digest(runs_dir / "tiny.h5")
     assert main(argv) == 1
-    _one_error_line(capsys, "already has an implementation named 'baseline'")
+    one_error_line(capsys, "already has an implementation named 'baseline'")
     assert file_digest(runs_dir / "tiny.h5") == before
 
 

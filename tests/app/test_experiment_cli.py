@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from experiment_fixtures import TINY_TOML, tiny_data, to_toml, write_tiny
-from lab_fixtures import file_digest, tiny_config
+from lab_fixtures import file_digest, one_error_line, tiny_config
 
 from app.cli import main
 from app.config import build_config
@@ -19,16 +19,6 @@ from app.experiments.summary import read_summary
 from app.implementation import implement
 from app.store import RunReader
 from app.training import train
-
-
-def _one_error_line(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
-    err = capsys.readouterr().err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("gnp-lab: error: "), err
-    for needle in needles:
-        assert needle in lines[0], err
-    return lines[0]
 
 
 def _files(folder: Path) -> dict[Path, str]:
@@ -55,7 +45,7 @@ def test_bad_file(
     runs = tmp_path / "runs"
     argv = ["experiment", verb, "--file", str(path), "--runs-dir", str(runs), "--scale", "smoke"]
     assert main(argv) == 1
-    _one_error_line(capsys, needle, str(path))
+    one_error_line(capsys, needle, str(path))
     assert not runs.exists()
 
 
@@ -88,7 +78,7 @@ def test_bad_arguments(
 ) -> None:
     runs = tmp_path / "runs"
     assert main(["experiment", *argv, "--runs-dir", str(runs)]) == code
-    _one_error_line(capsys, needle)
+    one_error_line(capsys, needle)
     assert not runs.exists() or not _files(runs)
 
 
@@ -110,16 +100,16 @@ def test_bad_values_file(
     values.write_text(rows, encoding="utf-8")
     argv = ["experiment", "report", "ch3-bs-rl", "--runs-dir", str(tmp_path / "runs")]
     assert main([*argv, "--from-values", str(values), *extra]) == 1
-    _one_error_line(capsys, needle)
+    one_error_line(capsys, needle)
     assert not (tmp_path / "runs").exists()
 
 
 def test_file_name_and_scale_must_match(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = str(write_tiny(tmp_path))
     assert main(["experiment", "status", "other", "--file", path, "--scale", "smoke"]) == 1
-    _one_error_line(capsys, "defines experiment 'tiny', not 'other'")
+    one_error_line(capsys, "defines experiment 'tiny', not 'other'")
     assert main(["experiment", "status", "--file", path, "--scale", "thesis"]) == 1
-    _one_error_line(capsys, "has no scale 'thesis'")
+    one_error_line(capsys, "has no scale 'thesis'")
 
 
 def test_a_file_may_not_take_a_shipped_experiments_name(
@@ -128,7 +118,7 @@ def test_a_file_may_not_take_a_shipped_experiments_name(
     path = write_tiny(tmp_path, TINY_TOML.replace('name = "tiny"', 'name = "ch3-bs-rl"', 1))
     runs = tmp_path / "runs"
     assert main(["experiment", "run", "--file", str(path), "--runs-dir", str(runs)]) == 1
-    _one_error_line(capsys, "'ch3-bs-rl', as a shipped experiment is named")
+    one_error_line(capsys, "'ch3-bs-rl', as a shipped experiment is named")
     assert not runs.exists()
 
 
@@ -140,10 +130,10 @@ def test_a_kept_file_that_is_not_an_experiment_is_named(
     kept.write_text(TINY_TOML)  # a valid experiment, but named "tiny"
     argv = ["experiment", "status", "mine", "--runs-dir", str(tmp_path), "--scale", "smoke"]
     assert main(argv) == 1
-    _one_error_line(capsys, str(kept), "defines experiment 'tiny', not 'mine'")
+    one_error_line(capsys, str(kept), "defines experiment 'tiny', not 'mine'")
     kept.write_text("name = ")
     assert main(argv) == 1
-    _one_error_line(capsys, str(kept), "not valid TOML")
+    one_error_line(capsys, str(kept), "not valid TOML")
 
 
 def test_bad_experiment_name_in_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -152,7 +142,7 @@ def test_bad_experiment_name_in_a_file(tmp_path: Path, capsys: pytest.CaptureFix
     path = tmp_path / "bad.toml"
     path.write_text(to_toml(data))
     assert main(["experiment", "run", "--file", str(path), "--runs-dir", str(tmp_path)]) == 1
-    _one_error_line(capsys, "'../escape'")
+    one_error_line(capsys, "'../escape'")
     assert not (tmp_path / "experiments").exists() and not (tmp_path.parent / "escape").exists()
 
 
@@ -168,10 +158,10 @@ def test_foreign_run_file_is_never_overwritten(
     assert main(["experiment", "status", *argv[2:], "--scale", "smoke"]) == 0
     assert f"unreadable: {target} holds a run with another config" in capsys.readouterr().out
     assert main([*argv, "--scale", "smoke", "--quiet"]) == 1
-    _one_error_line(capsys, str(target), "another config")
+    one_error_line(capsys, str(target), "another config")
     assert _files(runs) == before
     assert main(["experiment", "report", *argv[2:], "--scale", "smoke"]) == 1
-    _one_error_line(capsys, str(target))
+    one_error_line(capsys, str(target))
     assert _files(runs) == before
 
 
@@ -188,7 +178,7 @@ def test_condition_stored_with_other_settings(
     before = _files(runs)
     argv = ["experiment", "run", "--file", str(spec_path), "--runs-dir", str(runs)]
     assert main([*argv, "--scale", "smoke", "--quiet"]) == 1
-    _one_error_line(capsys, "'break-1' with other settings")
+    one_error_line(capsys, "'break-1' with other settings")
     assert _files(runs) == before
 
 

@@ -16,6 +16,7 @@ import pytest
 import gnp
 from app.cli import main
 from app.config import ImplementationSettings
+from app.controller_file import GnpController, load_controller
 from app.export import ExportError, export_run
 from app.export.graph import graph_dot, transition_counts, visit_sequence
 from app.export.replay import CLIENT_BUILD, PLAY_RECORDING
@@ -100,7 +101,9 @@ def test_export_writes_every_file_and_the_controller_steps_as_the_run(
         "implementation-fault.csv",
     ]
     assert str(out) in capsys.readouterr().out
-    cfg, loaded, settings = gnp.load_controller(out / "controller.json")
+    controller = load_controller(out / "controller.json")
+    assert isinstance(controller, GnpController)
+    cfg, loaded, settings = controller.cfg, controller.individual, controller.settings
     with RunReader(runs_dir / "tiny.h5") as reader:
         run_cfg, best = reader.best_genome(2)
         control_period = reader.config.training.control_period
@@ -118,7 +121,9 @@ def test_an_earlier_generation_exports_its_best_with_zero_weights(
     assert document["settings"]["generation"] == 0
     with RunReader(runs_dir / "tiny.h5") as reader:
         cfg, best = reader.best_genome(0)
-    _, loaded, _ = gnp.load_controller(out / "controller.json")
+    controller = load_controller(out / "controller.json")
+    assert isinstance(controller, GnpController)
+    loaded = controller.individual
     assert np.array_equal(_commands(cfg, loaded), _commands(cfg, best))
     text = (out / "graph.dot").read_text()
     _assert_dot_shape(text)

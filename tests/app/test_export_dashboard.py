@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import gnp
+from app.controller_file import load_controller
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
 from app.export import ExportError
@@ -34,7 +34,7 @@ def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path)
             "graph.dot",
         ]
         assert dashboard.status.text == f"exported tiny to {out}"
-        assert gnp.load_controller(out / "controller.json")[2]["generation"] == 1
+        assert load_controller(out / "controller.json").settings["generation"] == 1
         with dashboard.lock:
             set_value(tab.generation, -1)
             tab.export()

@@ -17,10 +17,10 @@ import pytest
 from lab_fixtures import assert_same_data, datasets, tiny_config
 
 import app.training as training
-import neuro
 import sim
 from app.arenas import arena_of
 from app.config import ImplementationSettings, RunConfig, build_config, to_toml
+from app.controller_file import NetController, load_controller
 from app.export import ExportError, export_replay, export_run
 from app.implementation import implement
 from app.lives import live_nets
@@ -158,7 +158,9 @@ def test_an_exported_net_is_loaded_bit_identical_and_lives_the_elites_life(
     tmp_path: Path, neat_run: Path
 ) -> None:
     folder = export_run(neat_run, tmp_path / "export")
-    net, arrays, about = neuro.load_net(folder / "controller.json")
+    controller = load_controller(folder / "controller.json")
+    assert isinstance(controller, NetController)
+    net, arrays, about = controller.net, controller.arrays, controller.settings
     with RunReader(neat_run) as run:
         stored = run.best_genome_arrays()
         elite = run.elite()

@@ -1,11 +1,18 @@
-"""What the browser tests share: scripts run in the page, and waiting on what it sent."""
+"""What the dashboard tests share: a dashboard in this process, waiting on its state, scripts
+run in the page, and waiting on what the page sent."""
 
 from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
+
+DEMO = Path(__file__).resolve().parents[2] / "saved_runs" / "demo.h5"
+"""The shipped demo run."""
 
 TIMEOUT_MS = 120_000
 """How long any state may take to show (generous: the page renders WebGL in software)."""
@@ -45,9 +52,10 @@ def viewport() -> dict[str, int]:
     return {"width": int(width), "height": int(height)}
 
 
-def open_page(browser: Any, url: str) -> Any:
-    """A new page on the dashboard at `url`, recording what it sends, once it shows its status."""
-    page = browser.new_page(viewport=viewport())
+def open_page(browser: Any, url: str, size: dict[str, int] | None = None) -> Any:
+    """A new page on the dashboard at `url` (`size`: its viewport, default `viewport()`),
+    recording what it sends, once it shows its status."""
+    page = browser.new_page(viewport=size or viewport())
     page.set_default_timeout(TIMEOUT_MS)
     page.add_init_script(RECORD_SENT)
     page.goto(url)
@@ -116,3 +124,41 @@ def wait_for_line(page: Any, prefix: str, pattern: str) -> re.Match[str]:
     match = re.search(pattern, found.json_value())
     assert match is not None
     return match
+
+
+@contextmanager
+def dashboard_in_process(runs_dir: Path, run: str | None = None) -> Iterator[Any]:
+    """A `Dashboard` of `runs_dir` (showing `run`) on a viser server of its own at a free port,
+    in this process, so that a test reads the scene from the server's own handles; stopped
+    after."""
+    import viser
+
+    from app.dashboard.app import Dashboard
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    board = Dashboard(server, runs_dir, run)
+    try:
+        yield board
+    finally:
+        board.stop()
+        server.stop()
+
+
+def until(condition: Callable[[], bool], seconds: float = 120.0) -> None:
+    """Wait until `condition` holds (polled every 50 ms)."""
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, "the server never reached the state"
+        time.sleep(0.05)
+
+
+def until_tab(board: Any, condition: Callable[[], bool], seconds: float = 120.0) -> None:
+    """Wait until `condition` holds, letting the Experiments tab put background work on the
+    page first each time (under the dashboard's lock)."""
+
+    def followed() -> bool:
+        with board.lock:
+            board.experiments.follow()
+            return condition()
+
+    until(followed, seconds)

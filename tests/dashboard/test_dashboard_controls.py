@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from page_helpers import dashboard_in_process, until
 
 import gnp
 from app import store
@@ -137,14 +138,6 @@ def test_genome_view_and_inspector(method: str) -> None:
     assert "start" in node_markdown(cfg, pop, 0)
 
 
-def wait_until(condition: object, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():  # type: ignore[operator]
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out")
-        time.sleep(0.1)
-
-
 def generations_done(path: Path) -> int:
     """Generations a run file holds (0 while it does not exist yet)."""
     if not path.exists():
@@ -160,17 +153,17 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
     out = tmp_path / "run.h5"
     job = TrainingJob(config, out, workers=1)
     try:
-        wait_until(lambda: generations_done(out) >= 1, 120)
+        until(lambda: generations_done(out) >= 1, 120)
         job.pause()
         assert job.state == "paused"
-        wait_until(lambda: job.held, 60)  # the generation under way ends; then the run waits
+        until(lambda: job.held, 60)  # the generation under way ends; then the run waits
         held, paused_for = generations_done(out), job.elapsed()
         time.sleep(0.3)
         assert job.held and generations_done(out) == held  # the run really is held
         assert job.elapsed() == paused_for  # pauses do not count toward the ETA
         job.resume()
         assert job.state == "running"
-        wait_until(lambda: generations_done(out) > held, 60)
+        until(lambda: generations_done(out) > held, 60)
         job.stop()
         job.wait()
         assert job.state == "stopped" and not job.active
@@ -193,39 +186,24 @@ def test_a_failing_training_reports_its_error(tmp_path: Path) -> None:
 
 
 def test_an_empty_or_junk_runs_dir_still_serves_and_says_so(tmp_path: Path) -> None:
-    import viser
-
-    from app.dashboard.app import Dashboard
-
     (tmp_path / "junk.h5").write_bytes(b"not an HDF5 file")
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    dashboard = Dashboard(server, tmp_path)
-    try:
+    with dashboard_in_process(tmp_path) as dashboard:
         assert "no runs in" in dashboard.status.text
         assert "an untrained random CS individual" in dashboard.show.description.content
         assert "junk | ⚠ unreadable" in dashboard.runs.table.content
         session = dashboard.stage.session
         assert session is not None
-        wait_until(lambda: session.robots[0].t > 0, 30)  # the live loop runs
+        until(lambda: session.robots[0].t > 0, 30)  # the live loop runs
         assert (tmp_path / "junk.h5").read_bytes() == b"not an HDF5 file"
-    finally:
-        dashboard.stop()
-        server.stop()
 
 
 def test_the_loop_plays_the_run_on_show_and_a_fault_turns_new_lives_off(runs_dir: Path) -> None:
-    import viser
-
-    from app.dashboard.app import Dashboard
-
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    dashboard = Dashboard(server, runs_dir, "cs")
-    try:
+    with dashboard_in_process(runs_dir, "cs") as dashboard:
         stage = dashboard.stage
         show = stage.show
         assert show is not None and show.life == 600 and show.start == 0  # the run's T
         stage.speed = 200.0
-        wait_until(lambda: dashboard.show.start.value == "1", 30)  # a new life, echoed
+        until(lambda: dashboard.show.start.value == "1", 30)  # a new life, echoed
         session = stage.session
         assert session is not None and session.robots[0].t < 600
         dashboard.status.guarded(None, dashboard.faults.break_now)  # sensors 2,3 by default
@@ -233,20 +211,12 @@ def test_the_loop_plays_the_run_on_show_and_a_fault_turns_new_lives_off(runs_dir
         assert session.snapshot()[0].broken[[2, 3]].all()
         dashboard.status.guarded(None, lambda: dashboard.show.inspect(99))
         assert dashboard.status.text == "⚠ node must be in 0..60, got 99"
-    finally:
-        dashboard.stop()
-        server.stop()
 
 
 def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Path) -> None:
-    import viser
-
-    from app.dashboard.app import Dashboard
     from app.dashboard.tab_faults import SCHEDULED
 
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    dashboard = Dashboard(server, tmp_path)
-    try:
+    with dashboard_in_process(tmp_path) as dashboard:
         faults = dashboard.faults
         rate = {path[-1]: control for path, control in faults.rates.controls.items()}
         # The controls start at the implementation phase's defaults, T − t' at 3000 − 500.
@@ -278,9 +248,6 @@ def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Pat
         dashboard.status.guarded(None, faults.break_now)  # the world refuses sensor 9
         assert dashboard.status.text == "⚠ sensor index 9 is not in 0..7"
         assert dashboard.stage.learning is learning  # nothing applied
-    finally:
-        dashboard.stop()
-        server.stop()
 
 
 @pytest.mark.parametrize(
@@ -303,14 +270,9 @@ def test_training_buttons_follow_the_jobs_state(state: str | None, enabled: set[
 
 
 def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
-    import viser
-
     from app.config import train_settings
-    from app.dashboard.app import Dashboard
 
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    dashboard = Dashboard(server, tmp_path)
-    try:
+    with dashboard_in_process(tmp_path) as dashboard:
         train = dashboard.train
         controls = train.settings.controls
         shown = {s.path for s in train_settings() if not s.optional}
@@ -338,6 +300,3 @@ def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
             True,
             True,
         ]
-    finally:
-        dashboard.stop()
-        server.stop()

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import re
 import shutil
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from experiment_fixtures import copies_toml
+from page_helpers import dashboard_in_process, until_tab
 
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
@@ -229,36 +229,17 @@ def test_a_run_that_is_not_adaptive_has_one_look(job: Any, spec: ExperimentSpec)
 def dashboard(job: Any, tmp_path: Path) -> Iterator[Any]:
     """The dashboard on a copy of the twins' finished runs, kept as a saved experiment (its
     folder keeps its file, so the tab can start it)."""
-    import viser
-
-    from app.dashboard.app import Dashboard
-
     runs = tmp_path / "runs"
     shutil.copytree(job.runs_dir, runs)
     layout.keep_definition(runs, "twins", TWINS_TOML)
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    board = Dashboard(server, runs)
-    board.experiments.cluster = InProcessCluster()
-    yield board
-    board.stop()
-    server.stop()
-
-
-def until(board: Any, condition: Callable[[], bool], seconds: float = 120.0) -> None:
-    """Wait until `condition` holds, letting the tab put background work on the page."""
-    deadline = time.monotonic() + seconds
-    while True:
-        with board.lock:
-            board.experiments.follow()
-            if condition():
-                return
-        assert time.monotonic() < deadline, "the tab never reached the state"
-        time.sleep(0.05)
+    with dashboard_in_process(runs) as board:
+        board.experiments.cluster = InProcessCluster()
+        yield board
 
 
 def start(board: Any, adaptive: bool, stage: float, most: float) -> None:
     tab = board.experiments
-    until(board, lambda: "twins" in tab.entries)
+    until_tab(board, lambda: "twins" in tab.entries)
     with board.lock:
         tab.experiment.value, tab.scale.value = "twins", SCALE
         tab.adaptive.value, tab.stage_seeds.value, tab.max_seeds.value = adaptive, stage, most
@@ -294,12 +275,12 @@ def test_an_adaptive_rerun_from_the_tab_shows_its_stages_and_verdicts(dashboard:
     assert dashboard.status.text == (
         "experiment twins at smoke started adaptively (looks at (2, 4) seeds per arm)"
     )
-    until(dashboard, lambda: tab.job.reported)
+    until_tab(dashboard, lambda: tab.job.reported)
     assert dashboard.status.text == "experiment twins at smoke finished"
     assert "finished: summary written after 2 look(s), 4 seeds per arm" in (
         tab.progress_text.content
     )
     assert not tab.cluster.started  # every run of every look was done: no cluster needed
-    until(dashboard, lambda: "**Stages** (adaptive: 2 of 2 looks made" in tab.stages.content)
-    until(dashboard, lambda: "**The thesis's questions** (2)" in tab.verdicts.content)
+    until_tab(dashboard, lambda: "**Stages** (adaptive: 2 of 2 looks made" in tab.stages.content)
+    until_tab(dashboard, lambda: "**The thesis's questions** (2)" in tab.verdicts.content)
     assert f"| {whole('2, 2')} | {badge('ruled out')} |" in tab.verdicts.content  # "far", at look 1

@@ -11,8 +11,7 @@ import dataclasses
 import re
 import shutil
 import threading
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from importlib import resources
 from pathlib import Path
 from types import SimpleNamespace
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from page_helpers import dashboard_in_process, until_tab
 
 from app import store
 from app.dashboard import experiment_view as ev
@@ -235,30 +235,11 @@ def test_run_paths_cannot_escape_the_runs_dir(
 
 @pytest.fixture
 def dashboard(runs: Path, spec: ExperimentSpec) -> Iterator[Any]:
-    import viser
-
-    from app.dashboard.app import Dashboard
-
     save_other(runs, spec)
     (runs / "experiments" / "broken").mkdir()  # keeps a file that is not an experiment
     (runs / "experiments" / "broken" / layout.DEFINITION).write_text("name = ")
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    board = Dashboard(server, runs)
-    yield board
-    board.stop()
-    server.stop()
-
-
-def until(board: Any, condition: Callable[[], bool], seconds: float = 120.0) -> None:
-    """Wait until `condition` holds, letting the tab put background work on the page."""
-    deadline = time.monotonic() + seconds
-    while True:
-        with board.lock:
-            board.experiments.follow()
-            if condition():
-                return
-        assert time.monotonic() < deadline, "the tab never reached the state"
-        time.sleep(0.05)
+    with dashboard_in_process(runs) as board:
+        yield board
 
 
 def choose(board: Any, experiment: str, scale: str) -> None:
@@ -270,9 +251,9 @@ def choose(board: Any, experiment: str, scale: str) -> None:
 
 def test_the_tab_shows_an_experiment_and_loads_its_run_on_the_stage(dashboard: Any) -> None:
     tab = dashboard.experiments
-    until(dashboard, lambda: "| ch3-bs-rl | 4/4 |" in tab.table.content)
+    until_tab(dashboard, lambda: "| ch3-bs-rl | 4/4 |" in tab.table.content)
     choose(dashboard, NAME, SCALE)
-    until(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)
+    until_tab(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)
     assert tab.run.options == ("BS-seed0", "BS-seed1", "RL-seed0", "RL-seed1")
     assert tab.condition.options == tuple(c.name for c in load_shipped(NAME).conditions)
     assert [s["label"] for s in tab.fitness.series][1::3] == ["BS (n = 2)", "RL (n = 2)"]
@@ -289,7 +270,7 @@ def test_the_tab_shows_an_experiment_and_loads_its_run_on_the_stage(dashboard: A
     assert dashboard.runs.loaded.path == Path(ev.run_file(tab.runs_dir, NAME, SCALE, "RL-seed1"))
     # The saved one: shown from its summary, with no runs to load.
     choose(dashboard, "mine", SCALE)
-    until(dashboard, lambda: "**mine** (" in tab.about.content)
+    until_tab(dashboard, lambda: "**mine** (" in tab.about.content)
     assert tab.run.options == (ev.NO_RUNS,)
     dashboard.status.guarded(None, tab.load_run)
     assert dashboard.status.text == "⚠ choose an experiment and one of its runs first"
@@ -306,7 +287,7 @@ def test_the_tab_shows_an_experiment_and_loads_its_run_on_the_stage(dashboard: A
 )
 def test_refused_starts_say_why(dashboard: Any, experiment: str, scale: str, message: str) -> None:
     tab = dashboard.experiments
-    until(dashboard, lambda: "mine" in tab.entries)
+    until_tab(dashboard, lambda: "mine" in tab.entries)
     choose(dashboard, experiment, scale)
     dashboard.status.guarded(None, tab.start)
     assert dashboard.status.text.startswith(f"⚠ {message}")
@@ -315,7 +296,7 @@ def test_refused_starts_say_why(dashboard: Any, experiment: str, scale: str, mes
 
 def test_one_experiment_at_a_time(dashboard: Any) -> None:
     tab = dashboard.experiments
-    until(dashboard, lambda: NAME in tab.entries)
+    until_tab(dashboard, lambda: NAME in tab.entries)
     running = SimpleNamespace(active=True, spec=SimpleNamespace(name="ch5-cs-bs-rl"), scale="small")
     tab.job = running
     choose(dashboard, NAME, SCALE)
@@ -331,14 +312,14 @@ def test_starting_a_finished_experiment_writes_its_summary_without_a_cluster(
     tab = dashboard.experiments
     summary = layout.summary_path(tab.runs_dir, NAME, SCALE)
     summary.unlink()
-    until(dashboard, lambda: NAME in tab.entries)
+    until_tab(dashboard, lambda: NAME in tab.entries)
     choose(dashboard, NAME, SCALE)
     dashboard.status.guarded(None, tab.start)
-    until(dashboard, lambda: tab.job.reported)
+    until_tab(dashboard, lambda: tab.job.reported)
     assert dashboard.status.text == "experiment ch3-bs-rl at smoke finished"
     assert re.search(r"finished: summary written · 4/4 runs done", tab.progress_text.content)
     assert summary.exists() and not tab.cluster.started
-    until(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)  # new summary
+    until_tab(dashboard, lambda: VERDICT.search(tab.verdicts.content) is not None)  # new summary
 
 
 def test_a_read_that_lands_after_the_tab_closed_stays_off_the_page(
@@ -357,9 +338,9 @@ def test_a_read_that_lands_after_the_tab_closed_stays_off_the_page(
         return build_view(entry, scale, *args)
 
     monkeypatch.setattr(ev, "build_view", slow_build_view)
-    until(dashboard, lambda: NAME in tab.entries)
+    until_tab(dashboard, lambda: NAME in tab.entries)
     choose(dashboard, NAME, SCALE)
-    until(dashboard, reading.is_set)
+    until_tab(dashboard, reading.is_set)
     with dashboard.lock:
         tab.close()
         shown, about = tab.view, tab.about.content

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from page_helpers import dashboard_in_process
 
 import gnp
 import sim
@@ -118,16 +119,9 @@ def test_the_simplified_graph_draws_what_the_robot_runs(server: object) -> None:
 @pytest.fixture
 def dashboard(tmp_path: Path) -> Iterator[object]:
     """A dashboard on an untrained random individual, its loop paused (the tests step it)."""
-    import viser
-
-    from app.dashboard.app import Dashboard
-
-    served = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    board = Dashboard(served, tmp_path)
-    board.stage.playing = False
-    yield board
-    board.stop()
-    served.stop()
+    with dashboard_in_process(tmp_path) as board:
+        board.stage.playing = False
+        yield board
 
 
 def show_random(board: object, method: str) -> LiveSession:

@@ -11,43 +11,35 @@ from __future__ import annotations
 
 import re
 import shutil
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from page_helpers import choose, field, open_page, press, wait_for_line
+from page_helpers import (
+    DEMO,
+    choose,
+    dashboard_in_process,
+    field,
+    open_page,
+    press,
+    until,
+    wait_for_line,
+)
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
-
-DEMO = Path(__file__).resolve().parents[2] / "saved_runs" / "demo.h5"
-
-
-def until(condition: Callable[[], bool], seconds: float = 120.0) -> None:
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, "the server never reached the state"
-        time.sleep(0.05)
 
 
 @pytest.fixture(scope="module")
 def served(net_runs_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     """The dashboard, in this process, showing the demo (GNP) beside a tiny trained net run."""
-    import viser
-
-    from app.dashboard.app import Dashboard
-
     runs = tmp_path_factory.mktemp("network-runs")
     shutil.copyfile(DEMO, runs / "demo.h5")
     shutil.copyfile(net_runs_dir / "elman.h5", runs / "elman.h5")
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    dashboard = Dashboard(server, runs, "demo")
-    dashboard.stage.speed = 60.0
-    yield dashboard
-    dashboard.stop()
-    server.stop()
+    with dashboard_in_process(runs, "demo") as dashboard:
+        dashboard.stage.speed = 60.0
+        yield dashboard
 
 
 def test_a_neural_run_on_the_stage_shows_its_network(

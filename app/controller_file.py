@@ -1,0 +1,132 @@
+"""Controller files: one trained GNP individual or neural net as a JSON document, read and written.
+
+A document is an envelope, written and read here for both brain families, around a body that
+`gnp` or `neuro` converts (they import neither each other nor `app`):
+
+    {"format": "gnp-lab-controller", "version": 1, "gnp": {...}, "settings": {...}, "nodes": [...]}
+    {"format": "gnp-lab-neural-controller", "version": 1, "net": {...}, "settings": {...},
+     "arrays": {...}}
+
+The schema is in docs/controller-format.md. `settings` says what the lab ran the controller with
+(free form). Floats are written as Python's shortest round-trip repr, so `load_controller` gives
+back a controller that steps bit-identically to the saved one.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import gnp
+import neuro
+
+
+class ControllerFileError(ValueError):
+    """A controller file that cannot be written or read (the message names the problem)."""
+
+
+@dataclass(frozen=True)
+class GnpController:
+    """One GNP individual (a 1-individual population, Q tables included) and its settings."""
+
+    cfg: gnp.GnpConfig
+    individual: gnp.Population
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class NetController:
+    """One neural net (arrays with a leading axis of 1) and its settings."""
+
+    net: neuro.NetConfig
+    arrays: dict[str, np.ndarray]
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+Controller = GnpController | NetController
+
+
+@dataclass(frozen=True)
+class _Format:
+    """One family's envelope: its format name and version, the keys of its config and body."""
+
+    name: str
+    version: int
+    config_key: str
+    body_key: str
+
+
+_GNP = _Format("gnp-lab-controller", 1, "gnp", "nodes")
+_NET = _Format("gnp-lab-neural-controller", 1, "net", "arrays")
+FORMATS = {form.name: form for form in (_GNP, _NET)}
+
+
+def save_controller(path: str | Path, controller: Controller) -> Path:
+    """Write `controller` as `path` (JSON, one line a value).
+
+    Raises:
+        ControllerFileError: the controller is not one individual or net (named).
+    """
+    config: dict[str, Any]
+    body: Any
+    try:
+        if isinstance(controller, GnpController):
+            form, (config, body) = _GNP, gnp.controller_body(controller.cfg, controller.individual)
+        else:
+            form, (config, body) = _NET, neuro.net_body(controller.net, controller.arrays)
+    except (gnp.GnpError, neuro.NeuroError) as error:
+        raise ControllerFileError(str(error)) from None
+    document = {
+        "format": form.name,
+        "version": form.version,
+        form.config_key: config,
+        "settings": controller.settings,
+        form.body_key: body,
+    }
+    path = Path(path)
+    path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def load_controller(path: str | Path) -> Controller:
+    """Read a controller file of either family, checked: a `GnpController` or a `NetController`.
+
+    Raises:
+        ControllerFileError: the file is missing, not JSON, not a controller of a known format
+            and version, or holds an invalid genome or net (the message names the problem).
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ControllerFileError(f"controller file not found: {path}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ControllerFileError(f"{path} is not a JSON controller file: {error}") from None
+    name = document.get("format") if isinstance(document, dict) else None
+    form = FORMATS.get(name) if isinstance(name, str) else None
+    if form is None:
+        raise ControllerFileError(
+            f"{path} is not a gnp-lab controller (no format {' or '.join(map(repr, FORMATS))})"
+        )
+    if document.get("version") != form.version:
+        raise ControllerFileError(
+            f"{path} is {form.name} version {document.get('version')!r}; "
+            f"this gnp-lab reads version {form.version}"
+        )
+    try:
+        config, body = document[form.config_key], document[form.body_key]
+        settings = dict(document.get("settings", {}))
+        if form is _GNP:
+            return GnpController(*gnp.controller_from_body(config, body), settings)
+        return NetController(*neuro.net_from_body(config, body), settings)
+    except (gnp.GnpError, neuro.NeuroError) as error:
+        raise ControllerFileError(f"{path}: {error}") from None
+    except (KeyError, TypeError, ValueError) as error:
+        first_line = str(error).splitlines()[0] if str(error) else ""
+        raise ControllerFileError(
+            f"{path}: malformed controller ({type(error).__name__}: {first_line})"
+        ) from None
