@@ -14,7 +14,7 @@ import viser
 import sim
 from app.dashboard import geometry as geo
 from app.dashboard.genome import GenomeView
-from app.dashboard.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
+from app.dashboard.graph_layout import GraphLayout, graph_layout
 from app.dashboard.graph_view import (
     FULL,
     GRAPH_MODES,
@@ -24,6 +24,7 @@ from app.dashboard.graph_view import (
     graph_counts,
 )
 from app.live import RobotSnapshot
+from gnp.config import JUDGMENT, START
 
 ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
 """Robot 1 blue, robot 2 orange (also their reward curves)."""
