@@ -28,10 +28,10 @@ from pydantic import (
 import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
-from gnp import EvolutionConfig, GnpConfig, Method, Schedule
+from gnp import TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import IR_MAX, N_SENSORS, FaultMode, Physics
+from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, Physics
 from sim.arena import ArenaSpec
 
 ScheduleKind = Literal["fixed", "changing"]
@@ -75,7 +75,7 @@ class ControllerSettings(_Frozen):
         """Sub nodes per node, resolving the method's thesis default."""
         if self.n_sub is not None:
             return self.n_sub
-        return 4 if self.method == "RL" else 2
+        return TRAITS[self.method].default_n_sub
 
     def gnp_config(self) -> GnpConfig:
         """The brain's config for these settings."""
@@ -108,7 +108,9 @@ class TrainingSettings(_Frozen):
     noise_sigma: float = Field(
         default=0.0, ge=0.0, le=IR_MAX, description="sensor noise σ [reading]"
     )
-    control_period: float = Field(default=0.064, gt=0.0, le=1.0, description="control step [s]")
+    control_period: float = Field(
+        default=CONTROL_PERIOD_S, gt=0.0, le=1.0, description="control step [s]"
+    )
     physics: Physics = Field(
         default="pymunk",
         description="the world's physics in both phases, like control_period: pymunk (the "
