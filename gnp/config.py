@@ -12,7 +12,8 @@ from gnp.methods import TRAITS, Method, MethodTraits
 
 #: Node types (Table 2.1 of the thesis): NT_i.
 START, JUDGMENT, PROCESSING = 0, 1, 2
-#: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (DESIGN.md §3).
+#: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (docs/decisions.md,
+#: "A credit skip costs one time unit").
 NODE_COST = {START: 0, JUDGMENT: 1, PROCESSING: 5}
 SKIP_COST = 1
 #: Time units a controller may spend per world step.

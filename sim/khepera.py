@@ -1,4 +1,4 @@
-"""Khepera I constants (DESIGN.md §2, after Webots' ``Khepera1.proto``).
+"""Khepera I constants, after Webots' ``Khepera1.proto`` (docs/decisions.md, "The robot").
 
 Units: millimetres, seconds, radians. Body frame: x forward, y left.
 """
