@@ -115,13 +115,6 @@ def _build(spec_json: str) -> sim.Arena:
     return arena_from_spec(spec, f"arena {spec.name!r}")
 
 
-def arena_label(spec: ArenaSpec) -> str:
-    """A short name for messages: the shipped name, or `NAME (inline)`."""
-    if spec.name in sim.ARENA_NAMES and spec == shipped_spec(spec.name):
-        return spec.name
-    return f"{spec.name} (inline)"
-
-
 def toml_arena(spec: ArenaSpec) -> str:
     """An arena as a TOML value: a shipped arena's name, else an inline table."""
     if spec.name in sim.ARENA_NAMES and spec == shipped_spec(spec.name):

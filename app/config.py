@@ -29,10 +29,10 @@ import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
 from app.fields import Setting, sections, setting, settings_of
-from gnp import EvolutionConfig, GnpConfig, Method, Schedule
+from gnp import TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import IR_MAX, N_SENSORS, FaultMode, Physics
+from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, Physics
 from sim.arena import ArenaSpec
 
 ScheduleKind = Literal["fixed", "changing"]
@@ -77,7 +77,7 @@ class ControllerSettings(_Frozen):
         """Sub nodes per node, resolving the method's thesis default."""
         if self.n_sub is not None:
             return self.n_sub
-        return 4 if self.method == "RL" else 2
+        return TRAITS[self.method].default_n_sub
 
     def gnp_config(self) -> GnpConfig:
         """The brain's config for these settings."""
@@ -112,7 +112,7 @@ class TrainingSettings(_Frozen):
     noise_sigma: float = setting(
         0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
     )
-    control_period: float = setting(0.064, "control step", "s", gt=0.0, le=1.0)
+    control_period: float = setting(CONTROL_PERIOD_S, "control step", "s", gt=0.0, le=1.0)
     physics: Physics = Field(
         default="pymunk",
         description="the world's physics in both phases, like control_period: pymunk (the "

@@ -70,11 +70,6 @@ def default_name(settings: ImplementationSettings) -> str:
     return f"{fault}-{settings.schedule}{noise}"
 
 
-def epsilon_alpha_at(settings: ImplementationSettings, t: int) -> tuple[float, float]:
-    """(ε, α) at step t: fixed before the fault step, then the configured schedule."""
-    return settings.learning().rates(t, settings.fault_step)
-
-
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
     """(T,) ε and (T,) α of every step."""
     learning = settings.learning()

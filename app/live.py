@@ -22,7 +22,7 @@ import sim
 from app.config import LearningSettings
 from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
 from app.rollout import Batch
-from sim import FaultMode
+from sim import CONTROL_PERIOD_S, FaultMode
 
 
 class LiveError(ValueError):
@@ -59,10 +59,6 @@ class Ring:
         return np.concatenate([self._data[self._next :], self._data[: self._next]])
 
 
-VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
-"""Columns of a robot's visit history: one row per node executed."""
-
-
 @dataclass(frozen=True)
 class RobotSnapshot:
     """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
@@ -82,7 +78,7 @@ class RobotSnapshot:
     rewards: np.ndarray  # (H,) reward per step
     broken_counts: np.ndarray  # (H,) number of broken sensors at each step
     fault_steps: tuple[int, ...]  # steps at which sensors broke (within the history)
-    visits: np.ndarray  # (V, 5) int: node, sub, branch, u, skipped; oldest first
+    visits: np.ndarray  # (V, 5) int: the `gnp.VISIT_FIELDS` of each visit; oldest first
     current_node: int
     epsilon: float
     alpha: float
@@ -133,7 +129,7 @@ class LiveRobot:
         self._reward_steps = Ring(self.history_capacity, (), np.int64)
         self._rewards = Ring(self.history_capacity)
         self._broken_counts = Ring(self.history_capacity, (), np.int64)
-        self._visits = Ring(self.visit_capacity, (len(VISIT_FIELDS),), np.int64)
+        self._visits = Ring(self.visit_capacity, (len(gnp.VISIT_FIELDS),), np.int64)
         if isinstance(self.cfg, gnp.GnpConfig):
             assert isinstance(self.population, gnp.Population)
             self._batch = Batch(self.world, self.cfg, self.population, np.array([self.seed]))
@@ -184,7 +180,7 @@ class LiveRobot:
             self._context, self._activation = self._activation, trace.activation[0].copy()
             return
         count = int(trace.count[0])
-        columns = [trace.node, trace.sub, trace.branch, trace.u, trace.skipped]
+        columns = [getattr(trace, f) for f in gnp.VISIT_FIELDS]
         for k in range(count):
             self._visits.append([int(column[0, k]) for column in columns])
         if count:
@@ -266,7 +262,7 @@ class LiveSession:
         seed: int = 0,
         noise_sigma: float = 0.0,
         learning: LearningSettings | None = None,
-        control_period: float = 0.064,
+        control_period: float = CONTROL_PERIOD_S,
     ) -> None:
         if not 1 <= len(robots) <= 2:
             raise LiveError(f"a live session shows one or two robots, got {len(robots)}")

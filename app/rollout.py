@@ -92,7 +92,7 @@ class GnpControllers:
         trace: bool,
         second_stage: bool,
     ) -> tuple[np.ndarray, gnp.StepTrace | None]:
-        result = gnp.step(
+        return gnp.step(
             self.cfg,
             self.population,
             self.state,
@@ -104,7 +104,6 @@ class GnpControllers:
             trace=trace,
             second_stage=second_stage,
         )
-        return result if isinstance(result, tuple) else (result, None)
 
     def reset_episode(self) -> None:
         gnp.reset_episode(self.state)

@@ -10,12 +10,10 @@ Dask reads them (see docs/security.md).
 from __future__ import annotations
 
 import ipaddress
-import secrets
 import socket
 from typing import Any
 
 LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
-TOKEN_BYTES = 24  # 32 URL-safe characters
 
 
 class AddressError(ValueError):
@@ -79,8 +77,3 @@ def is_loopback(host: str) -> bool:
     except (socket.gaierror, UnicodeError):
         return False
     return bool(infos) and all(ipaddress.ip_address(i[4][0]).is_loopback for i in infos)
-
-
-def new_token() -> str:
-    """A random URL-safe token for the dashboard's address."""
-    return secrets.token_urlsafe(TOKEN_BYTES)

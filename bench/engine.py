@@ -48,7 +48,7 @@ def paired_blocks(method: str, n: int, steps: int, block: int) -> tuple[float, f
         for t in range(block):
             observed = full.observe()
             t0 = clock()
-            commands[t] = gnp.step(cfg, pop, state, observed, reward, 0.1, 0.1)
+            commands[t], _ = gnp.step(cfg, pop, state, observed, reward, 0.1, 0.1)
             in_engine += clock() - t0
             full.step(commands[t])
             reward = sim.reward_terms(full.sense(), commands[t])["reward"]

@@ -4,19 +4,14 @@ See docs/architecture.md (the gnp section) for the contract and docs/decisions.m
 choices the thesis leaves open.
 """
 
-from gnp.config import (
-    METHODS,
-    EvolutionConfig,
-    GnpConfig,
-    GnpError,
-    Method,
-    Schedule,
-)
+from gnp.config import EvolutionConfig, GnpConfig, GnpError, Schedule
 from gnp.controller_file import controller_body, controller_from_body
 from gnp.engine import (
     TRACE_DTYPE,
     TRACE_FIELDS,
+    VISIT_FIELDS,
     EngineState,
+    StepResult,
     StepTrace,
     init_state,
     reset_episode,
@@ -24,6 +19,7 @@ from gnp.engine import (
     trace_shapes,
 )
 from gnp.evolution import crossover, evolve, mutate, nonuniform_mutation, tournament
+from gnp.methods import METHODS, TRAITS, Method, MethodTraits
 from gnp.population import (
     Population,
     check_population,
@@ -46,13 +42,17 @@ __all__ = [
     "METHODS",
     "TRACE_DTYPE",
     "TRACE_FIELDS",
+    "TRAITS",
+    "VISIT_FIELDS",
     "EngineState",
     "EvolutionConfig",
     "GnpConfig",
     "GnpError",
     "Method",
+    "MethodTraits",
     "Population",
     "Schedule",
+    "StepResult",
     "StepTrace",
     "check_population",
     "concat",

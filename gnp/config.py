@@ -8,12 +8,12 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-#: The learning methods: GNP-RL (sub node selection), GNP-TSRL with branch selection or credit.
-Method = Literal["RL", "BS", "CS"]
-METHODS: tuple[Method, ...] = ("RL", "BS", "CS")
+from gnp.methods import TRAITS, Method, MethodTraits
+
 #: Node types (Table 2.1 of the thesis): NT_i.
 START, JUDGMENT, PROCESSING = 0, 1, 2
-#: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (DESIGN.md §3).
+#: Time units d_i charged per node type (Table 2.1); a credit skip costs 1 (docs/decisions.md,
+#: "A credit skip costs one time unit").
 NODE_COST = {START: 0, JUDGMENT: 1, PROCESSING: 5}
 SKIP_COST = 1
 #: Time units a controller may spend per world step.
@@ -22,6 +22,8 @@ STEP_BUDGET = 5
 N_SENSORS = 8
 N_WHEELS = 2
 RIGHT_WHEEL, LEFT_WHEEL = 0, 1
+WHEEL_NAMES = ("P0 right", "P1 left")
+"""A processing node's wheel, named by its function (0 = RIGHT_WHEEL, 1 = LEFT_WHEEL)."""
 #: Parameter ranges: judgment β ≤ α in 0..1023, processing wheel speed in −10..10.
 SENSOR_MAX = 1023
 SPEED_MAX = 10
@@ -63,10 +65,15 @@ class GnpConfig(BaseModel):
         """All nodes, the start node included."""
         return 1 + self.n_judgment + self.n_processing
 
+    @property
+    def traits(self) -> MethodTraits:
+        """What the method does (`gnp.methods.TRAITS`)."""
+        return TRAITS[self.method]
+
     @cached_property
     def n_conn_branches(self) -> int:
         """Size of the branch-connection axis of `conn` and `q_bs`: U for BS, else 1."""
-        return self.n_branch if self.method == "BS" else 1
+        return self.traits.n_conn_branches(self.n_branch)
 
     @cached_property
     def node_type(self) -> np.ndarray:
@@ -77,16 +84,9 @@ class GnpConfig(BaseModel):
         types.setflags(write=False)
         return types
 
-    @cached_property
-    def node_cost(self) -> np.ndarray:
-        """(n_nodes,) int32 time units d_i per node (Table 2.1)."""
-        cost = np.array([NODE_COST[int(t)] for t in self.node_type], dtype=np.int32)
-        cost.setflags(write=False)
-        return cost
-
     def __eq__(self, other: object) -> bool:
         # By settings: pydantic's default compares __dict__, which also holds the cached
-        # arrays above and cannot be compared with ==.
+        # array above and cannot be compared with ==.
         return isinstance(other, GnpConfig) and self.model_dump() == other.model_dump()
 
     def __hash__(self) -> int:

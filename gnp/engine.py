@@ -18,12 +18,13 @@ node it leads to (Eq. 3.2's r_{t+1}).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, NoReturn, overload
+from typing import NoReturn, TypeAlias
 
 import numpy as np
 
-from gnp.config import GnpConfig, GnpError
-from gnp.kernel import METHOD_CODE, record_layout, step_kernel
+from gnp.config import N_SENSORS, N_WHEELS, GnpConfig, GnpError
+from gnp.kernel import record_layout, step_kernel
+from gnp.methods import TRAITS
 from gnp.population import Population, record_dtype
 from gnp.rng import seed_states
 
@@ -87,9 +88,17 @@ class StepTrace:
     count: np.ndarray
 
 
-TRACE_FIELDS = ("node", "sub", "branch", "u", "skipped", "count")
+VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
+"""What a `StepTrace` holds of each visit, in its fields' order (the store's and the kernel's)."""
+TRACE_FIELDS = (*VISIT_FIELDS, "count")
 """The fields of a `StepTrace`, in the store's order."""
 TRACE_DTYPE = np.int32
+
+
+StepResult: TypeAlias = tuple[np.ndarray, StepTrace | None]
+"""What `step` returns, always: `commands, trace = gnp.step(...)`, the (N, 2) wheel commands
+and the StepTrace when `step` was asked for it, else None. A plain tuple, as Gymnasium's
+`Env.step` returns: building a named tuple added ~13% to a one-controller call."""
 
 
 def trace_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
@@ -105,7 +114,7 @@ def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineS
         raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
     walk = np.full((n, 11), -1, np.int32)
     walk[:, 0] = 0
-    return EngineState(walk=walk, wheels=np.zeros((n, 2), np.float64), rng=states)
+    return EngineState(walk=walk, wheels=np.zeros((n, N_WHEELS), np.float64), rng=states)
 
 
 def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = None) -> None:
@@ -188,73 +197,11 @@ def _floats(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
     return value
 
 
+# Each method's `MethodTraits.kernel_code`, looked up as cheaply as the hot path needs.
+_KERNEL_CODE = {method: traits.kernel_code for method, traits in TRAITS.items()}
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
 _NO_TRACE = np.empty((5, 0, 0), np.int32)
 _NO_COUNT = np.empty(0, np.int32)
-
-
-@overload
-def step(
-    cfg: GnpConfig,
-    pop: Population,
-    state: EngineState,
-    observations: np.ndarray,
-    reward: np.ndarray,
-    epsilon: float | np.ndarray,
-    alpha: float | np.ndarray,
-    learn: bool = ...,
-    trace: Literal[False] = ...,
-    *,
-    second_stage: bool = ...,
-) -> np.ndarray: ...
-
-
-@overload
-def step(
-    cfg: GnpConfig,
-    pop: Population,
-    state: EngineState,
-    observations: np.ndarray,
-    reward: np.ndarray,
-    epsilon: float | np.ndarray,
-    alpha: float | np.ndarray,
-    learn: bool,
-    trace: Literal[True],
-    *,
-    second_stage: bool = ...,
-) -> tuple[np.ndarray, StepTrace]: ...
-
-
-@overload
-def step(
-    cfg: GnpConfig,
-    pop: Population,
-    state: EngineState,
-    observations: np.ndarray,
-    reward: np.ndarray,
-    epsilon: float | np.ndarray,
-    alpha: float | np.ndarray,
-    learn: bool = ...,
-    *,
-    trace: Literal[True],
-    second_stage: bool = ...,
-) -> tuple[np.ndarray, StepTrace]: ...
-
-
-@overload
-def step(
-    cfg: GnpConfig,
-    pop: Population,
-    state: EngineState,
-    observations: np.ndarray,
-    reward: np.ndarray,
-    epsilon: float | np.ndarray,
-    alpha: float | np.ndarray,
-    learn: bool = ...,
-    trace: bool = ...,
-    *,
-    second_stage: bool = ...,
-) -> np.ndarray | tuple[np.ndarray, StepTrace]: ...
 
 
 def step(
@@ -269,7 +216,7 @@ def step(
     trace: bool = False,
     *,
     second_stage: bool = True,
-) -> np.ndarray | tuple[np.ndarray, StepTrace]:
+) -> StepResult:
     """Advance N controllers by one world step.
 
     Args:
@@ -281,24 +228,25 @@ def step(
         epsilon: ε of ε-greedy, scalar or (N,).
         alpha: learning rate α, scalar or (N,).
         learn: apply Sarsa updates.
-        trace: also return a StepTrace.
+        trace: also return what each controller did (else None in its place).
         second_stage: the method's second stage on (default). Off, a BS controller takes the
             greedy branch connection (argmax of Q_BS, ties to the lowest u, no exploration)
             and leaves Q_BS alone; a CS controller never takes its credit branch and leaves
             Q_CS alone; RL has none (no effect). Q_SS learns either way.
 
     Returns:
-        Wheel commands (N, 2) as (left, right) in −10..10, and the StepTrace if `trace`.
+        (commands, trace): wheel commands (N, 2) as (left, right) in −10..10, and the
+        StepTrace if `trace`, else None.
     """
     n = state.walk.shape[0]
     records = pop.records
     dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches)
     if records.shape != (n, cfg.n_nodes) or (records.dtype is not dtype and records.dtype != dtype):
         _raise_mismatch(cfg, pop, n)
-    obs = _floats(observations, (n, 8), "observations")
+    obs = _floats(observations, (n, N_SENSORS), "observations")
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
-    if not second_stage and cfg.method != "RL":
+    if not second_stage and cfg.traits.two_stage:
         from gnp.first_stage import first_stage_only  # the live ablation: off the hot path
 
         return first_stage_only(cfg, pop, state, obs, rew, rates, learn, trace)
@@ -307,12 +255,11 @@ def step(
         count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
-    run_kernel(METHOD_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
-    commands = state.wheels.copy()
+    run_kernel(_KERNEL_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
     if trace:
         node, sub, branch, u, skipped = visits
-        return commands, StepTrace(node, sub, branch, u, skipped, count)
-    return commands
+        return state.wheels.copy(), StepTrace(node, sub, branch, u, skipped, count)
+    return state.wheels.copy(), None
 
 
 def run_kernel(

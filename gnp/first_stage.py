@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from gnp.config import GnpConfig
-from gnp.engine import TRACE_DTYPE, EngineState, StepTrace, run_kernel
-from gnp.kernel import METHOD_CODE
+from gnp.engine import TRACE_DTYPE, EngineState, StepResult, StepTrace, run_kernel
+from gnp.methods import FIRST_STAGE_ONLY
 from gnp.population import Population
 
 
@@ -22,7 +22,7 @@ def first_stage_only(
     rates: np.ndarray,
     learn: bool,
     trace: bool,
-) -> np.ndarray | tuple[np.ndarray, StepTrace]:
+) -> StepResult:
     """`step` with the second stage off, for BS and CS, on the unchanged kernel.
 
     Both run as RL (sub node selection and Q_SS only: no credit choice, no Q_BS or Q_CS
@@ -35,7 +35,7 @@ def first_stage_only(
     n = state.walk.shape[0]
     visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
     count = np.zeros(n, TRACE_DTYPE)
-    bs = cfg.method == "BS"
+    bs = cfg.traits.branch_selection
     conn = pop.conn  # a view into the records the kernel reads
     if bs:
         greedy = np.argmax(pop.q_bs, axis=-1)  # (N, V, m, 2): the first maximum
@@ -43,7 +43,7 @@ def first_stage_only(
         first = conn[..., 0].copy()
         conn[..., 0] = np.take_along_axis(conn, greedy[..., None], axis=-1)[..., 0]
     try:
-        run_kernel(METHOD_CODE["RL"], cfg, pop, state, obs, rew, rates, learn, visits, count)
+        run_kernel(FIRST_STAGE_ONLY, cfg, pop, state, obs, rew, rates, learn, visits, count)
     finally:
         if bs:
             conn[..., 0] = first
@@ -58,7 +58,5 @@ def first_stage_only(
         walk[last, 4] = greedy[rows[last], walk[last, 1], walk[last, 2], walk[last, 3]]
         before = (walk[:, 6] > 0) & (np.count_nonzero(node > 0, axis=1) >= 2)
         walk[before, 9] = greedy[rows[before], walk[before, 6], walk[before, 7], walk[before, 8]]
-    commands = state.wheels.copy()
-    if trace:
-        return commands, StepTrace(node, sub, branch, u, skipped, count)
-    return commands
+    steps = StepTrace(node, sub, branch, u, skipped, count) if trace else None
+    return state.wheels.copy(), steps

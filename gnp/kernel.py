@@ -17,12 +17,12 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from gnp.config import JUDGMENT, METHODS, NODE_COST, PROCESSING, SKIP_COST, STEP_BUDGET
+from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, STEP_BUDGET
+from gnp.methods import BRANCH_SELECTION as _BS  # `method` is `MethodTraits.kernel_code`
+from gnp.methods import CREDIT as _CS
 from gnp.population import CACHE_LINE, record_dtype
 from gnp.rng import next_uniform
 
-METHOD_CODE = {method: code for code, method in enumerate(METHODS)}
-_BS, _CS = METHOD_CODE["BS"], METHOD_CODE["CS"]
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
 
@@ -168,7 +168,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
     q, h, b = record * r32, record * r16, record * record_bytes
     s, p = _egreedy(words32, q + ss, n_sub, eps, s)
     cs = 0
-    if method == _CS:
+    if method & _CS:
         s, cs = _egreedy(words32, q + cs_ + 2 * p, 2, eps, s)
     if learn and pn >= 0:
         last_q = (c * n_nodes + pn) * r32
@@ -176,11 +176,11 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         words32[_ix(last_ss)] += lr * (
             pend_r + gamma * words32[_ix(q + ss + p)] - words32[_ix(last_ss)]
         )
-        if method == _CS:
+        if method & _CS:
             last_cs = last_q + cs_ + 2 * pp + pc
             target = pend_r + gamma * words32[_ix(q + cs_ + 2 * p + cs)]
             words32[_ix(last_cs)] += lr * (target - words32[_ix(last_cs)])
-        if method == _BS and bn >= 0:
+        if method & _BS and bn >= 0:
             last_bs = last_q + bs + (2 * pp + pb) * n_conn + pu
             before_bs = (c * n_nodes + bn) * r32 + bs + (2 * bp + bb) * n_conn + bu
             words32[_ix(before_bs)] += lr * (
@@ -216,7 +216,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
             wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
-        if method == _BS:
+        if method & _BS:
             s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
         nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
@@ -264,7 +264,7 @@ def _prefetch_walk(c, run):  # pragma: no cover - compiled
     _prefetch_record(words32, (c * n_nodes + walk[c, 0]) * r32, layout[0] // CACHE_LINE)
     if walk[c, 1] >= 0:
         _prefetch_record(words32, (c * n_nodes + walk[c, 1]) * r32, 1)
-    if walk[c, 6] >= 0 and run[_METHOD] == _BS:
+    if walk[c, 6] >= 0 and run[_METHOD] & _BS:
         _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
 
 

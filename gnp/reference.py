@@ -103,7 +103,7 @@ class ReferenceController:
                 continue
             sub = self.epsilon_greedy(list(self.q_ss[node]), epsilon)
             credit = False
-            if cfg.method == "CS" and second_stage:
+            if cfg.traits.credit and second_stage:
                 credit = self.epsilon_greedy(list(self.q_cs[node, sub]), epsilon) == 1
             if learn:
                 self.learn(node, sub, credit, alpha, second_stage)
@@ -125,9 +125,9 @@ class ReferenceController:
                         self.left = speed
                     branch = 0
                 u = 0
-                if cfg.method == "BS" and second_stage:
+                if cfg.traits.branch_selection and second_stage:
                     u = self.epsilon_greedy(list(self.q_bs[node, sub, branch]), epsilon)
-                elif cfg.method == "BS":
+                elif cfg.traits.branch_selection:
                     values = list(self.q_bs[node, sub, branch])
                     u = values.index(max(values))  # the first maximum: ties to the lowest u
                 visit = Visit(node, sub, branch, u, False)
@@ -165,11 +165,11 @@ class ReferenceController:
 
         # Eq. 2.3 / 3.1 / 5.1: Q_SS(i, ip) += α(r_t + γ Q_SS(j, jp') − Q_SS(i, ip)).
         update(self.q_ss, (last.node, last.sub), r + gamma * float(self.q_ss[node, sub]))
-        if self.cfg.method == "CS" and second_stage:
+        if self.cfg.traits.credit and second_stage:
             # Eq. 5.2 / 5.3 (a credit skip earned r = 0): bootstrap on the chosen CS action.
             target = r + gamma * float(self.q_cs[node, sub, int(credit)])
             update(self.q_cs, (last.node, last.sub, int(last.credit)), target)
-        if self.cfg.method == "BS" and second_stage and len(self.visits) >= 2:
+        if self.cfg.traits.branch_selection and second_stage and len(self.visits) >= 2:
             # Eq. 3.2: the branch connection chosen at t led to the last visit, whose reward
             # is r_{t+1}; bootstrap on the branch connection the last visit chose.
             before = self.visits[-2]

@@ -6,7 +6,14 @@ The constants below are the world's facts; `app` imports them rather than re-typ
 
 from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
-from sim.khepera import BODY_RADIUS_MM, IR_MAX, IR_RANGE_MM, MAX_COMMAND, N_SENSORS
+from sim.khepera import (
+    BODY_RADIUS_MM,
+    CONTROL_PERIOD_S,
+    IR_MAX,
+    IR_RANGE_MM,
+    MAX_COMMAND,
+    N_SENSORS,
+)
 from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import WallGrid, ir_readings, sensor_rays
 from sim.world import FAULT_MODES, PHYSICS, Fault, FaultMode, Physics, World, WorldError
@@ -14,6 +21,7 @@ from sim.world import FAULT_MODES, PHYSICS, Fault, FaultMode, Physics, World, Wo
 __all__ = [
     "ARENA_NAMES",
     "BODY_RADIUS_MM",
+    "CONTROL_PERIOD_S",
     "FAULT_MODES",
     "IR_MAX",
     "IR_RANGE_MM",

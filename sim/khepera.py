@@ -1,4 +1,4 @@
-"""Khepera I constants (DESIGN.md §2, after Webots' ``Khepera1.proto``).
+"""Khepera I constants, after Webots' ``Khepera1.proto`` (docs/decisions.md, "The robot").
 
 Units: millimetres, seconds, radians. Body frame: x forward, y left.
 """
@@ -11,7 +11,6 @@ AXLE_MM = 52.0
 
 MAX_COMMAND = 10.0
 """Wheel commands are wheel angular speeds in rad/s, clipped to ±MAX_COMMAND."""
-MAX_WHEEL_SPEED_MM_S = MAX_COMMAND * WHEEL_RADIUS_MM  # 75 mm/s
 
 N_SENSORS = 8
 IR_RANGE_MM = 50.0

@@ -35,7 +35,7 @@ class Show:
     start: int
     fault: tuple[int, tuple[int, ...], str] | None = None  # scheduled (step, sensors, mode)
     life: int = 0  # steps per life, as in training (then the next start pose); 0: endless
-    control_period: float = 0.064  # simulated seconds per step, the run's setting
+    control_period: float = sim.CONTROL_PERIOD_S  # simulated s per step, the run's setting
 
 
 def run_robot(reader: store.RunReader, generation: int = -1) -> RobotSpec:
@@ -115,7 +115,11 @@ class Stage:
         return session
 
     def swap_in(
-        self, title: str, robot: RobotSpec, life: int = 0, control_period: float = 0.064
+        self,
+        title: str,
+        robot: RobotSpec,
+        life: int = 0,
+        control_period: float = sim.CONTROL_PERIOD_S,
     ) -> LiveSession:
         """Put another individual on show in the arena and from the start pose on show now."""
         return self.present(

@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 import viser
 
+import gnp
 from app.config import ImplementationSettings
 from app.dashboard.controls import parse_sensors
 from app.dashboard.setting_controls import (
@@ -106,13 +107,7 @@ def second_stage_words(stage: Stage, on: bool) -> str:
     net = nets if methods & {"Elman", "NEAT"} else ""
     if on:
         return "second stage on" + net
-    parts = []
-    if "BS" in methods:
-        parts.append("BS takes its greedy branch connection, Q_BS frozen")
-    if "CS" in methods:
-        parts.append("CS never takes its credit branch, Q_CS frozen")
-    if "RL" in methods:
-        parts.append("RL has none")
+    parts = [f"{m} {gnp.TRAITS[m].ablated}" for m in sorted(gnp.METHODS) if m in methods]
     return "second stage off" + (f" ({'; '.join(parts)})" if parts else "") + net
 
 

@@ -15,7 +15,8 @@ import numpy as np
 
 import gnp
 from app.views.genome import genome_view
-from app.views.graph_layout import JUDGMENT, START, WHEEL_NAMES, graph_layout
+from app.views.graph_layout import graph_layout
+from gnp.config import JUDGMENT, START, WHEEL_NAMES
 
 Transitions = Counter[tuple[int, int]]
 

@@ -59,7 +59,7 @@ class _Visits:
 
     def __init__(self, trace: dict[str, np.ndarray], row: int) -> None:
         count = trace["count"][row].astype(np.int64)
-        columns = [trace[f][row] for f in ("node", "sub", "branch", "u", "skipped")]
+        columns = [trace[f][row] for f in gnp.VISIT_FIELDS]
         self.rows = np.concatenate(
             [np.stack([c[t, : count[t]] for c in columns], 1) for t in range(len(count))]
         ).astype(np.int64)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import gnp
-from app.views.graph_layout import JUDGMENT, START, WHEEL_NAMES
+from gnp.config import JUDGMENT, START, WHEEL_NAMES
 
 
 @dataclass(frozen=True)
@@ -22,7 +22,6 @@ class GenomeView:
             (both branches, every BS branch connection, CS credit branches).
     """
 
-    method: str
     kinds: np.ndarray
     column_function: np.ndarray
     edges: np.ndarray
@@ -41,11 +40,11 @@ def genome_view(cfg: gnp.GnpConfig, population: gnp.Population) -> GenomeView:
             targets = conn[node].reshape(-1)
         else:
             targets = conn[node, :, 0, :].reshape(-1)
-        if cfg.method == "CS" and kind != START:
+        if cfg.traits.credit and kind != START:
             targets = np.concatenate([targets, population.credit[0, node]])
         pairs.extend((node, int(t)) for t in targets)
     edges = np.unique(np.array(pairs, np.int64).reshape(-1, 2), axis=0)
-    return GenomeView(cfg.method, kinds, function[:, 0].astype(np.int64), edges)
+    return GenomeView(kinds, function[:, 0].astype(np.int64), edges)
 
 
 def node_label(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> str:
@@ -71,8 +70,10 @@ def node_markdown(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> 
         header = "| sub | sensor | β..α | → A | → B | Q_SS |"
     else:
         header = "| sub | wheel | speed | → | Q_SS |"
-    extra = {"BS": " Q_BS A / B (per u) |", "CS": " Q_CS normal / credit | credit → |"}
-    header += extra.get(cfg.method, "")
+    if cfg.traits.branch_selection:
+        header += " Q_BS A / B (per u) |"
+    if cfg.traits.credit:
+        header += " Q_CS normal / credit | credit → |"
     lines += [header, _rule(header)]
     for p in range(cfg.n_sub):
         a_targets = ",".join(str(int(t)) for t in pop.conn[0, node, p, 0, :u])
@@ -87,11 +88,11 @@ def node_markdown(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> 
         else:
             wheel = WHEEL_NAMES[int(pop.function[0, node, p])]
             row = f"| {p} | {wheel} | {int(pop.speed[0, node, p]):+d} | {a_targets} | {q_ss} |"
-        if cfg.method == "BS":
+        if cfg.traits.branch_selection:
             q_a = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 0, :u])
             q_b = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 1, :u])
             row += f" {q_a} / {q_b} |" if kind == JUDGMENT else f" {q_a} |"
-        elif cfg.method == "CS":
+        if cfg.traits.credit:
             q_n, q_c = pop.q_cs[0, node, p]
             row += f" {q_n:.3f} / {q_c:.3f} | {int(pop.credit[0, node, p])} |"
         lines.append(row)

@@ -12,11 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim import N_SENSORS
-
-START, JUDGMENT, PROCESSING = 0, 1, 2
-N_WHEELS = 2
-WHEEL_NAMES = ("P0 right", "P1 left")
+from gnp.config import JUDGMENT, N_SENSORS, N_WHEELS, PROCESSING, START, WHEEL_NAMES
 
 
 class GraphLayoutError(ValueError):
@@ -38,11 +34,6 @@ class GraphLayout:
     column_x: np.ndarray
     column_names: tuple[str, ...]
     column_of: np.ndarray
-
-
-def node_kinds(n_judgment: int, n_processing: int) -> np.ndarray:
-    """Kinds of nodes in the GNP layout: node 0 start, then judgment, then processing nodes."""
-    return np.array([START] + [JUDGMENT] * n_judgment + [PROCESSING] * n_processing, np.int64)
 
 
 def graph_layout(

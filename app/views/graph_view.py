@@ -23,7 +23,8 @@ from app.views.graph_counts import (
     edge_shades,
     graph_counts,
 )
-from app.views.graph_layout import JUDGMENT, START, GraphLayout, graph_layout
+from app.views.graph_layout import GraphLayout, graph_layout
+from gnp.config import JUDGMENT, START
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from app.implementation import (
     ImplementationError,
     check_name,
     default_name,
-    epsilon_alpha_at,
+    epsilon_alpha_per_step,
     implement,
     run_implementation,
 )
@@ -25,15 +25,17 @@ def test_epsilon_alpha_schedule_by_hand() -> None:
     changing = ImplementationSettings(
         schedule="changing", epsilon=0.01, alpha=0.1, steps=3000, fault_step=500
     )
-    assert epsilon_alpha_at(changing, 0) == (0.01, 0.1)
-    assert epsilon_alpha_at(changing, 499) == (0.01, 0.1)
-    assert epsilon_alpha_at(changing, 500) == pytest.approx((0.015, 0.15))
-    assert epsilon_alpha_at(changing, 1750) == pytest.approx((0.0075, 0.075))  # halfway, n = 1
-    assert epsilon_alpha_at(changing, 3000) == pytest.approx((0.0, 0.0))
+    eps, alpha = epsilon_alpha_per_step(changing)
+    assert eps.shape == alpha.shape == (3000,)
+    assert (eps[0], alpha[0]) == (eps[499], alpha[499]) == (0.01, 0.1)  # fixed until t'
+    assert (eps[500], alpha[500]) == pytest.approx((0.015, 0.15))  # Eq. 4.3-4.4: max at t'
+    assert (eps[1750], alpha[1750]) == pytest.approx((0.0075, 0.075))  # halfway, n = 1
+    assert (eps[2999], alpha[2999]) == pytest.approx((0.015 / 2500, 0.15 / 2500))  # min 0 at T
     squared = changing.model_copy(update={"schedule_n": 2.0})
-    assert epsilon_alpha_at(squared, 1750) == pytest.approx((0.015 / 4, 0.15 / 4))
-    fixed = ImplementationSettings(epsilon=0.01, alpha=0.1)
-    assert epsilon_alpha_at(fixed, 2000) == (0.01, 0.1)
+    eps, alpha = epsilon_alpha_per_step(squared)
+    assert (eps[1750], alpha[1750]) == pytest.approx((0.015 / 4, 0.15 / 4))
+    eps, alpha = epsilon_alpha_per_step(ImplementationSettings(epsilon=0.01, alpha=0.1))
+    assert np.all(eps == 0.01) and np.all(alpha == 0.1)
 
 
 def test_names() -> None:

@@ -35,7 +35,7 @@ def _steps(cfg: gnp.GnpConfig, pop: gnp.Population) -> np.ndarray:
     state = gnp.init_state(cfg, 1, [1])
     rng = np.random.default_rng(2)
     commands = [
-        gnp.step(cfg, pop, state, rng.uniform(0, 1023, (1, 8)), rng.uniform(0, 1, 1), 0.1, 0.1)
+        gnp.step(cfg, pop, state, rng.uniform(0, 1023, (1, 8)), rng.uniform(0, 1, 1), 0.1, 0.1)[0]
         for _ in range(200)
     ]
     return np.array(commands)

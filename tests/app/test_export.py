@@ -83,7 +83,9 @@ def _commands(cfg: gnp.GnpConfig, pop: gnp.Population) -> np.ndarray:
     rng = np.random.default_rng(11)
     return np.array(
         [
-            gnp.step(cfg, pop, state, rng.uniform(0, 1023, (1, 8)), rng.uniform(0, 1, 1), 0.1, 0.2)
+            gnp.step(cfg, pop, state, rng.uniform(0, 1023, (1, 8)), rng.uniform(0, 1, 1), 0.1, 0.2)[
+                0
+            ]
             for _ in range(300)
         ]
     )

@@ -140,8 +140,8 @@ NOT_FROM_THE_THESIS = {
     "evolution.crossover_fraction",  # checked via evolution.split(300)
     "controller.n_sub",  # unset = the method's thesis default, checked via sub_nodes
     "controller.n_branch",  # used by BS only; checked for ch. 3-4
-    "training.control_period",  # Webots' 64 ms (DESIGN.md); not in the thesis's text
-    "training.physics",  # the simulator (DESIGN.md §2); the thesis used Webots
+    "training.control_period",  # Webots' 64 ms (docs/decisions.md, "The robot"); not in the text
+    "training.physics",  # the simulator (docs/decisions.md, "The world"); the thesis used Webots
     "training.checkpoint_every",
     "training.shard_size",
     "implementation.broken_sensors",  # which sensor breaks: not said (docs/decisions.md)

@@ -7,16 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import gnp
 from app.dashboard.plots import block_mean, moving_mean
 from app.views import geometry as geo
-from app.views.graph_layout import (
-    JUDGMENT,
-    PROCESSING,
-    START,
-    GraphLayoutError,
-    graph_layout,
-    node_kinds,
-)
+from app.views.graph_layout import GraphLayoutError, graph_layout
 from app.views.graph_view import (
     BRANCH_SWITCH,
     CREDIT_SKIP,
@@ -24,10 +18,11 @@ from app.views.graph_view import (
     describe_visit,
     transition_kinds,
 )
+from gnp.config import JUDGMENT, PROCESSING, START
 
 
 def test_columns_follow_sensor_and_wheel() -> None:
-    kinds = node_kinds(3, 2)  # start, J, J, J, P, P
+    kinds = gnp.GnpConfig(n_judgment=3, n_processing=2).node_type  # start, J, J, J, P, P
     functions = np.array([0, 5, 5, 1, 0, 1])
     layout = graph_layout(kinds, functions, width=2.0, height=1.0)
     assert layout.column_names[0] == "start" and layout.column_names[6] == "s5"
@@ -51,7 +46,7 @@ def test_every_node_gets_its_own_place_inside_the_box(
     n_judgment: int, n_processing: int, seed: int
 ) -> None:
     rng = np.random.default_rng(seed)
-    kinds = node_kinds(n_judgment, n_processing)
+    kinds = gnp.GnpConfig(n_judgment=n_judgment, n_processing=n_processing).node_type
     functions = np.where(
         kinds == JUDGMENT, rng.integers(0, 8, kinds.size), rng.integers(0, 2, kinds.size)
     )

@@ -160,10 +160,10 @@ def test_split_batch_is_identical() -> None:
     reward = np.zeros(10)
     for _ in range(200):
         obs = rng.uniform(0, 1023, size=(10, 8))
-        whole = gnp.step(cfg, pop, whole_state, obs, reward, 0.2, 0.1)
+        whole, _ = gnp.step(cfg, pop, whole_state, obs, reward, 0.2, 0.1)
         parts = [
-            gnp.step(cfg, halves[0], half_states[0], obs[:4], reward[:4], 0.2, 0.1),
-            gnp.step(cfg, halves[1], half_states[1], obs[4:], reward[4:], 0.2, 0.1),
+            gnp.step(cfg, halves[0], half_states[0], obs[:4], reward[:4], 0.2, 0.1)[0],
+            gnp.step(cfg, halves[1], half_states[1], obs[4:], reward[4:], 0.2, 0.1)[0],
         ]
         np.testing.assert_array_equal(whole, np.concatenate(parts))
         reward = rng.uniform(0, 1, size=10)
@@ -183,8 +183,9 @@ def test_tracing_changes_nothing(method: str) -> None:
     for _ in range(100):
         obs = rng.uniform(0, 1023, size=(6, 8))
         with_trace, trace = gnp.step(cfg, traced, states[0], obs, reward, 0.3, 0.2, trace=True)
-        without = gnp.step(cfg, plain, states[1], obs, reward, 0.3, 0.2)
+        without, no_trace = gnp.step(cfg, plain, states[1], obs, reward, 0.3, 0.2)
         np.testing.assert_array_equal(with_trace, without)
+        assert trace is not None and no_trace is None  # one shape, the trace only when asked
         assert np.all(trace.count >= 1)
         reward = rng.uniform(0, 1, size=6)
     for f in ("q_ss", "q_bs", "q_cs"):

@@ -14,7 +14,6 @@ from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
     IR_MAX,
-    MAX_WHEEL_SPEED_MM_S,
     WHEEL_RADIUS_MM,
 )
 from sim.world import (
@@ -47,7 +46,7 @@ def test_driving_straight_covers_75_mm_per_second() -> None:
         world.step(np.array([[10.0, 10.0]]))
     # The first substep of the first step only sets the velocity (one substep of delay).
     travelled = world.poses[0, 0] - 1000.0
-    expected = MAX_WHEEL_SPEED_MM_S * CONTROL_PERIOD_S * (steps - 1 / world.substeps)
+    expected = 75.0 * CONTROL_PERIOD_S * (steps - 1 / world.substeps)  # 10 rad/s × 7.5 mm
     assert travelled == pytest.approx(expected, rel=1e-9)
     assert world.poses[0, 1] == pytest.approx(1000.0, abs=1e-9)
 
