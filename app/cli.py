@@ -368,7 +368,7 @@ def cmd_runs(args: argparse.Namespace) -> int:
         if s.error:
             print(f"{s.name:32} {'?':10} {'':>12} {'':>7}  unreadable: {s.error}")
             continue
-        kind = f"{s.method} {'fuzzy' if s.fuzzy else 'crisp'}" if s.brain == "gnp" else s.brain
+        kind = f"{s.method} {gnp.judgment_name(s.fuzzy)}" if s.brain == "gnp" else s.brain
         status = "finished" if s.finished else "running or interrupted"
         if s.implementations:
             status += f"; implementations: {', '.join(s.implementations)}"

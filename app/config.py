@@ -29,7 +29,7 @@ import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
 from app.fields import Setting, sections, setting, settings_of
-from gnp import TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
+from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, Physics
@@ -61,8 +61,9 @@ class ControllerSettings(_Frozen):
     n_processing: int = setting(20, "processing nodes", "count", ge=2, le=200)
     n_sub: int | None = setting(
         None,
-        "sub nodes per node; unset = the thesis's choice for the method "
-        "(RL 4, BS 2, CS 2; Tables 3.1, 5.1)",
+        "sub nodes per node; unset = the thesis's choice for the method ("
+        + ", ".join(f"{m} {TRAITS[m].default_n_sub}" for m in METHODS)
+        + "; Tables 3.1, 5.1)",
         "count",
         ge=1,
         le=8,

@@ -4,7 +4,7 @@ See docs/architecture.md (the gnp section) for the contract and docs/decisions.m
 choices the thesis leaves open.
 """
 
-from gnp.config import EvolutionConfig, GnpConfig, GnpError, Schedule
+from gnp.config import EvolutionConfig, GnpConfig, GnpError, Schedule, judgment_name
 from gnp.controller_file import controller_body, controller_from_body
 from gnp.engine import (
     TRACE_DTYPE,
@@ -66,6 +66,7 @@ __all__ = [
     "field_shapes",
     "init_population",
     "init_state",
+    "judgment_name",
     "mutate",
     "nonuniform_mutation",
     "population_from_arrays",

@@ -39,6 +39,11 @@ class GnpError(ValueError):
     """Bad input to the gnp package (a genome, an array, an argument)."""
 
 
+def judgment_name(fuzzy: bool) -> str:
+    """How a controller judges, as runs, files and pages name it: "fuzzy" or "crisp"."""
+    return "fuzzy" if fuzzy else "crisp"
+
+
 class GnpConfig(BaseModel):
     """Shape of every individual and the learning method (Tables 2.4, 3.1, 5.1).
 
@@ -64,6 +69,11 @@ class GnpConfig(BaseModel):
     def n_nodes(self) -> int:
         """All nodes, the start node included."""
         return 1 + self.n_judgment + self.n_processing
+
+    @property
+    def judgment(self) -> str:
+        """ "fuzzy" or "crisp" (`judgment_name`)."""
+        return judgment_name(self.fuzzy)
 
     @property
     def traits(self) -> MethodTraits:

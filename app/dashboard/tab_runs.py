@@ -10,6 +10,7 @@ from pathlib import Path
 
 import viser
 
+import gnp
 import neuro
 import sim
 from app import store
@@ -37,7 +38,7 @@ NET_NOTE = (
 def run_brain(config: RunConfig) -> str:
     """`CS fuzzy` of a GNP run; `cmaes: Elman net, 8 hidden` of a neural run."""
     if config.neuro is None:
-        return f"{config.controller.method} {'fuzzy' if config.controller.fuzzy else 'crisp'}"
+        return f"{config.controller.method} {gnp.judgment_name(config.controller.fuzzy)}"
     net = config.neuro.net_config()
     if isinstance(net, neuro.ElmanConfig):
         return f"{config.brain}: Elman net, {net.hidden} hidden"
@@ -309,6 +310,6 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
-        kind = f"{r.method} {'fuzzy' if r.fuzzy else 'crisp'}" if r.brain == "gnp" else r.brain
+        kind = f"{r.method} {gnp.judgment_name(r.fuzzy)}" if r.brain == "gnp" else r.brain
         rows.append(f"| {r.name} | {kind} | {done} | {r.best_fitness:.4f} |")
     return "\n".join(rows)

@@ -218,7 +218,7 @@ def describe(show: Show) -> str:
 def brain_words(cfg: BrainConfig) -> str:
     """`CS, fuzzy` of a GNP individual, `Elman net` of a net."""
     if isinstance(cfg, gnp.GnpConfig):
-        return f"{cfg.method}, {'fuzzy' if cfg.fuzzy else 'crisp'}"
+        return f"{cfg.method}, {cfg.judgment}"
     return f"{brain_name(cfg)} net"
 
 

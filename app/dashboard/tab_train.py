@@ -20,6 +20,7 @@ import numpy as np
 import viser
 from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
 
+import gnp
 from app.config import PRESET_NAMES, RunConfig, load_preset, train_settings
 from app.dashboard.controls import DashboardInputError, training_config
 from app.dashboard.follower import TrainingFollower
@@ -188,14 +189,12 @@ def populate_train_tab(
     return tab
 
 
-def judgment_of(config: RunConfig) -> str:
-    return "fuzzy" if config.controller.fuzzy else "crisp"
-
-
 def new_run_path(runs_dir: Path, config: RunConfig) -> Path:
     """`<method>-<judgment>-<time>.h5` in `runs_dir`, numbered if that name is taken."""
     runs_dir.mkdir(parents=True, exist_ok=True)
-    stem = f"{config.controller.method}-{judgment_of(config)}-{time.strftime('%Y%m%d-%H%M%S')}"
+    controller = config.controller
+    judgment = gnp.judgment_name(controller.fuzzy)
+    stem = f"{controller.method}-{judgment}-{time.strftime('%Y%m%d-%H%M%S')}"
     out = runs_dir / f"{stem}.h5"
     suffix = 1
     while out.exists():

@@ -93,8 +93,7 @@ def write_exports(reader: RunReader, generation: int, folder: Path) -> list[Path
         else None
     )
     title = (
-        f"best of generation {generation} of run {reader.path.stem} "
-        f"({cfg.method}, {'fuzzy' if cfg.fuzzy else 'crisp'})"
+        f"best of generation {generation} of run {reader.path.stem} ({cfg.method}, {cfg.judgment})"
     )
     graph = folder / "graph.dot"
     graph.write_text(graph_dot(cfg, individual, transitions, title), encoding="utf-8")

@@ -184,7 +184,7 @@ def replay_lives(reader: RunReader) -> list[Life]:
     lives = [
         Life(
             caption=f"run {reader.path.stem}: final elite (generation "
-            f"{reader.generations_done - 1}), {cfg.method} {'fuzzy' if cfg.fuzzy else 'crisp'}",
+            f"{reader.generations_done - 1}), {cfg.method} {cfg.judgment}",
             cfg=cfg,
             individual=individual,
             arena=arena_of(training.arena),

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+import gnp
 from app.config import RunConfig
 from app.store.files import RunFileError
 from app.store.reader import RunReader
@@ -21,8 +22,11 @@ def run_name(config: RunConfig, now: datetime) -> str:
     E.g. "CS-fuzzy-seed7-20260102T030405Z". A naive `now` is taken as local time.
     """
     controller = config.controller
-    judgment = "fuzzy" if controller.fuzzy else "crisp"
-    kind = f"{controller.method}-{judgment}" if config.neuro is None else config.brain
+    kind = (
+        f"{controller.method}-{gnp.judgment_name(controller.fuzzy)}"
+        if config.neuro is None
+        else config.brain
+    )
     stamp = now.astimezone(UTC).strftime("%Y%m%dT%H%M%SZ")
     return f"{kind}-seed{config.seed}-{stamp}"
 
