@@ -9,10 +9,12 @@ from pathlib import Path
 import viser
 
 import sim
-from app.dashboard.controls import NO_RUNS, open_run, parse_sensors, whole
+from app.config import ImplementationSettings
+from app.dashboard.controls import NO_RUNS, open_run, parse_sensors
+from app.dashboard.setting_controls import add_number, check
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
-from app.dashboard.tab_runs import set_options
+from app.dashboard.tab_runs import IMPLEMENTATION, set_options
 
 
 @dataclass
@@ -45,7 +47,7 @@ class CompareTab:
                 robots.append(run_robot(reader))
         sensors = parse_sensors(self.sensors.value)
         mode = self.mode.value
-        step = whole(self.fault_step.value, "fault step", 0, 10**6)
+        step = check(ImplementationSettings, "fault_step", self.fault_step.value, "fault step")
         self.stage.present(
             Show(
                 f"{names[0]} vs {names[1]}",
@@ -74,7 +76,7 @@ def populate_compare_tab(
         start=gui.add_dropdown("Start pose ", tuple(str(i) for i in range(sim.N_START_POSES))),
         sensors=gui.add_text("Break sensors ", "2,3"),
         mode=gui.add_dropdown("Mode ", sim.FAULT_MODES),
-        fault_step=gui.add_number("At step", 300, min=0, max=10**6, step=1),
+        fault_step=add_number(gui, IMPLEMENTATION["fault_step"], 300, "At step"),
     )
     go = gui.add_button("Compare", icon=viser.Icon.ARROWS_LEFT_RIGHT)
     go.on_click(status.guard(tab.compare))

@@ -14,7 +14,7 @@ import gnp
 import neuro
 import sim
 from app import store
-from app.config import RunConfig
+from app.config import ImplementationSettings, RunConfig
 from app.dashboard.controls import (
     NO_RUNS,
     DashboardInputError,
@@ -23,16 +23,20 @@ from app.dashboard.controls import (
     whole,
 )
 from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
+from app.dashboard.setting_controls import add_number, check
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
+from app.fields import settings_of
 
 SCHEDULES = ("fixed", "changing")
 NET_NOTE = (
     "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
     "schedule do not apply to it.</small>"
 )
+
+IMPLEMENTATION = {s.name: s for s in settings_of(ImplementationSettings)}
 
 
 def run_brain(config: RunConfig) -> str:
@@ -202,9 +206,9 @@ class RunsTab:
             run=self.loaded.path,
             sensors=parse_sensors(self.sensors.value),
             mode=self.mode.value,
-            fault_step=whole(self.fault_step.value, "fault step t'", 0, 10**6),
-            steps=whole(self.steps.value, "steps T", 1, 10**6),
-            repeats=whole(self.repeats.value, "repeats", 1, 1000),
+            fault_step=check(ImplementationSettings, "fault_step", self.fault_step.value, "t'"),
+            steps=check(ImplementationSettings, "steps", self.steps.value, "steps T"),
+            repeats=check(ImplementationSettings, "repeats", self.repeats.value, "repeats"),
             schedule=self.schedule.value,
         )
         if request.fault_step >= request.steps:
@@ -269,9 +273,10 @@ def populate_runs_tab(
         generation=generation,
         sensors=gui.add_text("Break sensors", "2,3"),
         mode=gui.add_dropdown("Mode", sim.FAULT_MODES),
-        fault_step=gui.add_number("Fault step t'", 500, min=0, max=10**6, step=1),
-        steps=gui.add_number("Steps T", 1500, min=1, max=10**6, step=1),
-        repeats=gui.add_number("Repeats per start pose", 3, min=1, max=1000, step=1),
+        # Bounds and hints from the model; the values are short for a look in the page.
+        fault_step=add_number(gui, IMPLEMENTATION["fault_step"], 500, "Fault step t'"),
+        steps=add_number(gui, IMPLEMENTATION["steps"], 1500, "Steps T"),
+        repeats=add_number(gui, IMPLEMENTATION["repeats"], 3, "Repeats per start pose"),
         schedule=gui.add_dropdown("ε, α ", SCHEDULES),
     )
     run_implementation = gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY)

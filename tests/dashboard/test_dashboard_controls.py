@@ -300,3 +300,27 @@ def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
             True,
             True,
         ]
+
+
+def test_the_runs_and_compare_tabs_take_their_bounds_from_the_implementation_model(
+    runs_dir: Path,
+) -> None:
+    from app.config import ImplementationSettings
+
+    fields = ImplementationSettings.model_fields
+    with dashboard_in_process(runs_dir, "cs") as dashboard:
+        runs, compare = dashboard.runs, dashboard.compare
+        for handle, name in (
+            (runs.fault_step, "fault_step"),
+            (runs.steps, "steps"),
+            (runs.repeats, "repeats"),
+            (compare.fault_step, "fault_step"),
+        ):
+            bounds = {type(m).__name__: m for m in fields[name].metadata}
+            assert handle.min == bounds["Ge"].ge and handle.max == bounds["Le"].le
+            assert handle.hint is not None and fields[name].description in handle.hint
+        runs.load_file(runs_dir / "cs.h5")
+        runs.repeats.value = 0  # out of the model's range: one message, nothing started
+        dashboard.status.guarded(None, runs.start_implementation)
+        assert dashboard.status.text.startswith("⚠ repeats: Input should be greater than or")
+        assert runs.implementation is None
