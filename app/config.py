@@ -158,38 +158,6 @@ class TrainingSettings(_Frozen):
         return _schedules(self)
 
 
-@dataclass(frozen=True)
-class LearningSettings:
-    """Online Sarsa of a batch: ε and α at each step, given the step of the latest fault.
-
-    Before any fault ε/α are the fixed values (thesis §4.5: fixed until t'); from a fault on they
-    follow `after_fault`, the (ε, α) schedules of Eq. 4.3–4.4 from max to min over `horizon`
-    steps (the implementation phase's T − t'), or stay fixed when it is None.
-    """
-
-    online: bool = True
-    epsilon: float = 0.1
-    alpha: float = 0.1
-    after_fault: tuple[gnp.Schedule, gnp.Schedule] | None = None
-    horizon: int = 2500
-    second_stage: bool = True  # off: live ablation of BS's branch / CS's credit (gnp.step)
-
-    def __post_init__(self) -> None:
-        for name, value in (("ε", self.epsilon), ("α", self.alpha)):
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"{name} must be in 0..1, got {value}")
-        if self.horizon < 1:
-            raise ValueError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
-
-    def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
-        """ε and α at step `t`, the latest fault (or the phase's t') at `fault_step`."""
-        if self.after_fault is None or fault_step is None or t < fault_step:
-            return self.epsilon, self.alpha
-        return gnp.epsilon_alpha_after_fault(
-            *self.after_fault, t, fault_step, fault_step + self.horizon
-        )
-
-
 class ImplementationSettings(_Frozen):
     """The implementation phase: a trained individual in an unseen arena, sensors breaking."""
 
@@ -279,6 +247,42 @@ class ImplementationSettings(_Frozen):
         if len(set(sensors)) != len(sensors):
             raise ValueError(f"a sensor is listed twice in {list(sensors)}")
         return tuple(sorted(sensors))
+
+
+_IMPLEMENTATION = ImplementationSettings.model_fields
+
+
+@dataclass(frozen=True)
+class LearningSettings:
+    """Online Sarsa of a batch: ε and α at each step, given the step of the latest fault.
+
+    Before any fault ε/α are the fixed values (thesis §4.5: fixed until t'); from a fault on they
+    follow `after_fault`, the (ε, α) schedules of Eq. 4.3–4.4 from max to min over `horizon`
+    steps (the implementation phase's T − t'), or stay fixed when it is None.
+    """
+
+    online: bool = True
+    # Defaults: the implementation phase's (ImplementationSettings), written there once.
+    epsilon: float = _IMPLEMENTATION["epsilon"].default
+    alpha: float = _IMPLEMENTATION["alpha"].default
+    after_fault: tuple[gnp.Schedule, gnp.Schedule] | None = None
+    horizon: int = _IMPLEMENTATION["steps"].default - _IMPLEMENTATION["fault_step"].default
+    second_stage: bool = True  # off: live ablation of BS's branch / CS's credit (gnp.step)
+
+    def __post_init__(self) -> None:
+        for name, value in (("ε", self.epsilon), ("α", self.alpha)):
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name} must be in 0..1, got {value}")
+        if self.horizon < 1:
+            raise ValueError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
+
+    def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
+        """ε and α at step `t`, the latest fault (or the phase's t') at `fault_step`."""
+        if self.after_fault is None or fault_step is None or t < fault_step:
+            return self.epsilon, self.alpha
+        return gnp.epsilon_alpha_after_fault(
+            *self.after_fault, t, fault_step, fault_step + self.horizon
+        )
 
 
 def _check_ordered(settings: TrainingSettings | ImplementationSettings) -> None:
