@@ -36,13 +36,6 @@ LAYER = {
     "app.dashboard": 4,
     "app.cli": 5,
 }
-KNOWN_CYCLES = (
-    # Lazy imports (inside a function) that close a loop between two modules; each pair is to be
-    # split by its own room's work (#22): new loops are not allowed.
-    frozenset({"gnp.engine", "gnp.first_stage"}),
-    frozenset({"app.training", "app.neuro_training"}),
-    frozenset({"app.experiments.progress", "app.experiments.runner"}),
-)
 
 
 def module_name(path: Path) -> str:
@@ -141,8 +134,7 @@ def test_every_folder_imports_only_lower_layers(graph: dict[str, set[str]]) -> N
 
 
 def test_no_import_loop_between_modules(graph: dict[str, set[str]]) -> None:
-    new = [sorted(c) for c in cycles(graph) if c not in KNOWN_CYCLES]
-    assert new == []
+    assert [sorted(c) for c in cycles(graph)] == []  # lazy imports inside functions count too
 
 
 def test_views_are_drawn_by_both_and_import_neither(graph: dict[str, set[str]]) -> None:
