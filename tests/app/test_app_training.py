@@ -193,7 +193,7 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
     process = _start_training(config_file, out, workers=2)
     try:
         _follow_until(out, 3, process)
-        os.killpg(process.pid, signal.SIGSTOP)  # the dashboard's pause: readers still read
+        os.killpg(process.pid, signal.SIGSTOP)  # a writer frozen mid-run: readers still read
         with RunReader(out) as run:
             paused_at = run.generations_done
         time.sleep(0.2)

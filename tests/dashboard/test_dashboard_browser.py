@@ -153,7 +153,7 @@ def test_pause_and_stop_training(page: Any) -> None:
     paused = int(wait_for(page, r"training: paused · generation (\d+)").group(1))
     expect_buttons(page, enabled={"Resume", "Stop"})
     # The page stays live while training is paused: the robot lives 45 more steps, in which
-    # at most the generation in flight when SIGSTOP reached the group completes.
+    # at most the generation in flight when Pause was pressed completes.
     before = step_of(page)
     wait_for(page, r"on show: step (\d+)", at_least=before + 45)
     assert int(wait_for(page, r"training: paused · generation (\d+)").group(1)) <= paused + 1
