@@ -95,10 +95,10 @@ def test_break_a_sensor_marks_it_and_the_reward_curve_reacts(page: Any, screensh
     type_into(page, "Sensors to break", "9")
     press(page, "Break now")
     notification = page.locator(".mantine-Notification-root", has_text="Not applied")
-    expect(notification.filter(has_text="sensors are numbered 0..7").first).to_be_visible(
+    expect(notification.filter(has_text="sensor index 9 is not in 0..7").first).to_be_visible(
         timeout=TIMEOUT_MS
     )
-    assert "⚠ sensors are numbered 0..7" in status(page)
+    assert "⚠ sensor index 9 is not in 0..7" in status(page)
     wait_for(page, r"broken: none")  # a bad value changes nothing
 
     type_into(page, "Sensors to break", "2,3")
