@@ -27,6 +27,7 @@ from app.dashboard.network import (
 )
 from app.live import RobotSnapshot
 from app.views import geometry as geo
+from app.views.scene import add_node_discs
 
 RIM_COLOR = (90, 90, 100)
 
@@ -67,16 +68,7 @@ class NetworkView:
         self._rims = server.scene.add_line_segments(
             f"{root}/rims", blank, RIM_COLOR, thickness=1.0, thickness_units="screen"
         )
-        self._nodes = server.scene.add_batched_meshes_simple(
-            f"{root}/nodes",
-            *geo.disc_mesh(0.025 * self._size),
-            batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
-            batched_positions=np.zeros((1, 3)),
-            material="toon3",
-            cast_shadow=False,
-            receive_shadow=False,
-            side="double",
-        )
+        self._nodes = add_node_discs(server, f"{root}/nodes", 0.025 * self._size)
         self._title = server.scene.add_label(
             f"{root}/title",
             "network",

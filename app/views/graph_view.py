@@ -24,6 +24,7 @@ from app.views.graph_counts import (
     graph_counts,
 )
 from app.views.graph_layout import GraphLayout, graph_layout
+from app.views.scene import add_node_discs
 from gnp.config import JUDGMENT, START
 
 
@@ -87,16 +88,7 @@ class GraphView:
             f"{root}/edges", blank, black, thickness=1.0, thickness_units="screen"
         )
         self._node_radius = 0.02 * size
-        self._nodes = server.scene.add_batched_meshes_simple(
-            f"{root}/nodes",
-            *geo.disc_mesh(self._node_radius),
-            batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
-            batched_positions=np.zeros((1, 3)),
-            material="toon3",
-            cast_shadow=False,
-            receive_shadow=False,
-            side="double",
-        )
+        self._nodes = add_node_discs(server, f"{root}/nodes", self._node_radius)
         self._recent = server.scene.add_line_segments(
             f"{root}/recent", blank, black, thickness=3.0, thickness_units="screen"
         )

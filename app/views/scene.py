@@ -73,3 +73,18 @@ def aim_camera(server: viser.ViserServer, frame: SceneFrame, headroom: float) ->
     camera.position = (center[0], center[1], distance)
     camera.fov = fov
     camera.far = 100.0
+
+
+def add_node_discs(server: viser.ViserServer, name: str, radius: float) -> viser.BatchedMeshHandle:
+    """A batched mesh of flat discs of `radius` for a graph's nodes, one placeholder for now:
+    a view moves, colours and counts them each frame by assigning new arrays."""
+    return server.scene.add_batched_meshes_simple(
+        name,
+        *geo.disc_mesh(radius),
+        batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
+        batched_positions=np.zeros((1, 3)),
+        material="toon3",
+        cast_shadow=False,
+        receive_shadow=False,
+        side="double",
+    )
