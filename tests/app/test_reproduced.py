@@ -189,3 +189,14 @@ def test_a_question_takes_its_answering_claims_verdict_and_tallies_the_rest(
     assert cells[5] == "1 held, 1 ruled out, 2 undecided |"
     fifth = next(line for line in page.splitlines() if "`training-fitness-CS-BS`" in line)
     assert fifth.split(" | ")[2:4] == ["not run", "—"]  # ch5 has no report here
+
+
+def test_every_committed_reports_metric_labels_are_todays() -> None:
+    """A label that changed (fault_effect's) is changed in every committed report too: the
+    page's claim sentences are built from it."""
+    from app.experiments.results import METRICS
+
+    labels = {name: metric.label for name, metric in METRICS.items()}
+    for (name, scale), report in load_reports(DOCS).items():
+        for c in report["comparisons"]:
+            assert c["metric_label"] == labels[c["metric"]], (name, scale, c["name"])
