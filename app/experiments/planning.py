@@ -11,11 +11,10 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.config import RunConfig
+from app.config import ImplementationSettings, RunConfig
 from app.experiments.layout import experiment_dir
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.store import RunFileError, RunReader
-from sim.arena import ArenaSpec
 
 
 @dataclass(frozen=True)
@@ -51,14 +50,12 @@ def plan(
     """Every (arm, seed) task of the experiment at `scale`, arms outer, seeds inner."""
     folder = experiment_dir(runs_dir, spec.name) / scale
     tasks = []
-    starts: dict[str, int] = {}
     for arm in spec.arms:
         for seed in spec.seed_list(scale, seeds):  # type: ignore[arg-type]
             config = spec.run_config(arm.name, scale, seed)
             settings = [
                 (c.name, spec.condition_settings(c, config, scale)) for c in spec.conditions
             ]
-            trials = [_start_poses(s.arena, starts) * s.repeats for _, s in settings]
             tasks.append(
                 Task(
                     arm=arm.name,
@@ -67,17 +64,21 @@ def plan(
                     config_json=config.model_dump_json(),
                     conditions=tuple((n, s.model_dump_json()) for n, s in settings),
                     generation_cost=config.training.population * config.training.steps,
-                    condition_cost=max(
-                        [n * s.steps for n, (_, s) in zip(trials, settings, strict=True)] or [0]
-                    ),
+                    condition_cost=max([trial_steps(s) for _, s in settings] or [0]),
                 )
             )
     return tasks
 
 
-def _start_poses(arena: ArenaSpec, known: dict[str, int]) -> int:
-    """How many start poses `arena` (an inline spec, see `app.arenas`) has."""
-    return len(arena.start_poses)
+def training_steps(config: RunConfig) -> int:
+    """Robot-steps of a run's training: generations × population × life time."""
+    t = config.training
+    return t.generations * t.population * t.steps
+
+
+def trial_steps(settings: ImplementationSettings) -> int:
+    """Trial-steps of one implementation condition: start poses × trials each × steps."""
+    return len(settings.arena.start_poses) * settings.repeats * settings.steps
 
 
 @dataclass(frozen=True)
@@ -92,16 +93,13 @@ class Work:
 def work(spec: ExperimentSpec, scale: str) -> Work:
     """The simulated work of `spec` at `scale` (its default seeds; a seed changes no size)."""
     seeds = len(spec.seed_list(scale))  # type: ignore[arg-type]
-    robot_steps = trial_steps = 0
-    starts: dict[str, int] = {}
+    robot = trials = 0
     for arm in spec.arms:
         config = spec.run_config(arm.name, scale, 0)
-        t = config.training
-        robot_steps += seeds * t.generations * t.population * t.steps
+        robot += seeds * training_steps(config)
         for condition in spec.conditions:
-            s = spec.condition_settings(condition, config, scale)
-            trial_steps += seeds * _start_poses(s.arena, starts) * s.repeats * s.steps
-    return Work(runs=seeds * len(spec.arms), robot_steps=robot_steps, trial_steps=trial_steps)
+            trials += seeds * trial_steps(spec.condition_settings(condition, config, scale))
+    return Work(runs=seeds * len(spec.arms), robot_steps=robot, trial_steps=trials)
 
 
 @dataclass

@@ -57,13 +57,22 @@ def _claims(report: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
     return {c["name"]: c for c in report["comparisons"]} if report else {}
 
 
+def ran(comparison: dict[str, Any]) -> bool:
+    """Whether a claim has values on both sides (a claim added after its report's runs has none)."""
+    return all(comparison["runs"])
+
+
+def runs_text(comparison: dict[str, Any]) -> str:
+    """'20 + 20 runs' (two arms), '20 runs' (one arm, paired by seed)."""
+    a, b = comparison["runs"]
+    return f"{a} runs" if comparison["paired"] and a == b else f"{a} + {b} runs"
+
+
 def answer(comparison: dict[str, Any] | None) -> str:
     """'**held** (20 + 20 runs)': the verdict and the runs behind it; 'not run' without one."""
-    if comparison is None or not all(comparison["runs"]):
+    if comparison is None or not ran(comparison):
         return "not run"
-    runs = comparison["runs"]
-    used = f"{runs[0]} runs" if comparison["paired"] else f"{runs[0]} + {runs[1]} runs"
-    return f"**{comparison['verdict']}** ({used})"
+    return f"**{comparison['verdict']}** ({runs_text(comparison)})"
 
 
 def measured(comparison: dict[str, Any] | None) -> str:
@@ -78,9 +87,11 @@ def measured(comparison: dict[str, Any] | None) -> str:
 
 
 def tally(comparisons: list[dict[str, Any]]) -> str:
-    """'2 held, 3 undecided' over claims that ran; '—' when none did."""
-    ran = [c for c in comparisons if all(c["runs"])]
-    counts = {v: sum(c["verdict"] == v for c in ran) for v in VERDICTS}
+    """'2 held, 3 undecided, 1 not run'; '—' for no claims."""
+    counts: dict[str, int] = {
+        v: sum(ran(c) and c["verdict"] == v for c in comparisons) for v in VERDICTS
+    }
+    counts["not run"] = sum(not ran(c) for c in comparisons)
     return ", ".join(f"{n} {v}" for v, n in counts.items() if n) or "—"
 
 

@@ -11,15 +11,23 @@ with the committed reports.
 
 from __future__ import annotations
 
+import csv
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from app.experiments import planning
-from app.experiments.questions import answers_table
+from app.experiments.questions import answers_table, ran, runs_text, tally
 from app.experiments.results import VERDICTS
-from app.experiments.spec import SCALES, ExperimentError, load_shipped, shipped_names
+from app.experiments.spec import (
+    SCALES,
+    ExperimentError,
+    ExperimentSpec,
+    load_shipped,
+    shipped_names,
+)
 
 PAGE = "README.md"
 TITLE = "# The thesis, reproduced\n"
@@ -45,6 +53,8 @@ def load_reports(folder: Path) -> dict[tuple[str, str], dict[str, Any]]:
             raise ExperimentError(f"{path} is not an experiment report: {error}") from None
         if path.parent.name != f"{key[0]}-{key[1]}":
             raise ExperimentError(f"{path} holds {key[0]} at {key[1]} scale: rename its folder")
+        if not (path.parent / "values.csv").is_file():
+            raise ExperimentError(f"{path.parent} has no values.csv: publish the whole report")
         reports[key] = report
     return reports
 
@@ -79,14 +89,10 @@ def _ours(comparison: dict[str, Any]) -> str:
 
 
 def _verdict(comparison: dict[str, Any]) -> str:
-    runs = comparison["runs"]
-    if not (runs[0] and runs[1]):
+    """The verdict with the runs behind it, and for an undecided claim the seeds it would need."""
+    if not ran(comparison):
         return f"**{comparison['verdict']}** (not run)"
-    used = (
-        f"{runs[0]} + {runs[1]} runs"
-        if runs[0] != runs[1] or not comparison["paired"]
-        else (f"{runs[0]} runs")
-    )
+    used = runs_text(comparison)
     need = comparison.get("need")
     if comparison["verdict"] == "undecided" and need:
         seeds = need["seeds_per_arm_at_thesis_effect"]
@@ -99,14 +105,7 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _tally(comparisons: list[dict[str, Any]]) -> str:
-    counts = {v: 0 for v in VERDICTS}
-    for c in comparisons:
-        counts[c["verdict"]] += 1
-    return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
-
-
-Keep = Callable[[dict[str, Any]], bool]
+Keep = Callable[[dict[str, Any], dict[str, Any]], bool]  # (claim, its report)
 
 
 def claims_tables(
@@ -126,13 +125,14 @@ def claims_tables(
             continue
         # a claim per row, matched by name: a report written before a claim was added lacks it
         by_scale = [
-            {c["name"]: c for c in reports[name, s]["comparisons"] if keep(c)} for s in scales
+            {c["name"]: c for c in reports[name, s]["comparisons"] if keep(c, reports[name, s])}
+            for s in scales
         ]
         claims = {c: None for found in by_scale for c in found}  # first seen first, no repeats
         if not claims:
             continue
         links = ", ".join(f"[{s}]({name}-{s}/index.html)" for s in scales)
-        tallies = "; ".join(f"{s}: {_tally(list(found.values()))}" for s, found in zip(
+        tallies = "; ".join(f"{s}: {tally(list(found.values()))}" for s, found in zip(
             scales, by_scale, strict=True))  # fmt: skip
         out.append(f"### {name}\n\n{spec.description}. Source: {spec.source}.\n")
         out.append(f"Reports: {links}. Verdicts: {tallies}.\n")
@@ -150,7 +150,7 @@ def claims_tables(
                 row += [_ours(same), _verdict(same)] if same else missing
             out.append("| " + " | ".join(_cell(c) for c in row) + " |")
         out.append("")
-    return "\n".join(out)
+    return "\n".join(out) + ("\n" if out else "")
 
 
 def short_count(n: float) -> str:
@@ -179,15 +179,30 @@ def cost_table() -> str:
     return "\n".join(out) + "\n"
 
 
-def runs_made(report: dict[str, Any]) -> dict[str, int]:
-    """Arm -> the runs a report's statistics used (its last look's, or every seed of each arm)."""
-    if report.get("stages"):
-        return dict(report["stages"][-1]["runs"])
-    return {arm["name"]: len(report["seeds"]) for arm in report["arms"]}
+def spent(folder: Path, spec: ExperimentSpec, scale: str) -> tuple[int, int, int]:
+    """(runs, robot-steps, trial-steps) behind a committed report: the runs and the conditions
+    its `values.csv` holds values of, at the spec's sizes (a condition never run is not paid)."""
+    runs: set[tuple[str, int]] = set()
+    conditions: set[tuple[str, int, str]] = set()
+    with (folder / "values.csv").open(newline="") as handle:
+        for arm, seed, condition, _, value in list(csv.reader(handle))[1:]:
+            if math.isfinite(float(value)):
+                runs.add((arm, int(seed)))
+                if condition:
+                    conditions.add((arm, int(seed), condition))
+    by_name = {c.name: c for c in spec.conditions}
+    robot = sum(planning.training_steps(spec.run_config(a, scale, s)) for a, s in runs)
+    trials = sum(
+        planning.trial_steps(
+            spec.condition_settings(by_name[c], spec.run_config(a, scale, s), scale)
+        )
+        for a, s, c in conditions
+    )
+    return len(runs), robot, trials
 
 
-def spent_table(reports: Reports) -> str:
-    """What each committed report cost: looks, runs per arm, simulated steps, measured time."""
+def spent_table(reports: Reports, folder: Path) -> str:
+    """What each committed report cost: looks, runs, simulated steps, measured time."""
     out = [
         "| report | looks (seeds per arm) | runs | robot-steps | trial-steps | measured |",
         "|---|---|---|---|---|---|",
@@ -196,13 +211,11 @@ def spent_table(reports: Reports) -> str:
         spec = load_shipped(name)
         if scale not in spec.scales:
             continue
-        planned = planning.work(spec, scale)  # every arm costs the same per run
-        runs = sum(runs_made(report).values())
+        runs, robot, trials = spent(folder / f"{name}-{scale}", spec, scale)
         looks = ", ".join(str(s) for s in report["looks_made"])
         out.append(
             f"| [{name}-{scale}]({name}-{scale}/index.html) | {looks} | {runs} "
-            f"| {short_count(planned.robot_steps / planned.runs * runs)} "
-            f"| {short_count(planned.trial_steps / planned.runs * runs)} "
+            f"| {short_count(robot)} | {short_count(trials)} "
             f"| {_cell(spec.scales[scale].measured or '—')} |"
         )
     return "\n".join(out) + "\n"
@@ -221,9 +234,15 @@ def tallies(reports: Reports) -> dict[tuple[str, str], int]:
     return counts
 
 
-def _against_control(c: dict[str, Any]) -> bool:
+def _against_control(c: dict[str, Any], report: dict[str, Any]) -> bool:
     """A claim on what a fault costs: fault_effect, or a fault condition against the control."""
-    return c["metric"] == "fault_effect" or c.get("sides", [None, None])[1] == "no-fault"
+    return c["metric"] == "fault_effect" or (
+        report.get("control") is not None and c.get("condition_b") == report["control"]
+    )
+
+
+def _every(c: dict[str, Any], report: dict[str, Any]) -> bool:
+    return True
 
 
 READING = (
@@ -239,46 +258,40 @@ READING = (
 )
 
 
-def _answers(reports: Reports) -> str:
-    return READING + "\n" + answers_table(reports)
-
-
-def _kind(kind: str) -> Callable[[Reports], str]:
+def _kind(kind: str) -> Callable[[Reports, Path], str]:
     """The section of every thesis experiment's claims of one kind, with their tally."""
 
-    def write(reports: Reports) -> str:
+    def write(reports: Reports, folder: Path) -> str:
         counts = tallies(reports)
         found = {v: counts.get((kind, v), 0) for v in VERDICTS}
         tally = ", ".join(f"{n} {v}" for v, n in found.items())
         head = f"{sum(found.values())} claims at `small`: {tally}.\n\n"
-        return head + claims_tables(reports, lambda c: c.get("kind") == kind)
+        return head + claims_tables(reports, lambda c, _: c.get("kind") == kind)
 
     return write
 
 
-def _beyond(reports: Reports) -> str:
-    return claims_tables(reports, lambda c: True, "beyond")
-
+Section = Callable[[Reports, Path], str]  # (the reports, their folder) -> the section's text
 
 #: The page's written sections, in page order: name -> what writes it from the reports.
-SECTIONS: dict[str, Callable[[Reports], str]] = {
-    "answers": _answers,
-    "reward-source": lambda r: claims_tables(r, lambda c: True, names=("ch2-reward-source",)),
-    "fault-effects": lambda r: (
+SECTIONS: dict[str, Section] = {
+    "answers": lambda r, _: READING + "\n" + answers_table(r),
+    "reward-source": lambda r, _: claims_tables(r, _every, names=("ch2-reward-source",)),
+    "fault-effects": lambda r, _: (
         claims_tables(r, _against_control) + claims_tables(r, _against_control, "beyond")
     ),
     "sanity": _kind("sanity"),
     "questions": _kind("question"),
-    "beyond": _beyond,
+    "beyond": lambda r, _: claims_tables(r, _every, "beyond"),
     "spent": spent_table,
-    "costs": lambda r: cost_table(),
+    "costs": lambda r, _: cost_table(),
 }
 
 
 def sections(folder: Path) -> dict[str, str]:
     """Each written section of the page, from the reports in `folder`."""
     reports = load_reports(folder)
-    return {name: write(reports) for name, write in SECTIONS.items()}
+    return {name: write(reports, folder) for name, write in SECTIONS.items()}
 
 
 def new_page() -> str:

@@ -17,6 +17,7 @@ from app.experiments.reproduced import (
     load_reports,
     new_page,
     sections,
+    spent,
     write_page,
     written,
 )
@@ -43,6 +44,7 @@ def _copy_report(folder: Path, edit: dict[str, object] | None = None) -> dict[st
     report.update(edit or {})
     (folder / "ch3-bs-rl-small").mkdir(parents=True)
     (folder / "ch3-bs-rl-small" / "report.json").write_text(json.dumps(report))
+    shutil.copy(REPORT.parent / "values.csv", folder / "ch3-bs-rl-small")
     return report
 
 
@@ -91,6 +93,7 @@ def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
     thesis.update(scale="thesis", comparisons=[extra, *reversed(comparisons)])
     (tmp_path / "ch3-bs-rl-thesis").mkdir()
     (tmp_path / "ch3-bs-rl-thesis" / "report.json").write_text(json.dumps(thesis))
+    shutil.copy(REPORT.parent / "values.csv", tmp_path / "ch3-bs-rl-thesis")
     questions = written(write_page(tmp_path).read_text())["questions"]
     section = questions.split("### ch3-bs-rl")[1].split("###")[0]
     rows = [line.removesuffix(" |") for line in section.splitlines() if line.startswith("| ")]
@@ -200,3 +203,30 @@ def test_every_committed_reports_metric_labels_are_todays() -> None:
     for (name, scale), report in load_reports(DOCS).items():
         for c in report["comparisons"]:
             assert c["metric_label"] == labels[c["metric"]], (name, scale, c["name"])
+
+
+def test_the_compute_spent_counts_the_runs_and_conditions_that_have_values(tmp_path: Path) -> None:
+    folder = tmp_path / "ch3-bs-rl-small"
+    folder.mkdir()
+    rows = [
+        "arm,seed,condition,metric,value",
+        "BS,0,,final_best_fitness,0.5",
+        "BS,0,no-fault,mean_reward,0.4",
+        "BS,0,break-1,mean_reward,0.3",
+        "RL,0,,final_best_fitness,0.5",
+        "RL,0,no-fault,mean_reward,nan",  # the control never ran for RL: not paid
+        "RL,0,break-1,mean_reward,0.2",
+        "RL,1,,final_best_fitness,nan",  # a seed that never ran
+    ]
+    (folder / "values.csv").write_text("\n".join(rows) + "\n")
+    runs, robot, trials = spent(folder, load_shipped("ch3-bs-rl"), "small")
+    # small: 100 generations x 300 individuals x 1000 steps a run; a condition is 10 start
+    # poses x 30 trials x 3000 steps.
+    assert (runs, robot, trials) == (2, 2 * 100 * 300 * 1000, 3 * 10 * 30 * 3000)
+
+
+def test_a_report_without_its_values_is_refused(tmp_path: Path) -> None:
+    _copy_report(tmp_path)
+    (tmp_path / "ch3-bs-rl-small" / "values.csv").unlink()
+    with pytest.raises(ExperimentError, match=r"no values\.csv"):
+        load_reports(tmp_path)
