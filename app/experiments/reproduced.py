@@ -162,12 +162,14 @@ def short_count(n: float) -> str:
 
 
 def cost_table() -> str:
-    """Every shipped experiment's work per scale and what it measured on this machine."""
+    """Every shipped experiment's work per scale (its default seeds) and what it measured on
+    this machine, then the thesis's experiments at `thesis` scale in all."""
     out = [
-        "| experiment | scale | runs | robot-steps (training) | trial-steps (implementation) "
-        "| measured |",
+        "| experiment | scale | runs (default seeds) | robot-steps (training) "
+        "| trial-steps (implementation) | measured or estimated |",
         "|---|---|---|---|---|---|",
     ]
+    total = [0, 0, 0]
     for name in shipped_names():
         spec = load_shipped(name)
         for scale, sizes in spec.scales.items():
@@ -176,6 +178,18 @@ def cost_table() -> str:
                 f"| {name} | {scale} | {cost.runs} | {short_count(cost.robot_steps)} "
                 f"| {short_count(cost.trial_steps)} | {_cell(sizes.measured or '—')} |"
             )
+            if scale == "thesis" and spec.kind == "thesis":
+                total = [
+                    total[0] + cost.runs,
+                    total[1] + cost.robot_steps,
+                    total[2] + cost.trial_steps,
+                ]
+    runs, robot, trials = total
+    out.append(
+        f"\nThe thesis's experiments at `thesis` scale, default seeds: {runs} runs, "
+        f"{short_count(robot)} robot-steps of training and {short_count(trials)} trial-steps "
+        f"of implementation ({short_count(robot + trials)} simulated steps)."
+    )
     return "\n".join(out) + "\n"
 
 
