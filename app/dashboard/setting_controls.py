@@ -7,19 +7,25 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
-from typing import Annotated, Any, TypeVar, cast
+from types import MappingProxyType
+from typing import Annotated, Any, cast
 
 import viser
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from app.config import describe_problems
+from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
-from app.fields import Setting, value_at
-
-M = TypeVar("M", bound=BaseModel)
+from app.fields import Setting, settings_of, value_at
 
 Control = viser.GuiNumberHandle[Any] | viser.GuiDropdownHandle[Any] | viser.GuiCheckboxHandle
+
+
+@cache
+def implementation_settings() -> Mapping[str, Setting]:
+    """The implementation phase's settings by field name (`ImplementationSettings`), read once
+    for the Runs, Compare and Faults tabs."""
+    return MappingProxyType({s.name: s for s in settings_of(ImplementationSettings)})
 
 
 def add_number(
@@ -86,18 +92,6 @@ def add_controls(
     return SettingControls(
         {s.path: add_control(gui, s, value_at(model, s.path)) for s in settings if can_show(s)}
     )
-
-
-def build(model: type[M], values: Mapping[str, Any], where: str) -> M:
-    """`model` built from `values` (what the page's controls hold).
-
-    Raises:
-        DashboardInputError: the model's message, one line naming each bad field.
-    """
-    try:
-        return model.model_validate(dict(values))
-    except ValidationError as error:
-        raise DashboardInputError(f"{where}: {describe_problems(error)}") from None
 
 
 @cache

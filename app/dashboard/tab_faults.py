@@ -10,18 +10,17 @@ import viser
 
 import gnp
 from app.config import ImplementationSettings
-from app.dashboard.controls import parse_sensors
+from app.dashboard.controls import build, parse_sensors
 from app.dashboard.setting_controls import (
     SettingControls,
     add_choice,
     add_control,
     add_number,
-    build,
     check,
+    implementation_settings,
 )
 from app.dashboard.stage import Stage
 from app.dashboard.status import Status
-from app.fields import settings_of
 from app.live import brain_name
 
 FIXED = "fixed"
@@ -119,7 +118,7 @@ def populate_faults_tab(
     `on_break` is called after sensors broke (the Show tab echoes that new lives are off).
     """
     defaults = ImplementationSettings()
-    fields = {s.name: s for s in settings_of(ImplementationSettings)}
+    fields = implementation_settings()
     noise = gui.add_slider(
         "Noise σ (live)",
         min=fields["noise_sigma"].low or 0,
