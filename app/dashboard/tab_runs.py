@@ -207,8 +207,9 @@ class RunsTab:
             repeats=check(ImplementationSettings, "repeats", self.repeats.value, "repeats"),
             schedule=self.schedule.value,
         )
-        if request.fault_step >= request.steps:
-            raise DashboardInputError("the fault step t' must come before the end T")
+        # The whole request against the model here, so a bad value (sensor 9, t' ≥ T) is one
+        # message now and no worker starts; the worker builds the same settings again.
+        request.settings(self.loaded.config.implementation)
         self.implementation = ImplementationJob(request)
         self.plots.implementation_line = "implementation: running"
         self.status.set(f"implementation phase of {self.loaded.path.stem} started")
