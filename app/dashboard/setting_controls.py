@@ -8,15 +8,15 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
 from types import MappingProxyType
-from typing import Annotated, Any, cast
+from typing import Any
 
 import viser
-from pydantic import BaseModel, TypeAdapter, ValidationError
+from pydantic import BaseModel
 
 from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
-from app.fields import Setting, settings_of, value_at
+from app.fields import Setting, SettingError, check_field, settings_of, value_at
 
 Control = viser.GuiNumberHandle[Any] | viser.GuiDropdownHandle[Any] | viser.GuiCheckboxHandle
 
@@ -94,12 +94,6 @@ def add_controls(
     )
 
 
-@cache
-def _adapter(model: type[BaseModel], name: str) -> TypeAdapter[Any]:
-    info = model.model_fields[name]
-    return TypeAdapter(cast(Any, Annotated[info.annotation, info]))
-
-
 def check(model: type[BaseModel], name: str, value: Any, label: str) -> Any:
     """`value` checked against the field `name` of `model` alone (its type and bounds).
 
@@ -107,7 +101,6 @@ def check(model: type[BaseModel], name: str, value: Any, label: str) -> Any:
         DashboardInputError: `label: problem (got value)`.
     """
     try:
-        return _adapter(model, name).validate_python(value)
-    except ValidationError as error:
-        problem = str(error.errors()[0]["msg"])
-        raise DashboardInputError(f"{label}: {problem} (got {value!r})") from None
+        return check_field(model, name, value, label)
+    except SettingError as error:
+        raise DashboardInputError(str(error)) from None
