@@ -12,10 +12,11 @@ import math
 import types
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Literal, Union, get_args, get_origin
+from functools import cache
+from typing import Annotated, Any, Literal, Union, cast, get_args, get_origin
 
 import annotated_types
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, TypeAdapter, ValidationError
 from pydantic.config import JsonDict
 
 Kind = Literal["int", "float", "bool", "choice", "ints"]
@@ -175,6 +176,30 @@ def sections(model: type[BaseModel]) -> Iterator[tuple[str, type[BaseModel]]]:
         annotation = info.annotation
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
             yield name, annotation
+
+
+class SettingError(ValueError):
+    """A value one setting's field refuses; the message is one line, `label: problem (got v)`."""
+
+
+@cache
+def _adapter(model: type[BaseModel], name: str) -> TypeAdapter[Any]:
+    info = model.model_fields[name]
+    return TypeAdapter(cast(Any, Annotated[info.annotation, info]))
+
+
+def check_field(model: type[BaseModel], name: str, value: Any, label: str) -> Any:
+    """`value` checked against the field `name` of `model` alone (its type and bounds; not the
+    model's checks across fields), as the field makes it (e.g. 3 → 3.0 for a float).
+
+    Raises:
+        SettingError: `label: problem (got value)`.
+    """
+    try:
+        return _adapter(model, name).validate_python(value)
+    except ValidationError as error:
+        problem = str(error.errors()[0]["msg"])
+        raise SettingError(f"{label}: {problem} (got {value!r})") from None
 
 
 def value_at(model: BaseModel, path: tuple[str, ...]) -> Any:

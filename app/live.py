@@ -19,15 +19,30 @@ import numpy as np
 import gnp
 import neuro
 import sim
-from app.config import LearningSettings
+from app.config import ImplementationSettings, LearningSettings
+from app.fields import SettingError, check_field
 from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
 from app.rollout import Batch
 from sim import CONTROL_PERIOD_S, FaultMode
 
 
 class LiveError(ValueError):
-    """A live-session request that cannot be honoured (robot count, start pose); a bad sensor,
-    fault mode or noise σ is refused by the world (`sim.WorldError`) before anything changes."""
+    """A live-session request that cannot be honoured (robot count, start pose, a noise σ out
+    of the settings' range); a bad sensor or fault mode is refused by the world
+    (`sim.WorldError`) before anything changes."""
+
+
+def checked_noise(sigma: float) -> float:
+    """`sigma` as a live noise σ: within the implementation phase's `noise_sigma` field, the
+    bounds the Faults tab's control shows (the world alone takes any finite σ ≥ 0).
+
+    Raises:
+        LiveError: `noise σ: problem (got sigma)`, the line the page shows.
+    """
+    try:
+        return float(check_field(ImplementationSettings, "noise_sigma", sigma, "noise σ"))
+    except SettingError as error:
+        raise LiveError(str(error)) from None
 
 
 class Ring:
@@ -249,7 +264,8 @@ class LiveSession:
         robots: one or two robots to show.
         start: index of the start pose (0..9) in `arena.start_poses`.
         seed: seeds each robot's world and controller streams (the same for every robot).
-        noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see.
+        noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see (see
+            `checked_noise`).
         learning: online learning settings.
         control_period: simulated seconds per control step (the run's setting).
     """
@@ -269,6 +285,7 @@ class LiveSession:
         n_starts = len(arena.start_poses)
         if not 0 <= start < n_starts:
             raise LiveError(f"start pose must be in 0..{n_starts - 1}, got {start}")
+        noise_sigma = checked_noise(noise_sigma)
         self.arena = arena
         self.start = start
         self.learning = learning or LearningSettings()
@@ -328,10 +345,11 @@ class LiveSession:
             return tuple(robot.snapshot() for robot in self._robots)
 
     def set_noise(self, sigma: float) -> None:
-        """Sensor noise σ of every robot (the first robot's world refuses a bad σ)."""
+        """Sensor noise σ of every robot (see `checked_noise`)."""
+        sigma = checked_noise(sigma)
         with self._lock:
             for robot in self._robots:
-                robot.world.noise_sigma = float(sigma)
+                robot.world.noise_sigma = sigma
 
     def break_sensors(self, sensors: Sequence[int], mode: str) -> None:
         """Break `sensors` of every robot on show now, in fault `mode`.

@@ -10,15 +10,26 @@ import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ValidationError
 
 import sim
 from app import store
-from app.config import PRESET_NAMES, ConfigError, RunConfig, build_config, preset_layer
+from app.config import (
+    PRESET_NAMES,
+    ConfigError,
+    RunConfig,
+    build_config,
+    describe_problems,
+    preset_layer,
+)
 from app.fields import nested
 
 NO_RUNS = "(none)"
 """What a list of runs offers when the runs dir holds none."""
+
+M = TypeVar("M", bound=BaseModel)
 
 
 class DashboardInputError(ValueError):
@@ -87,3 +98,15 @@ def training_config(preset: str, values: Mapping[tuple[str, ...], Any]) -> RunCo
         return build_config(preset_layer(preset), nested(dict(values)), source="the Train tab")
     except ConfigError as error:
         raise DashboardInputError(str(error)) from None
+
+
+def build(model: type[M], values: Mapping[str, Any], where: str) -> M:
+    """`model` built from `values` (what the page's controls hold).
+
+    Raises:
+        DashboardInputError: the model's message, one line naming each bad field.
+    """
+    try:
+        return model.model_validate(dict(values))
+    except ValidationError as error:
+        raise DashboardInputError(f"{where}: {describe_problems(error)}") from None

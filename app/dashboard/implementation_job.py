@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from app.config import ImplementationSettings
-from app.dashboard.controls import DashboardInputError
+from app.dashboard.controls import build
 from app.implementation import run_implementation
 from app.neural import best_individual
 from app.store import Implementation, RunFileError, RunReader
@@ -33,23 +33,23 @@ class ImplementationRequest:
     schedule: str  # "fixed" | "changing"
 
     def settings(self, base: ImplementationSettings) -> ImplementationSettings:
-        """The run's own implementation settings with this request's fault and sizes."""
-        try:
-            return ImplementationSettings.model_validate(
-                {
-                    **base.model_dump(),
-                    "broken_sensors": self.sensors,
-                    "fault_mode": self.mode,
-                    "fault_step": self.fault_step,
-                    "steps": self.steps,
-                    "repeats": self.repeats,
-                    "schedule": self.schedule,
-                    "recorded_trials": 0,
-                    "generation": None,
-                }
-            )
-        except ValueError as error:
-            raise DashboardInputError(f"implementation settings: {error}") from None
+        """The run's own implementation settings with this request's fault and sizes.
+
+        Raises:
+            DashboardInputError: one line naming each value the model refuses.
+        """
+        values = {
+            **base.model_dump(),
+            "broken_sensors": self.sensors,
+            "fault_mode": self.mode,
+            "fault_step": self.fault_step,
+            "steps": self.steps,
+            "repeats": self.repeats,
+            "schedule": self.schedule,
+            "recorded_trials": 0,
+            "generation": None,
+        }
+        return build(ImplementationSettings, values, "implementation settings")
 
 
 def implement_run(request: ImplementationRequest) -> Implementation:
@@ -113,7 +113,7 @@ class ImplementationJob:
         return self._outcome is None
 
     def result(self) -> Implementation:
-        """The finished result; raises the worker's error (RunFileError, DashboardInputError)."""
+        """The finished result; raises the worker's error (e.g. RunFileError)."""
         self._wait(None)
         assert self._outcome is not None
         result, error = self._outcome

@@ -7,19 +7,25 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
-from typing import Annotated, Any, TypeVar, cast
+from types import MappingProxyType
+from typing import Any
 
 import viser
-from pydantic import BaseModel, TypeAdapter, ValidationError
+from pydantic import BaseModel
 
-from app.config import describe_problems
+from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
-from app.fields import Setting, value_at
-
-M = TypeVar("M", bound=BaseModel)
+from app.fields import Setting, SettingError, check_field, settings_of, value_at
 
 Control = viser.GuiNumberHandle[Any] | viser.GuiDropdownHandle[Any] | viser.GuiCheckboxHandle
+
+
+@cache
+def implementation_settings() -> Mapping[str, Setting]:
+    """The implementation phase's settings by field name (`ImplementationSettings`), read once
+    for the Runs, Compare and Faults tabs."""
+    return MappingProxyType({s.name: s for s in settings_of(ImplementationSettings)})
 
 
 def add_number(
@@ -88,24 +94,6 @@ def add_controls(
     )
 
 
-def build(model: type[M], values: Mapping[str, Any], where: str) -> M:
-    """`model` built from `values` (what the page's controls hold).
-
-    Raises:
-        DashboardInputError: the model's message, one line naming each bad field.
-    """
-    try:
-        return model.model_validate(dict(values))
-    except ValidationError as error:
-        raise DashboardInputError(f"{where}: {describe_problems(error)}") from None
-
-
-@cache
-def _adapter(model: type[BaseModel], name: str) -> TypeAdapter[Any]:
-    info = model.model_fields[name]
-    return TypeAdapter(cast(Any, Annotated[info.annotation, info]))
-
-
 def check(model: type[BaseModel], name: str, value: Any, label: str) -> Any:
     """`value` checked against the field `name` of `model` alone (its type and bounds).
 
@@ -113,7 +101,6 @@ def check(model: type[BaseModel], name: str, value: Any, label: str) -> Any:
         DashboardInputError: `label: problem (got value)`.
     """
     try:
-        return _adapter(model, name).validate_python(value)
-    except ValidationError as error:
-        problem = str(error.errors()[0]["msg"])
-        raise DashboardInputError(f"{label}: {problem} (got {value!r})") from None
+        return check_field(model, name, value, label)
+    except SettingError as error:
+        raise DashboardInputError(str(error)) from None

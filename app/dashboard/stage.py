@@ -18,7 +18,7 @@ import gnp
 import sim
 from app import store
 from app.dashboard.controls import DashboardInputError
-from app.live import LearningSettings, LiveSession, RobotSpec
+from app.live import LearningSettings, LiveSession, RobotSpec, checked_noise
 from app.neural import best_individual
 
 MAX_STEPS_PER_ADVANCE = 50
@@ -162,9 +162,14 @@ class Stage:
         return steps
 
     def set_noise(self, sigma: float) -> None:
-        """Sensor noise σ, now and for every later show."""
+        """Sensor noise σ, now and for every later show.
+
+        Raises:
+            LiveError: σ out of the settings' range (`app.live.checked_noise`), nothing kept.
+        """
+        sigma = checked_noise(sigma)
         if self.session is not None:
-            self.session.set_noise(sigma)  # refuses a bad σ before it is kept
+            self.session.set_noise(sigma)
         self.noise_sigma = sigma
 
     def set_learning(self, learning: LearningSettings) -> None:

@@ -11,10 +11,10 @@ import viser
 import sim
 from app.config import ImplementationSettings
 from app.dashboard.controls import NO_RUNS, open_run, parse_sensors
-from app.dashboard.setting_controls import add_number, check
+from app.dashboard.setting_controls import add_choice, add_number, check, implementation_settings
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
-from app.dashboard.tab_runs import IMPLEMENTATION, set_options
+from app.dashboard.tab_runs import set_options
 
 
 @dataclass
@@ -66,6 +66,7 @@ def populate_compare_tab(
     """Add the Compare tab's controls (inside the current tab) and attach their callbacks."""
     gui.add_markdown("Two runs' best individuals, same arena, start pose and fault.")
     # A label another tab also has ends in a space, so each field is found by its own label.
+    fields = implementation_settings()
     tab = CompareTab(
         stage=stage,
         status=status,
@@ -75,8 +76,8 @@ def populate_compare_tab(
         arena=gui.add_dropdown("Arena ", sim.ARENA_NAMES, initial_value="implementation"),
         start=gui.add_dropdown("Start pose ", tuple(str(i) for i in range(sim.N_START_POSES))),
         sensors=gui.add_text("Break sensors ", "2,3"),
-        mode=gui.add_dropdown("Mode ", sim.FAULT_MODES),
-        fault_step=add_number(gui, IMPLEMENTATION["fault_step"], 300, "At step"),
+        mode=add_choice(gui, fields["fault_mode"], fields["fault_mode"].default, "Mode "),
+        fault_step=add_number(gui, fields["fault_step"], 300, "At step"),
     )
     go = gui.add_button("Compare", icon=viser.Icon.ARROWS_LEFT_RIGHT)
     go.on_click(status.guard(tab.compare))

@@ -23,20 +23,16 @@ from app.dashboard.controls import (
     whole,
 )
 from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
-from app.dashboard.setting_controls import add_number, check
+from app.dashboard.setting_controls import add_choice, add_number, check, implementation_settings
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
-from app.fields import settings_of
 
-SCHEDULES = ("fixed", "changing")
 NET_NOTE = (
     "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
     "schedule do not apply to it.</small>"
 )
-
-IMPLEMENTATION = {s.name: s for s in settings_of(ImplementationSettings)}
 
 
 def run_brain(config: RunConfig) -> str:
@@ -211,8 +207,9 @@ class RunsTab:
             repeats=check(ImplementationSettings, "repeats", self.repeats.value, "repeats"),
             schedule=self.schedule.value,
         )
-        if request.fault_step >= request.steps:
-            raise DashboardInputError("the fault step t' must come before the end T")
+        # The whole request against the model here, so a bad value (sensor 9, t' ≥ T) is one
+        # message now and no worker starts; the worker builds the same settings again.
+        request.settings(self.loaded.config.implementation)
         self.implementation = ImplementationJob(request)
         self.plots.implementation_line = "implementation: running"
         self.status.set(f"implementation phase of {self.loaded.path.stem} started")
@@ -261,6 +258,7 @@ def populate_runs_tab(
     replay = gui.add_button("Replay best individual", icon=viser.Icon.PLAYER_PLAY)
     exports = gui.add_button_group("Export", ("Export", "Export replay"))
     gui.add_markdown("**Implementation phase** (implementation arena, online Sarsa)")
+    fields = implementation_settings()
     tab = RunsTab(
         stage=stage,
         status=status,
@@ -272,12 +270,12 @@ def populate_runs_tab(
         arena=arena,
         generation=generation,
         sensors=gui.add_text("Break sensors", "2,3"),
-        mode=gui.add_dropdown("Mode", sim.FAULT_MODES),
+        mode=add_choice(gui, fields["fault_mode"], fields["fault_mode"].default, "Mode"),
         # Bounds and hints from the model; the values are short for a look in the page.
-        fault_step=add_number(gui, IMPLEMENTATION["fault_step"], 500, "Fault step t'"),
-        steps=add_number(gui, IMPLEMENTATION["steps"], 1500, "Steps T"),
-        repeats=add_number(gui, IMPLEMENTATION["repeats"], 3, "Repeats per start pose"),
-        schedule=gui.add_dropdown("ε, α ", SCHEDULES),
+        fault_step=add_number(gui, fields["fault_step"], 500, "Fault step t'"),
+        steps=add_number(gui, fields["steps"], 1500, "Steps T"),
+        repeats=add_number(gui, fields["repeats"], 3, "Repeats per start pose"),
+        schedule=add_choice(gui, fields["schedule"], fields["schedule"].default, "ε, α "),
     )
     run_implementation = gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY)
 

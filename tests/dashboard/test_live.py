@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
 import gnp
 import sim
+from app.config import ImplementationSettings
+from app.fields import read_setting
 from app.live import LearningSettings, LiveError, LiveSession, Ring, RobotSpec
 
 
@@ -87,12 +91,12 @@ def test_a_scheduled_fault_fires_at_its_step_for_both_robots(arena: sim.Arena) -
 
 def test_bad_requests_are_refused_and_change_nothing(arena: sim.Arena) -> None:
     session = LiveSession(arena, [individual("RL")])
-    # The world refuses a bad sensor, mode, noise or fault step: nothing else checks them.
+    # The world refuses a bad sensor, mode or fault step: nothing else checks them.
     with pytest.raises(sim.WorldError, match=r"sensor index 8 is not in 0\.\.7"):
         session.break_sensors([8], "dead")
     with pytest.raises(sim.WorldError, match="unknown fault mode 'melted'"):
         session.break_sensors([1], "melted")
-    with pytest.raises(sim.WorldError, match="noise_sigma must be a finite number"):
+    with pytest.raises(LiveError, match="noise σ: Input should be greater than or equal to 0"):
         session.set_noise(-1.0)
     with pytest.raises(sim.WorldError, match=r"Fault\.step must be ≥ 0"):
         session.schedule_fault(-1, [1], "dead")
@@ -105,6 +109,26 @@ def test_bad_requests_are_refused_and_change_nothing(arena: sim.Arena) -> None:
     session.step(1)
     assert not session.snapshot()[0].broken.any()
     assert session.robots[0].world.noise_sigma == 0.0
+
+
+def test_noise_is_bounded_by_the_settings_field_not_only_by_the_world(arena: sim.Arena) -> None:
+    """The world takes any finite σ ≥ 0; a live session takes what `noise_sigma` allows
+    (0..IR_MAX), so the live page cannot show a noise no run could be configured with."""
+    setting = read_setting(ImplementationSettings, "noise_sigma")
+    assert setting is not None and (setting.low, setting.high) == (0, sim.IR_MAX)
+    high = float(sim.IR_MAX)
+    session = LiveSession(arena, [individual("RL")], noise_sigma=high)
+    assert session.robots[0].world.noise_sigma == float(sim.IR_MAX)
+    session.set_noise(0)
+    assert session.robots[0].world.noise_sigma == 0.0
+    with pytest.raises(LiveError) as refused:
+        session.set_noise(sim.IR_MAX + 1)
+    assert str(refused.value) == "noise σ: Input should be less than or equal to 1023 (got 1024.0)"
+    with pytest.raises(LiveError, match=r"noise σ: .* \(got nan\)"):
+        session.set_noise(float("nan"))
+    assert session.robots[0].world.noise_sigma == 0.0  # nothing changed
+    with pytest.raises(LiveError, match=re.escape("less than or equal to 1023 (got 5000.0)")):
+        LiveSession(arena, [individual("RL")], noise_sigma=5000.0)
 
 
 def test_learning_rates_fixed_and_scheduled_after_the_fault() -> None:

@@ -43,14 +43,20 @@ def test_the_chart_gets_block_means_the_smooth_mean_and_the_broken_count() -> No
     np.testing.assert_array_equal(n_broken, [0, 2, 2])
 
 
-def test_the_fitness_chart_shows_the_whole_fitness_range_with_its_top_tick() -> None:
+def test_the_fitness_chart_shares_the_reward_charts_y_range_with_its_top_tick() -> None:
+    """A fitness is a mean reward per step (Eq. 2.8): the fitness chart's y axis is the reward
+    chart's, read from both handles, and it holds the 1.0 tick with room above it (uPlot puts
+    ticks at multiples of the increment from 0, so 1.0 must be a multiple of each)."""
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        plot = plots.fitness_plot(server.gui)
-        assert plot.scales is not None and plot.axes is not None
-        low, high = plot.scales["y"]["range"]
-        assert (low, high) == plots.REWARD_RANGE  # fitness: a mean reward per step, 0..1
-        assert plots.REWARD_RANGE[1] > 1.0  # room above the 1.0 tick
-        assert plot.axes[1]["scale"] == "y"
+        fitness, reward = plots.fitness_plot(server.gui), plots.reward_plot(server.gui)
+        assert fitness.scales is not None and reward.scales is not None
+        assert fitness.axes is not None and reward.axes is not None
+        low, high = fitness.scales["y"]["range"]
+        assert (low, high) == tuple(reward.scales["y"]["range"])
+        assert fitness.axes[1] == reward.axes[1] and fitness.axes[1]["scale"] == "y"
+        assert low <= 0.0 and high > 1.0  # every fitness, and the top tick not at the edge
+        increments = fitness.axes[1]["incrs"]
+        assert increments and all((1.0 / step).is_integer() for step in increments)
     finally:
         server.stop()

@@ -159,9 +159,13 @@ def test_breaking_stops_new_lives_and_bad_requests_change_nothing(cs: RobotSpec)
         stage.restage(arena="moon")
     with pytest.raises(LiveError, match=r"start pose must be in 0\.\.9"):
         stage.restage(start=sim.N_START_POSES)
-    with pytest.raises(sim.WorldError, match="noise_sigma must be a finite number"):
+    with pytest.raises(LiveError, match="noise σ: Input should be greater than or equal to 0"):
         stage.set_noise(-1.0)
+    with pytest.raises(LiveError, match="noise σ: Input should be less than or equal to 1023"):
+        stage.set_noise(sim.IR_MAX + 1)
     assert (stage.show, stage.session, stage.noise_sigma) == (show, session, 0.0)
+    with pytest.raises(LiveError, match="noise σ"):  # with nothing on show too
+        Stage().set_noise(sim.IR_MAX + 1)
 
 
 def test_a_comparison_schedules_the_same_fault_for_both_robots(
