@@ -10,7 +10,8 @@ workers' signal handling and the shutdown are decided once:
 - Signals: Ctrl-C and SIGTERM reach the whole process group; workers ignore them, the parent
   decides and stops its workers itself. A worker whose parent died sees its pipe close and exits.
 - Shutdown: `close` asks each worker to end, waits a little (not at all when interrupted
-  mid-job: its results are not wanted) and kills what is left.
+  mid-job, or for a worker never given a job: their results are not wanted) and kills what
+  is left.
 
 A worker builds its state once (`setup(*args)`, in the child) and then answers each job with
 `state(job, count)`; `count(n)` reports work done as it goes. Which job goes to which worker is
@@ -208,14 +209,15 @@ class WorkerPool:
         return WorkerDied(f"a worker process died (exit codes {codes})")
 
     def close(self) -> None:
-        """End every worker: at once if one was mid-job (its result is not wanted), else after
-        it finishes its loop; what does not end is killed."""
+        """End every worker: at once if one was mid-job (its result is not wanted) or was never
+        given a job (it may still be building a state nobody wants: a run that fails to start
+        does not wait for it), else after it finishes its loop; what does not end is killed."""
         interrupted = bool(self.busy)
         for conn in self._conns:
             with contextlib.suppress(BrokenPipeError, OSError):
                 conn.send(None)
-        for proc in self._procs:
-            proc.join(timeout=0 if interrupted else 5)
+        for worker, proc in enumerate(self._procs):
+            proc.join(timeout=0 if interrupted or worker not in self.pending else 5)
             if proc.is_alive():
                 proc.kill()
                 proc.join()

@@ -112,6 +112,18 @@ def test_same_seed_same_file_for_any_worker_count(tmp_path: Path) -> None:
     )
 
 
+def test_a_run_that_cannot_start_on_workers_fails_with_its_file_error(
+    tmp_path: Path, finished_run: Path
+) -> None:
+    # The pool starts before the file is checked; its never-used workers are dropped at once.
+    before = file_digest(finished_run)
+    with pytest.raises(RunFileError, match="already exists; choose another --out"):
+        train(tiny_config(), finished_run, workers=2, local=False)
+    with pytest.raises(RunFileError, match="is a finished run; there is nothing to resume"):
+        resume(finished_run, workers=2, local=False)
+    assert file_digest(finished_run) == before
+
+
 # --- a real training process: killed, stopped, followed while it writes --------------------
 
 
