@@ -104,13 +104,18 @@ class Control:
         self.running.set()  # a paused run wakes up to stop
 
     def pause(self) -> None:
-        self.running.clear()
+        """Hold the run before its next generation; nothing once a stop is asked for (the
+        run stops rather than waits)."""
+        if not self.stopping.is_set():
+            self.running.clear()
 
     def resume(self) -> None:
         self.running.set()
 
     def checkpoint(self) -> None:
-        """Wait while paused; KeyboardInterrupt once a stop is asked for."""
+        """KeyboardInterrupt once a stop is asked for (before, or while, waiting paused)."""
+        if self.stopping.is_set():
+            raise KeyboardInterrupt
         if not self.running.is_set():
             self.held.set()
             self.running.wait()

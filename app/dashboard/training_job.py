@@ -18,7 +18,8 @@ from app.config import RunConfig
 from app.training import Control, Interrupted, train
 from app.workers import default_workers
 
-JobState = Literal["running", "paused", "finished", "failed", "stopped"]
+JobState = Literal["running", "paused", "stopping", "finished", "failed", "stopped"]
+"""A job's state; "stopping": asked to stop, its thread not ended yet (nothing can act)."""
 
 
 class TrainingJob:
@@ -58,6 +59,8 @@ class TrainingJob:
     @property
     def state(self) -> JobState:
         if self._thread.is_alive():
+            if self._control.stopping.is_set():
+                return "stopping"
             return "paused" if self._paused_at is not None else "running"
         return self._outcome or "failed"
 
@@ -76,8 +79,8 @@ class TrainingJob:
         return now - self.started - self._paused_total
 
     def pause(self) -> None:
-        """Hold the run before its next generation."""
-        if self.active and self._paused_at is None:
+        """Hold the run before its next generation (not once it is stopping)."""
+        if self.state == "running":
             self._control.pause()
             self._paused_at = time.monotonic()
 

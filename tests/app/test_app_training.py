@@ -236,6 +236,24 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
     assert_same_data(out, reference)
 
 
+def test_a_stop_wins_over_a_pause() -> None:
+    from app.training import Control
+
+    control = Control()
+    control.stop()
+    control.pause()  # too late: nothing to hold
+    assert control.running.is_set()
+    with pytest.raises(KeyboardInterrupt):
+        control.checkpoint()
+    # A stop left by SIGTERM's handler (`stopping` only) while paused: no wait first.
+    paused = Control()
+    paused.pause()
+    paused.stopping.set()
+    with pytest.raises(KeyboardInterrupt):
+        paused.checkpoint()
+    assert not paused.held.is_set()
+
+
 def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path) -> None:
     """SIGTERM during numba's compilation can lose its KeyboardInterrupt inside llvmlite; the
     request it left stops the run at the next generation, resumable."""
