@@ -1,10 +1,13 @@
 """Training started from the dashboard: the lab's generation loop in a thread of this process.
 
-The loop is the CLI's (`app.training.train`, so the run file is the same); its lives go to the
-lab's worker pool (`app.workers`), never to this process, so the page stays responsive. Pause
-and resume take effect between generations, stop at once (the generation under way is
-dropped, the file keeps every complete one and can be resumed); the page follows the run file
-as it is written (SWMR).
+The loop is the CLI's (`app.training.train`, so the run file is the same). The robots' lives,
+nearly all of its work, go to the lab's worker pool (`app.workers`), never to this process;
+what runs here, in the job's thread, is the rest of each generation: the evolution (or the
+optimiser's step), the HDF5 writes, and at the end the final elite's replay (one robot's
+life). The page stays responsive. Pause and resume take effect between generations, stop at
+once (the generation under way is dropped, the file keeps every complete one and can be
+resumed; the job is "stopping" until its thread ends); the page follows the run file as it is
+written (SWMR).
 """
 
 from __future__ import annotations

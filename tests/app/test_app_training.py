@@ -254,6 +254,19 @@ def test_a_stop_wins_over_a_pause() -> None:
     assert not paused.held.is_set()
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_leave_the_same_stop_request(sig: int) -> None:
+    from app.generations import stop_on_signals
+    from app.training import Control
+
+    control = Control()
+    before = signal.getsignal(sig)
+    with pytest.raises(KeyboardInterrupt), stop_on_signals(control):
+        signal.raise_signal(sig)
+    assert control.stopping.is_set()  # remembered, should the interrupt be swallowed
+    assert signal.getsignal(sig) is before
+
+
 def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path) -> None:
     """SIGTERM during numba's compilation can lose its KeyboardInterrupt inside llvmlite; the
     request it left stops the run at the next generation, resumable."""
