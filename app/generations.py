@@ -152,7 +152,8 @@ def _shard_worker(config_json: str) -> Handler:
     def handle(job: tuple[Any, LifeSeeds, float, float], count: Any) -> tuple[Lives, Any]:
         individuals, seeds, epsilon, alpha = job
         result, after, _ = lives.run(individuals, seeds, epsilon, alpha, False)
-        return result, after
+        # Nets do not learn: they come back as they went (None), not piped back unchanged.
+        return result, None if after is individuals else after
 
     return handle
 
@@ -198,7 +199,9 @@ class Evaluator:
             results = self._pool.map(jobs, stopping.is_set if stopping is not None else None)
         except WorkerDied as error:
             raise TrainingError(str(error)) from None
-        return concat_lives([r[0] for r in results]), concat([r[1] for r in results])
+        afters = [r[1] for r in results]
+        after = individuals if afters[0] is None else concat(afters)  # None: unchanged (nets)
+        return concat_lives([r[0] for r in results]), after
 
     def close(self) -> None:
         if self._pool is not None:
