@@ -266,7 +266,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     workers = _workers(args.workers)
     if args.resume:
         given = [f"--{name}" for name in _CONFIG_OPTIONS if getattr(args, name) is not None]
-        given += [option.flag for option in given_options(args)]
+        given += [option.given_as(value) for option, value in given_options(args).items()]
         given += ["--set"] if args.assignments else []
         given += ["--out"] if args.out else []
         if given:

@@ -42,6 +42,15 @@ class SettingOption:
     def dest(self) -> str:
         return f"setting:{self.setting.key}"
 
+    @property
+    def off_flag(self) -> str:
+        """A switch's "off" option: `--no-field-name`, or its `NEGATIONS` name."""
+        return NEGATIONS.get(self.setting.key, f"--no-{self.flag.removeprefix('--')}")
+
+    def given_as(self, value: Any) -> str:
+        """The option as given on the command line for `value`: `--crisp` for fuzzy off."""
+        return self.off_flag if self.setting.kind == "bool" and value is False else self.flag
+
 
 def int_list(text: str) -> tuple[int, ...]:
     """`2,3` → (2, 3); `none` or nothing → ()."""
@@ -79,8 +88,9 @@ def add_setting_options(
         if setting.kind == "bool":
             group = parser.add_mutually_exclusive_group()
             group.add_argument(flag, dest=option.dest, action="store_true", default=None, help=text)
-            off = NEGATIONS.get(setting.key, f"--no-{flag.removeprefix('--')}")
-            group.add_argument(off, dest=option.dest, action="store_false", help=f"not {flag}")
+            group.add_argument(
+                option.off_flag, dest=option.dest, action="store_false", help=f"not {flag}"
+            )
         elif setting.kind == "choice":
             parser.add_argument(flag, dest=option.dest, choices=setting.choices, help=text)
         else:

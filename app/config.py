@@ -28,7 +28,7 @@ from pydantic import (
 import gnp
 import neuro
 from app.arenas import inline_arena, read_arena_paths, toml_arena
-from app.fields import Setting, sections, setting, settings_of
+from app.fields import Setting, read_setting, sections, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
@@ -48,17 +48,29 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
+def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
+    """A `ControllerSettings` field with the default and description `gnp.GnpConfig` gives it
+    (written there once), and its bounds unless the lab allows `narrower` ones."""
+    fact = read_setting(GnpConfig, name)
+    assert fact is not None, name
+    bounds = dict(narrower)
+    if not narrower and fact.low is not None:
+        bounds["gt" if fact.low_open else "ge"] = fact.low
+    if not narrower and fact.high is not None:
+        bounds["lt" if fact.high_open else "le"] = fact.high
+    return setting(fact.default, fact.description, unit, **bounds)
+
+
 class ControllerSettings(_Frozen):
-    """The GNP individual (Tables 2.4, 3.1, 5.1)."""
+    """The GNP individual (Tables 2.4, 3.1, 5.1). Defaults and descriptions are gnp's
+    (`GnpConfig`); the lab keeps narrower bounds on the sizes."""
 
     method: Method = Field(
         default="CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
     )
-    fuzzy: bool = Field(
-        default=True, description="fuzzy judgment (Eq. 2.1-2.2) or crisp thresholds"
-    )
-    n_judgment: int = setting(40, "judgment nodes", "count", ge=8, le=400)
-    n_processing: int = setting(20, "processing nodes", "count", ge=2, le=200)
+    fuzzy: bool = _of_gnp("fuzzy")
+    n_judgment: int = _of_gnp("n_judgment", "count", ge=8, le=400)
+    n_processing: int = _of_gnp("n_processing", "count", ge=2, le=200)
     n_sub: int | None = setting(
         None,
         "sub nodes per node; unset = the thesis's choice for the method ("
@@ -68,10 +80,8 @@ class ControllerSettings(_Frozen):
         ge=1,
         le=8,
     )
-    n_branch: int = Field(
-        default=2, ge=1, le=8, description="branch connections per connection, BS only"
-    )
-    gamma: float = setting(0.9, "Sarsa discount rate γ", "1", ge=0.0, le=1.0)
+    n_branch: int = _of_gnp("n_branch", ge=1, le=8)
+    gamma: float = _of_gnp("gamma", "1")
 
     @property
     def sub_nodes(self) -> int:
@@ -250,6 +260,7 @@ class ImplementationSettings(_Frozen):
 
 
 _IMPLEMENTATION = ImplementationSettings.model_fields
+_IMPLEMENTATION_FACTS = {s.name: s for s in settings_of(ImplementationSettings)}
 
 
 @dataclass(frozen=True)
@@ -270,11 +281,18 @@ class LearningSettings:
     second_stage: bool = True  # off: live ablation of BS's branch / CS's credit (gnp.step)
 
     def __post_init__(self) -> None:
-        for name, value in (("ε", self.epsilon), ("α", self.alpha)):
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"{name} must be in 0..1, got {value}")
-        if self.horizon < 1:
-            raise ValueError(f"the schedule horizon must be ≥ 1 step, got {self.horizon}")
+        # Built directly too (the page's learning, a live session), not only from checked
+        # settings: the same bounds as the implementation phase's fields.
+        for name, field in (("ε", "epsilon"), ("α", "alpha")):
+            value, fact = getattr(self, field), _IMPLEMENTATION_FACTS[field]
+            low, high = fact.low, fact.high
+            assert low is not None and high is not None  # both fields are bounded
+            if not low <= value <= high:
+                raise ValueError(f"{name} must be in {fact.range_text()}, got {value}")
+        fewest = _IMPLEMENTATION_FACTS["steps"].low  # a horizon is some of the phase's steps
+        assert fewest is not None
+        if self.horizon < fewest:
+            raise ValueError(f"the schedule horizon must be ≥ {fewest} step, got {self.horizon}")
 
     def rates(self, t: int, fault_step: int | None) -> tuple[float, float]:
         """ε and α at step `t`, the latest fault (or the phase's t') at `fault_step`."""

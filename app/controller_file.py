@@ -125,7 +125,9 @@ def load_controller(path: str | Path) -> Controller:
         return NetController(*neuro.net_from_body(config, body), settings)
     except (gnp.GnpError, neuro.NeuroError) as error:
         raise ControllerFileError(f"{path}: {error}") from None
-    except (KeyError, TypeError, ValueError) as error:
+    # Any structural error of the JSON (a list where a mapping belongs, a row too short...)
+    # ends in one line, whichever lookup met it first.
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
         first_line = str(error).splitlines()[0] if str(error) else ""
         raise ControllerFileError(
             f"{path}: malformed controller ({type(error).__name__}: {first_line})"

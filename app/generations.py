@@ -17,8 +17,8 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from collections.abc import Callable
-from contextlib import AbstractContextManager
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -88,8 +88,9 @@ class Brain(Protocol):
 class Control:
     """Stop and pause requests, read between generations (a run stops after a complete one).
 
-    The CLI's run is stopped by Ctrl-C or SIGTERM (the main thread's signal turns into
-    KeyboardInterrupt); the dashboard's, run in a thread, by `stop` and `pause` here.
+    The CLI's run is stopped by Ctrl-C or SIGTERM (`stop_on_signals`: the main thread's signal
+    sets `stopping` and raises KeyboardInterrupt); the dashboard's, run in a thread, by `stop`
+    and `pause` here.
     """
 
     stopping: threading.Event = field(default_factory=threading.Event)
@@ -104,13 +105,18 @@ class Control:
         self.running.set()  # a paused run wakes up to stop
 
     def pause(self) -> None:
-        self.running.clear()
+        """Hold the run before its next generation; nothing once a stop is asked for (the
+        run stops rather than waits)."""
+        if not self.stopping.is_set():
+            self.running.clear()
 
     def resume(self) -> None:
         self.running.set()
 
     def checkpoint(self) -> None:
-        """Wait while paused; KeyboardInterrupt once a stop is asked for."""
+        """KeyboardInterrupt once a stop is asked for (before, or while, waiting paused)."""
+        if self.stopping.is_set():
+            raise KeyboardInterrupt
         if not self.running.is_set():
             self.held.set()
             self.running.wait()
@@ -119,8 +125,10 @@ class Control:
             raise KeyboardInterrupt
 
 
-def _stop_on_sigterm(control: Control) -> AbstractContextManager[None]:
-    """Turn SIGTERM into KeyboardInterrupt (as Ctrl-C) while training, in the main thread.
+@contextmanager
+def stop_on_signals(control: Control) -> Iterator[None]:
+    """Ctrl-C (SIGINT) and SIGTERM stop training: each raises KeyboardInterrupt, as Python's
+    own SIGINT handler does, in the main thread (elsewhere signals are left alone).
 
     The request is also remembered in `control`: a KeyboardInterrupt raised while numba
     compiles can be swallowed inside llvmlite, and the loop then stops at the next generation.
@@ -130,7 +138,8 @@ def _stop_on_sigterm(control: Control) -> AbstractContextManager[None]:
         control.stopping.set()
         raise KeyboardInterrupt
 
-    return handling(signal.SIGTERM, handler)
+    with handling(signal.SIGINT, handler), handling(signal.SIGTERM, handler):
+        yield
 
 
 # --- evaluation: in this process or on the worker pool ----------------------------------------
@@ -143,7 +152,8 @@ def _shard_worker(config_json: str) -> Handler:
     def handle(job: tuple[Any, LifeSeeds, float, float], count: Any) -> tuple[Lives, Any]:
         individuals, seeds, epsilon, alpha = job
         result, after, _ = lives.run(individuals, seeds, epsilon, alpha, False)
-        return result, after
+        # Nets do not learn: they come back as they went (None), not piped back unchanged.
+        return result, None if after is individuals else after
 
     return handle
 
@@ -189,7 +199,9 @@ class Evaluator:
             results = self._pool.map(jobs, stopping.is_set if stopping is not None else None)
         except WorkerDied as error:
             raise TrainingError(str(error)) from None
-        return concat_lives([r[0] for r in results]), concat([r[1] for r in results])
+        afters = [r[1] for r in results]
+        after = individuals if afters[0] is None else concat(afters)  # None: unchanged (nets)
+        return concat_lives([r[0] for r in results]), after
 
     def close(self) -> None:
         if self._pool is not None:
@@ -240,7 +252,7 @@ def run_generations(
     everyone = np.arange(training.population)
     done = start
     try:
-        with _stop_on_sigterm(control):  # nested in start/resume's: also when called on its own
+        with stop_on_signals(control):  # nested in start/resume's: also when called on its own
             for generation in range(start, training.generations):
                 control.checkpoint()
                 began = time.perf_counter()
@@ -299,11 +311,12 @@ def start_run(
     generation (see `app.training.train`)."""
     arena_of(config.training.arena)  # fail on a bad arena before creating the file
     control = control or Control()
-    # SIGTERM stops training from the start: a stop before generation 0's checkpoint is in
+    # Ctrl-C and SIGTERM stop training from the start: a stop before generation 0's checkpoint is in
     # the file leaves no file (KeyboardInterrupt), after it a resumable one (Interrupted).
-    # The workers start before any file is open: a forked one holds none of this process's.
+    # The workers start before any file is open: a forked one holds none of this process's
+    # (if the file cannot be created, those never given a job are killed at once on close).
     with (
-        _stop_on_sigterm(control),
+        stop_on_signals(control),
         Evaluator(config, workers, local, control.stopping) as evaluator,
     ):
         brain = first(config)
@@ -337,7 +350,7 @@ def resume_run(
     with RunReader(path) as run:
         config, fitness = run.config, run.history().fitness
     with (
-        _stop_on_sigterm(control),
+        stop_on_signals(control),
         Evaluator(config, workers, local, control.stopping) as evaluator,
     ):
         writer, generation, arrays = RunWriter.resume(path)

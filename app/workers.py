@@ -10,7 +10,8 @@ workers' signal handling and the shutdown are decided once:
 - Signals: Ctrl-C and SIGTERM reach the whole process group; workers ignore them, the parent
   decides and stops its workers itself. A worker whose parent died sees its pipe close and exits.
 - Shutdown: `close` asks each worker to end, waits a little (not at all when interrupted
-  mid-job: its results are not wanted) and kills what is left.
+  mid-job, or for a worker never given a job: their results are not wanted) and kills what
+  is left.
 
 A worker builds its state once (`setup(*args)`, in the child) and then answers each job with
 `state(job, count)`; `count(n)` reports work done as it goes. Which job goes to which worker is
@@ -25,6 +26,7 @@ import os
 import pickle
 import signal
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection, wait
@@ -89,6 +91,9 @@ def _serve(conn: Connection, setup: Callable[..., Handler], args: tuple[Any, ...
             try:
                 conn.send(("done", handle(job, count)))
             except Exception as error:  # sent to the parent, raised there
+                # The parent re-raises it with its own traceback: the note (notes survive
+                # pickling) says where in this process it happened.
+                error.add_note(f"in worker process {os.getpid()}:\n{traceback.format_exc()}")
                 conn.send(("error", _sendable(error)))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
@@ -146,14 +151,21 @@ class WorkerPool:
         self.pending[worker] = self.pending.get(worker, 0) + 1
 
     def receive(self, timeout: float | None = None, count: Count | None = None) -> tuple[int, Any]:
-        """The next answer of a busy worker as (worker, result), waiting up to `timeout` s
-        (None: no answer yet). Counts reported meanwhile go to `count`.
+        """The next answer of a busy worker as (worker, result), waiting up to `timeout` s in
+        all (-1, None: no answer by then). Counts reported meanwhile go to `count`.
 
         Raises:
             WorkerDied: a busy worker died; an exception in a job is raised again here.
+            RuntimeError: no worker has a job and `timeout` is None (it would wait forever).
         """
+        # One deadline for the whole call: count messages must not restart the wait.
+        deadline = None if timeout is None else time.monotonic() + timeout
         while True:
-            ready = wait([self._conns[i] for i in self.busy], timeout)
+            busy = self.busy
+            if not busy and deadline is None:
+                raise RuntimeError("waiting for an answer, but no worker has a job")
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            ready = wait([self._conns[i] for i in busy], left)
             if not ready:
                 return -1, None
             for conn in ready:
@@ -197,14 +209,15 @@ class WorkerPool:
         return WorkerDied(f"a worker process died (exit codes {codes})")
 
     def close(self) -> None:
-        """End every worker: at once if one was mid-job (its result is not wanted), else after
-        it finishes its loop; what does not end is killed."""
+        """End every worker: at once if one was mid-job (its result is not wanted) or was never
+        given a job (it may still be building a state nobody wants: a run that fails to start
+        does not wait for it), else after it finishes its loop; what does not end is killed."""
         interrupted = bool(self.busy)
         for conn in self._conns:
             with contextlib.suppress(BrokenPipeError, OSError):
                 conn.send(None)
-        for proc in self._procs:
-            proc.join(timeout=0 if interrupted else 5)
+        for worker, proc in enumerate(self._procs):
+            proc.join(timeout=0 if interrupted or worker not in self.pending else 5)
             if proc.is_alive():
                 proc.kill()
                 proc.join()
@@ -218,15 +231,6 @@ class WorkerPool:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-@contextlib.contextmanager
-def pool(
-    workers: int, setup: Callable[..., Handler], args: tuple[Any, ...] = ()
-) -> Iterator[WorkerPool]:
-    """A `WorkerPool` closed on leaving (also on an error or Ctrl-C)."""
-    with WorkerPool(workers, setup, args) as started:
-        yield started
 
 
 # --- calls of one function, shared out over this process and the pool -------------------------
@@ -293,11 +297,19 @@ def share_out(
                 out[given[worker].pop(0)] = result
                 worker, result = helpers.receive(0, count)
 
+        def own(done: int) -> None:
+            # This process's calls count through here: the children's counts and answers
+            # are taken in meanwhile (else progress would stall until the call returns), and
+            # a child that finished gets its next call at once.
+            count(done)
+            collect(0)
+            hand_out()
+
         hand_out()
         while taken < len(calls):
             mine = taken
             taken += 1
-            out[mine] = function(*calls[mine], count)
+            out[mine] = function(*calls[mine], own)
             collect(0)
             hand_out()
         while helpers.busy:

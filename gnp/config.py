@@ -63,7 +63,7 @@ class GnpConfig(BaseModel):
     n_branch: int = Field(
         default=2, ge=1, le=64, description="branch connections U per connection (BS)"
     )
-    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="discount rate γ")
+    gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ")
 
     @cached_property
     def n_nodes(self) -> int:

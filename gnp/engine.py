@@ -28,13 +28,22 @@ from gnp.methods import FIRST_STAGE_ONLY, TRAITS
 from gnp.population import Population, record_dtype
 from gnp.rng import seed_states
 
+VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
+"""What a `StepTrace` holds of each visit, in its fields' order (the store's and the kernel's)."""
+_VISIT = len(VISIT_FIELDS)
+WALK_WIDTH = 1 + 2 * _VISIT
+"""Columns of `EngineState.walk`: the current node, then two visits as VISIT_FIELDS (a pending
+visit's last column is its credit choice; the kernel reads the columns by number)."""
+_PENDING = slice(1, 1 + _VISIT)
+_PENDING_BS = slice(1 + _VISIT, WALK_WIDTH)
+
 
 @dataclass(frozen=True)
 class EngineState:
     """Mutable per-controller engine state, arrays with leading axis N.
 
     Attributes:
-        walk: (N, 11) int32, where each controller's walk through its graph stands: the
+        walk: (N, WALK_WIDTH) int32, where each controller's walk through its graph stands: the
             current node (`node`), the last visit (`pending`) and the one before (`pending_bs`).
         wheels: (N, 2) wheel speeds as (left, right); each keeps its value until a processing
             node sets it.
@@ -54,12 +63,12 @@ class EngineState:
     def pending(self) -> np.ndarray:
         """(N, 5) the last visit (node, sub, branch, u, credit), awaiting its Q_SS/Q_CS
         update; node −1 when there is none."""
-        return self.walk[:, 1:6]
+        return self.walk[:, _PENDING]
 
     @property
     def pending_bs(self) -> np.ndarray:
         """(N, 5) the visit before it, awaiting its Q_BS update (BS only)."""
-        return self.walk[:, 6:11]
+        return self.walk[:, _PENDING_BS]
 
     @property
     def size(self) -> int:
@@ -88,8 +97,6 @@ class StepTrace:
     count: np.ndarray
 
 
-VISIT_FIELDS = ("node", "sub", "branch", "u", "skipped")
-"""What a `StepTrace` holds of each visit, in its fields' order (the store's and the kernel's)."""
 TRACE_FIELDS = (*VISIT_FIELDS, "count")
 """The fields of a `StepTrace`, in the store's order."""
 TRACE_DTYPE = np.int32
@@ -99,6 +106,11 @@ StepResult: TypeAlias = tuple[np.ndarray, StepTrace | None]
 """What `step` returns, always: `commands, trace = gnp.step(...)`, the (N, 2) wheel commands
 and the StepTrace when `step` was asked for it, else None. A plain tuple, as Gymnasium's
 `Env.step` returns: building a named tuple added ~13% to a one-controller call."""
+
+
+def _trace(visits: np.ndarray, count: np.ndarray) -> StepTrace:
+    """The StepTrace of the kernel's `visits` (one row per VISIT_FIELDS; views, not copies)."""
+    return StepTrace(**dict(zip(VISIT_FIELDS, visits, strict=True)), count=count)
 
 
 def trace_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
@@ -112,7 +124,7 @@ def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineS
     states = seed_states(seeds)
     if states.shape != (n,):
         raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
-    walk = np.full((n, 11), -1, np.int32)
+    walk = np.full((n, WALK_WIDTH), -1, np.int32)
     walk[:, 0] = 0
     return EngineState(walk=walk, wheels=np.zeros((n, N_WHEELS), np.float64), rng=states)
 
@@ -200,7 +212,7 @@ def _floats(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
 # Each method's `MethodTraits.kernel_code`, looked up as cheaply as the hot path needs.
 _KERNEL_CODE = {method: traits.kernel_code for method, traits in TRAITS.items()}
 # Stand-ins for the trace arrays when no trace is asked for (the kernel then writes none).
-_NO_TRACE = np.empty((5, 0, 0), np.int32)
+_NO_TRACE = np.empty((_VISIT, 0, 0), TRACE_DTYPE)
 _NO_COUNT = np.empty(0, np.int32)
 
 
@@ -249,14 +261,13 @@ def step(
     if not second_stage and cfg.traits.two_stage:
         return _first_stage_only(cfg, pop, state, obs, rew, rates, learn, trace)
     if trace:
-        visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
+        visits = np.full((_VISIT, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
         count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
     run_kernel(_KERNEL_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
     if trace:
-        node, sub, branch, u, skipped = visits
-        return state.wheels.copy(), StepTrace(node, sub, branch, u, skipped, count)
+        return state.wheels.copy(), _trace(visits, count)
     return state.wheels.copy(), None
 
 
@@ -318,7 +329,7 @@ def _first_stage_only(
     once the second stage is back on.
     """
     n = state.walk.shape[0]
-    visits = np.full((5, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
+    visits = np.full((_VISIT, n, cfg.max_visits_per_step), -1, TRACE_DTYPE)
     count = np.zeros(n, TRACE_DTYPE)
     bs = cfg.traits.branch_selection
     conn = pop.conn  # a view into the records the kernel reads
@@ -332,8 +343,9 @@ def _first_stage_only(
     finally:
         if bs:
             conn[..., 0] = first
-    node, sub, branch, u, skipped = visits
+    steps = _trace(visits, count)
     if bs:
+        node, sub, branch, u = steps.node, steps.sub, steps.branch, steps.u
         c, k = np.nonzero(node > 0)
         u[c, k] = greedy[c, node[c, k], sub[c, k], branch[c, k]]
         # The last visit is always this step's; the one before it when the step made two.
@@ -343,5 +355,4 @@ def _first_stage_only(
         walk[last, 4] = greedy[rows[last], walk[last, 1], walk[last, 2], walk[last, 3]]
         before = (walk[:, 6] > 0) & (np.count_nonzero(node > 0, axis=1) >= 2)
         walk[before, 9] = greedy[rows[before], walk[before, 6], walk[before, 7], walk[before, 8]]
-    steps = StepTrace(node, sub, branch, u, skipped, count) if trace else None
-    return state.wheels.copy(), steps
+    return state.wheels.copy(), steps if trace else None

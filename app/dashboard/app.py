@@ -2,7 +2,8 @@
 
 State lives on the server (viser's server-level scene and GUI are shared by every tab). One
 background thread steps the live robots at a steady rate and redraws; GUI callbacks only change
-settings under a lock, so the page answers at once even while training runs (in its own process).
+settings under a lock, so the page answers at once even while training runs (a thread of this
+process whose robots live in worker processes; `training_job.py`).
 
 This module composes the page: the scene, the status line, a module per tab (`tab_*.py`), the
 stage of robots on show (`stage.py`), and the loop.

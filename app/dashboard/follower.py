@@ -86,7 +86,7 @@ class TrainingFollower:
         history, best = self._read()
         if history is not None:
             self.history = history
-        over = state not in ("running", "paused")
+        over = state not in ("running", "paused", "stopping")
         retry = history is None and state == "finished" and self._retries < FINISHED_RETRIES
         self._retries += over and retry
         ended = over and not retry

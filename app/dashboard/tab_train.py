@@ -47,10 +47,10 @@ ACTIONS = ("Start", "Pause", "Resume", "Stop")
 def enabled_actions(state: JobState | None) -> dict[str, bool]:
     """Which training buttons can act in a job `state` (None: no training started or
     followed): Start when none runs, Pause while running, Resume while paused, Stop while
-    running or paused."""
+    running or paused; none while a stop is under way."""
     going = state in ("running", "paused")
     return {
-        "Start": not going,
+        "Start": not going and state != "stopping",
         "Pause": state == "running",
         "Resume": state == "paused",
         "Stop": going,

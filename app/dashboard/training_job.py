@@ -1,10 +1,13 @@
 """Training started from the dashboard: the lab's generation loop in a thread of this process.
 
-The loop is the CLI's (`app.training.train`, so the run file is the same); its lives go to the
-lab's worker pool (`app.workers`), never to this process, so the page stays responsive. Pause
-and resume take effect between generations, stop at once (the generation under way is
-dropped, the file keeps every complete one and can be resumed); the page follows the run file
-as it is written (SWMR).
+The loop is the CLI's (`app.training.train`, so the run file is the same). The robots' lives,
+nearly all of its work, go to the lab's worker pool (`app.workers`), never to this process;
+what runs here, in the job's thread, is the rest of each generation: the evolution (or the
+optimiser's step), the HDF5 writes, and at the end the final elite's replay (one robot's
+life). The page stays responsive. Pause and resume take effect between generations, stop at
+once (the generation under way is dropped, the file keeps every complete one and can be
+resumed; the job is "stopping" until its thread ends); the page follows the run file as it is
+written (SWMR).
 """
 
 from __future__ import annotations
@@ -18,7 +21,8 @@ from app.config import RunConfig
 from app.training import Control, Interrupted, train
 from app.workers import default_workers
 
-JobState = Literal["running", "paused", "finished", "failed", "stopped"]
+JobState = Literal["running", "paused", "stopping", "finished", "failed", "stopped"]
+"""A job's state; "stopping": asked to stop, its thread not ended yet (nothing can act)."""
 
 
 class TrainingJob:
@@ -58,6 +62,8 @@ class TrainingJob:
     @property
     def state(self) -> JobState:
         if self._thread.is_alive():
+            if self._control.stopping.is_set():
+                return "stopping"
             return "paused" if self._paused_at is not None else "running"
         return self._outcome or "failed"
 
@@ -76,8 +82,8 @@ class TrainingJob:
         return now - self.started - self._paused_total
 
     def pause(self) -> None:
-        """Hold the run before its next generation."""
-        if self.active and self._paused_at is None:
+        """Hold the run before its next generation (not once it is stopping)."""
+        if self.state == "running":
             self._control.pause()
             self._paused_at = time.monotonic()
 

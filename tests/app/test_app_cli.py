@@ -74,6 +74,8 @@ def test_train_implement_and_inspect(
         (["train", "--resume", "{runs}/notes.h5"], ["not an HDF5 file"]),
         (["train", "--resume", "{runs}/missing.h5"], ["not found"]),
         (["train", "--resume", "{runs}/tiny.h5", "--population", "9"], ["drop --population"]),
+        (["train", "--resume", "{runs}/tiny.h5", "--crisp"], ["drop --crisp"]),
+        (["train", "--resume", "{runs}/tiny.h5", "--fuzzy"], ["drop --fuzzy"]),
         (["implement", "../tiny"], ["plain file name"]),
         (["implement", "sub/tiny"], ["plain file name"]),
         (["implement", "missing"], ["no run named 'missing'"]),

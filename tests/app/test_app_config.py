@@ -168,3 +168,18 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
     legacy = stored_config(json.dumps(old))
     assert legacy.training.schedule_progress == "g-over-G"
     assert legacy.evolution.judgment_pair == "independent"
+
+
+@pytest.mark.parametrize("name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma"])
+def test_the_controllers_settings_are_gnps_own(name: str) -> None:
+    import gnp
+    from app.config import ControllerSettings
+    from app.fields import read_setting
+
+    lab, brain = read_setting(ControllerSettings, name), read_setting(gnp.GnpConfig, name)
+    assert lab is not None and brain is not None
+    assert (lab.default, lab.description) == (brain.default, brain.description)
+    if brain.low is not None:  # the lab may narrow gnp's range, never widen it
+        assert lab.low is not None and lab.low >= brain.low
+    if brain.high is not None:
+        assert lab.high is not None and lab.high <= brain.high

@@ -112,6 +112,18 @@ def test_same_seed_same_file_for_any_worker_count(tmp_path: Path) -> None:
     )
 
 
+def test_a_run_that_cannot_start_on_workers_fails_with_its_file_error(
+    tmp_path: Path, finished_run: Path
+) -> None:
+    # The pool starts before the file is checked; its never-used workers are dropped at once.
+    before = file_digest(finished_run)
+    with pytest.raises(RunFileError, match="already exists; choose another --out"):
+        train(tiny_config(), finished_run, workers=2, local=False)
+    with pytest.raises(RunFileError, match="is a finished run; there is nothing to resume"):
+        resume(finished_run, workers=2, local=False)
+    assert file_digest(finished_run) == before
+
+
 # --- a real training process: killed, stopped, followed while it writes --------------------
 
 
@@ -222,6 +234,37 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
     assert 3 <= done < LONG_GENERATIONS
     resume(out, workers=2)
     assert_same_data(out, reference)
+
+
+def test_a_stop_wins_over_a_pause() -> None:
+    from app.training import Control
+
+    control = Control()
+    control.stop()
+    control.pause()  # too late: nothing to hold
+    assert control.running.is_set()
+    with pytest.raises(KeyboardInterrupt):
+        control.checkpoint()
+    # A stop left by SIGTERM's handler (`stopping` only) while paused: no wait first.
+    paused = Control()
+    paused.pause()
+    paused.stopping.set()
+    with pytest.raises(KeyboardInterrupt):
+        paused.checkpoint()
+    assert not paused.held.is_set()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_leave_the_same_stop_request(sig: int) -> None:
+    from app.generations import stop_on_signals
+    from app.training import Control
+
+    control = Control()
+    before = signal.getsignal(sig)
+    with pytest.raises(KeyboardInterrupt), stop_on_signals(control):
+        signal.raise_signal(sig)
+    assert control.stopping.is_set()  # remembered, should the interrupt be swallowed
+    assert signal.getsignal(sig) is before
 
 
 def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path) -> None:

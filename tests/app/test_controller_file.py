@@ -131,3 +131,27 @@ def test_a_saved_net_loads_bit_identical_and_bad_files_are_named(
     with pytest.raises(ControllerFileError, match="one net"):
         two = {k: np.concatenate([a, a]) for k, a in arrays.items()}
         save_controller(tmp_path / "two.json", NetController(net, two))
+
+
+@pytest.mark.parametrize("family", ["gnp", "net"])
+@pytest.mark.parametrize("bad", [[1, 2], 5, "x", {}, None, [[]], {"a": 1}])
+def test_a_document_of_the_wrong_shape_is_a_controller_file_error(
+    tmp_path: Path, family: str, bad: object
+) -> None:
+    if family == "gnp":
+        cfg, pop = _learned("BS")
+        path = save_controller(tmp_path / "c.json", GnpController(cfg, pop))
+    else:
+        path = save_controller(tmp_path / "c.json", NetController(*_net()))
+    good = json.loads(path.read_text())
+    for key in ("gnp", "net", "settings", "nodes", "arrays"):
+        if key in good and not (key == "settings" and isinstance(bad, dict)):  # any mapping
+            (tmp_path / "bad.json").write_text(json.dumps(dict(good, **{key: bad})))
+            # e.g. "arrays": [1, 2] met `.items()` (an AttributeError before)
+            with pytest.raises(ControllerFileError, match=r"bad\.json"):
+                load_controller(tmp_path / "bad.json")
+
+
+def _net() -> tuple[neuro.NetConfig, dict[str, np.ndarray]]:
+    net = neuro.ElmanConfig(hidden=2)
+    return net, neuro.zeros(net, 1)

@@ -202,3 +202,26 @@ def test_the_cli_trains_a_brain_and_lists_it(tmp_path: Path) -> None:
     assert line.startswith("cmaes-seed0-") and " cmaes " in line and "finished" in line
     with RunReader(next(tmp_path.glob("*.h5"))) as run:
         assert run.config.neuro is not None and run.config.neuro.hidden == 3
+
+
+def test_the_workers_send_learned_gnp_back_but_not_the_unchanged_nets() -> None:
+    from app.generations import Evaluator
+    from app.neuro_training import make_optimiser
+    from app.training import initial_population
+
+    everyone = np.arange(10)
+    for config in (neural_config("cmaes"), tiny_config(population=10)):
+        if config.neuro is not None:
+            individuals: object = make_optimiser(config).arrays()
+        else:
+            individuals = initial_population(config)
+        starts = len(arena_of(config.training.arena).start_poses)
+        seeds = life_seeds(config.seed, 0, everyone, 1, starts)
+        with Evaluator(config, 2, local=False) as pool:  # two workers, one shard each or more
+            lives, after = pool.evaluate(individuals, seeds, 0.1, 0.1)
+        assert lives.fitness.shape == (10,)
+        if config.neuro is not None:
+            assert after is individuals  # nothing came back through the pipes
+        else:
+            assert after is not individuals and after.size == 10  # learned copies came back
+            assert not np.array_equal(after.q_ss, individuals.q_ss)  # type: ignore[attr-defined]

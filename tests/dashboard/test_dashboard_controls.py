@@ -165,6 +165,9 @@ def test_training_job_pauses_resumes_and_writes_a_readable_run(tmp_path: Path) -
         assert job.state == "running"
         until(lambda: generations_done(out) > held, 60)
         job.stop()
+        assert job.state in ("stopping", "stopped")  # "stopping" until its thread ends
+        job.pause()  # a pause after a stop does nothing (the run would wait, not stop)
+        assert job.state in ("stopping", "stopped")
         job.wait()
         assert job.state == "stopped" and not job.active
         assert "interrupted: stopped after" in job.error()
@@ -256,6 +259,7 @@ def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Pat
         (None, {"Start"}),
         ("running", {"Pause", "Stop"}),
         ("paused", {"Resume", "Stop"}),
+        ("stopping", set()),
         ("stopped", {"Start"}),
         ("finished", {"Start"}),
         ("failed", {"Start"}),
