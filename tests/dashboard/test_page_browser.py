@@ -49,7 +49,8 @@ def test_the_reward_chart_draws_block_means_under_the_smooth_mean(
 
     chart = page.locator(".uplot", has_text="Reward per step")
     legend = chart.locator(".u-legend")
-    expect(legend).to_contain_text(f"cs ({BIN}-step)", timeout=TIMEOUT_MS)
+    # The run on show may be another test's (a training on this server puts its best on show).
+    expect(legend).to_contain_text(f"({BIN}-step)", timeout=TIMEOUT_MS)
     expect(legend).to_contain_text(f"{SMOOTH}-step mean")
     expect(legend).to_contain_text("broken sensors")
     chart.first.screenshot(path=str(screenshots / "reward-chart.png"))
