@@ -20,7 +20,6 @@ from typing import Any
 
 from app.experiments import planning
 from app.experiments.questions import answers_table, ran, runs_text, tally
-from app.experiments.results import VERDICTS
 from app.experiments.spec import (
     SCALES,
     ExperimentError,
@@ -235,19 +234,6 @@ def spent_table(reports: Reports, folder: Path) -> str:
     return "\n".join(out) + "\n"
 
 
-def tallies(reports: Reports) -> dict[tuple[str, str], int]:
-    """(kind, verdict) -> count over the thesis experiments' committed reports at `small`."""
-    counts: dict[tuple[str, str], int] = {}
-    thesis = {n for n in shipped_names() if load_shipped(n).kind == "thesis"}
-    for (name, scale), report in reports.items():
-        if scale != "small" or name not in thesis:
-            continue
-        for c in report["comparisons"]:
-            key = (c.get("kind", "question"), c["verdict"])
-            counts[key] = counts.get(key, 0) + 1
-    return counts
-
-
 def _against_control(c: dict[str, Any], report: dict[str, Any]) -> bool:
     """A claim on what a fault costs: fault_effect, or a fault condition against the control."""
     return c["metric"] == "fault_effect" or (
@@ -276,10 +262,14 @@ def _kind(kind: str) -> Callable[[Reports, Path], str]:
     """The section of every thesis experiment's claims of one kind, with their tally."""
 
     def write(reports: Reports, folder: Path) -> str:
-        counts = tallies(reports)
-        found = {v: counts.get((kind, v), 0) for v in VERDICTS}
-        tally = ", ".join(f"{n} {v}" for v, n in found.items())
-        head = f"{sum(found.values())} claims at `small`: {tally}.\n\n"
+        claims = [
+            c
+            for (name, scale), report in reports.items()
+            if scale == "small" and load_shipped(name).kind == "thesis"
+            for c in report["comparisons"]
+            if c.get("kind") == kind
+        ]
+        head = f"{len(claims)} claims at `small`: {tally(claims)}.\n\n"
         return head + claims_tables(reports, lambda c, _: c.get("kind") == kind)
 
     return write
