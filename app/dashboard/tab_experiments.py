@@ -165,6 +165,8 @@ class ExperimentsTab:
 
     def follow(self) -> None:
         """Put finished background work on the page, and the running experiment's progress."""
+        if self._closed:
+            return
         self._put_read()
         job = self.job
         if job is None:
@@ -189,15 +191,18 @@ class ExperimentsTab:
     def _landed(self, future: Future[Any]) -> None:
         """A background read is done: on the page with it at once (not at the loop's next turn).
 
-        A read that lands once the tab is closed is dropped: the page may be gone. `close` runs
-        under the same lock, so the check cannot race it."""
+        `close` runs under the same lock, so `_put_read`'s check of it cannot race."""
         if not future.cancelled():
             with self.status.lock:
-                if not self._closed:
-                    self._put_read()
+                self._put_read()
 
     def _put_read(self) -> None:
-        """Put the catalogue and the view read in the background on the page, once read."""
+        """Put the catalogue and the view read in the background on the page, once read.
+
+        A read that lands once the tab is closed is dropped, whether this callback or the
+        page's loop sees it first: the page may be gone."""
+        if self._closed:
+            return
         if self._catalogue is not None and self._catalogue.done():
             catalogue, self._catalogue = self._catalogue, None
             try:

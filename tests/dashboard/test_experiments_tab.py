@@ -347,3 +347,6 @@ def test_a_read_that_lands_after_the_tab_closed_stays_off_the_page(
     release.set()
     tab._pool.shutdown(wait=True)  # the read has landed, its callback run
     assert tab.view is shown and tab.about.content == about
+    with dashboard.lock:  # nor does the page's loop, should it turn once more
+        tab.follow()
+    assert tab.view is shown and tab.about.content == about
