@@ -8,6 +8,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from app.experiments.cluster import NO_DASHBOARD
+
 TINY_TOML = """
 name = "tiny"
 description = "BS vs RL, tiny"
@@ -199,3 +201,15 @@ def to_toml(data: dict[str, Any]) -> str:
 
     table("", data)
     return "\n".join(lines) + "\n"
+
+
+def in_process_client() -> Any:
+    """A Dask client of one worker in this process, running one task at a time.
+
+    One task thread, as a production worker has (a process of one thread): two task threads
+    of one process writing run files take turns at h5py's global lock, and a full suite once
+    hung there (a task thread waiting for the lock while no thread was inside h5py).
+    """
+    from distributed import Client
+
+    return Client(processes=False, n_workers=1, threads_per_worker=1, **NO_DASHBOARD)

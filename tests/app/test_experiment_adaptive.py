@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-from experiment_fixtures import copies_toml
+from experiment_fixtures import copies_toml, in_process_client
 
 from app.cli import main
-from app.experiments import adaptive, cluster, harvest
+from app.experiments import adaptive, harvest
 from app.experiments.adaptive import Stage, needed_arms, run_adaptive
 from app.experiments.results import ExperimentResults
 from app.experiments.runner import RunOptions
@@ -96,9 +96,7 @@ def spec_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def client() -> Iterator[Any]:
-    from distributed import Client
-
-    with Client(processes=False, n_workers=1, threads_per_worker=2, **cluster.NO_DASHBOARD) as c:
+    with in_process_client() as c:
         yield c
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from experiment_fixtures import write_tiny
+from experiment_fixtures import in_process_client, write_tiny
 from lab_fixtures import assert_same_data
 
 from app.experiments.cluster import NO_DASHBOARD
@@ -44,11 +44,9 @@ def spec(tmp_path_factory: pytest.TempPathFactory) -> ExperimentSpec:
 
 @pytest.fixture(scope="module")
 def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The tiny experiment run on an in-process Dask cluster (threads), never interrupted."""
-    from distributed import Client
-
+    """The tiny experiment run on an in-process Dask cluster, never interrupted."""
     runs = tmp_path_factory.mktemp("reference")
-    with Client(processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD) as client:
+    with in_process_client() as client:
         run_experiment(
             spec, SCALE, runs, options=RunOptions(client=client, quiet=True, echo=lambda line: None)
         )
@@ -174,19 +172,12 @@ def test_rerun_is_idempotent(spec: ExperimentSpec, reference: Path) -> None:
 
 
 def test_a_failed_run_does_not_hide_the_others(spec: ExperimentSpec, tmp_path: Path) -> None:
-    from distributed import Client
-
     blocked = Path(plan(spec, "smoke", tmp_path)[1].path)
     blocked.parent.mkdir(parents=True)
     lines: list[str] = []
     with (
         blocked.with_name(f".{blocked.name}.lock").open("a") as lock,
-        Client(
-            processes=False,
-            n_workers=1,
-            threads_per_worker=1,
-            **NO_DASHBOARD,
-        ) as c,
+        in_process_client() as c,
     ):
         fcntl.flock(lock, fcntl.LOCK_EX)  # as if another gnp-lab process were writing it
         with pytest.raises(

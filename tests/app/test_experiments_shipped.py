@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from experiment_fixtures import in_process_client
 
-from app.experiments.cluster import NO_DASHBOARD
 from app.experiments.report_page import write_report
 from app.experiments.results import METRICS, VERDICTS
 from app.experiments.runner import RunOptions, run_experiment
@@ -225,10 +225,8 @@ def _cells(spec: ExperimentSpec) -> Iterator[tuple[str, str, str | None]]:
 
 @pytest.fixture(scope="module")
 def client() -> Iterator[Any]:
-    """An in-process Dask cluster (threads), shared by the smoke runs."""
-    from distributed import Client
-
-    with Client(processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD) as client:
+    """An in-process Dask cluster, shared by the smoke runs."""
+    with in_process_client() as client:
         yield client
 
 

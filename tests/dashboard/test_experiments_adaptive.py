@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from experiment_fixtures import copies_toml
+from experiment_fixtures import copies_toml, in_process_client
 from page_helpers import dashboard_in_process, until_tab
 
 from app.dashboard import experiment_view as ev
@@ -25,7 +25,6 @@ from app.dashboard.experiment_job import DaskCluster, ExperimentJob
 from app.dashboard.experiment_verdicts import AdaptiveRequest, badge, claim_row, seed_count, whole
 from app.experiments import layout
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
-from app.experiments.cluster import NO_DASHBOARD
 from app.experiments.report import analyse, format_number
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import Design
@@ -70,16 +69,12 @@ source = "tests"
 
 
 class InProcessCluster(DaskCluster):
-    """The dashboard's cluster, but a Dask client in this process (threads, no workers)."""
+    """The dashboard's cluster, but a Dask client in this process (no worker processes)."""
 
     def client(self) -> Any:
-        from distributed import Client
-
         with self._lock:
             if self._client is None:
-                self._client = Client(
-                    processes=False, n_workers=1, threads_per_worker=2, **NO_DASHBOARD
-                )
+                self._client = in_process_client()
             return self._client
 
     def close(self) -> None:
