@@ -15,6 +15,7 @@ import contextlib
 import fcntl
 import glob
 import os
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
@@ -153,6 +154,10 @@ def _alive(pid: int) -> bool:
 def open_for_read(path: Path) -> h5py.File:
     """Open an HDF5 file for reading, also while (or after) a SWMR writer held it.
 
+    A live writer's file can be shorter than the end-of-file address its superblock already
+    names (space allocated, its data not yet written): for a moment it reads as truncated. So a
+    short file is tried again for up to `SETTLE_SECONDS` before it is called truncated.
+
     Raises:
         RunFileError: the file is missing, not HDF5, truncated or otherwise unreadable.
     """
@@ -162,9 +167,30 @@ def open_for_read(path: Path) -> h5py.File:
         raise RunFileError(f"not a file: {path}")
     if not h5py.is_hdf5(path):
         raise RunFileError(f"not an HDF5 file: {path}")
+    deadline = time.monotonic() + SETTLE_SECONDS
+    while True:
+        try:
+            return _open(path)
+        except _ShortFile:
+            if time.monotonic() >= deadline:
+                raise RunFileError(f"corrupt run file {path}: truncated") from None
+            time.sleep(0.02)
+
+
+SETTLE_SECONDS = 1.0
+"""How long a reader waits for a short run file to reach its end-of-file address."""
+
+
+class _ShortFile(Exception):
+    """The file ends before the end-of-file address in its superblock."""
+
+
+def _open(path: Path) -> h5py.File:
     try:
         return h5py.File(path, "r", locking=False)
     except OSError as error:
+        if "truncated file" in str(error):
+            raise _ShortFile from None
         if "already open for write" not in str(error):
             raise RunFileError(f"cannot open {path}: {error}") from None
     # A SWMR writer is live, or was killed: only a SWMR read opens the file. It skips HDF5's
@@ -185,4 +211,4 @@ def _check_length(path: Path) -> None:
         return  # a superblock this check does not parse (not written by gnp-lab)
     stored_eof = int.from_bytes(head[28:36], "little")
     if path.stat().st_size < stored_eof:
-        raise RunFileError(f"corrupt run file {path}: truncated")
+        raise _ShortFile

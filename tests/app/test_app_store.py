@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import threading
 from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
@@ -100,10 +101,30 @@ def test_foreign_and_corrupt_files(tmp_path: Path, finished_run: Path) -> None:
         RunReader(text)
     truncated = tmp_path / "truncated.h5"
     truncated.write_bytes(finished_run.read_bytes()[:3000])
-    with pytest.raises(RunFileError):
+    with pytest.raises(RunFileError, match="truncated"):
         RunReader(truncated)
     with pytest.raises(RunFileError, match="not found"):
         RunReader(tmp_path / "missing.h5")
+
+
+def test_a_file_that_reaches_its_end_while_being_opened_is_read(
+    tmp_path: Path, finished_run: Path
+) -> None:
+    """A live writer's file can end, for a moment, before the end its superblock names (space
+    allocated, data not yet written); a reader waits for it instead of calling it truncated."""
+    whole = finished_run.read_bytes()
+    growing = tmp_path / "growing.h5"
+    growing.write_bytes(whole[:3000])
+    rest = threading.Timer(0.1, lambda: growing.open("ab").write(whole[3000:]))
+    rest.start()
+    try:
+        with RunReader(growing) as run, RunReader(finished_run) as original:
+            assert run.generations_done == original.generations_done == 3
+            np.testing.assert_array_equal(
+                run.history().best_fitness, original.history().best_fitness
+            )
+    finally:
+        rest.join()
 
 
 def test_a_run_missing_a_dataset_is_a_run_file_error(tmp_path: Path, finished_run: Path) -> None:
