@@ -115,7 +115,12 @@ def test_a_file_that_reaches_its_end_while_being_opened_is_read(
     whole = finished_run.read_bytes()
     growing = tmp_path / "growing.h5"
     growing.write_bytes(whole[:3000])
-    rest = threading.Timer(0.1, lambda: growing.open("ab").write(whole[3000:]))
+
+    def write_the_rest() -> None:
+        with growing.open("ab") as handle:
+            handle.write(whole[3000:])
+
+    rest = threading.Timer(0.1, write_the_rest)
     rest.start()
     try:
         with RunReader(growing) as run, RunReader(finished_run) as original:
