@@ -29,6 +29,7 @@ from app.experiments.report import (
     ExperimentReport,
     format_number,
     interval_level,
+    looks_text,
     stages_json,
 )
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
@@ -162,21 +163,16 @@ def _decided_cell(decided: list[dict[str, Any]]) -> str:
 
 def stages_table(report: ExperimentReport) -> str:
     """The looks made: seeds per arm, runs per arm, what each decided, how many stay open."""
-    results = report.results
-    if not results.looks:
-        n = len(results.seeds)
-        return f"**Stages**: one look at {n} seeds per arm (not adaptive)."
-    planned = ", ".join(map(str, report.design.looks))
+    if not report.results.looks:
+        return f"**Stages**: {looks_text(report)}."
     rows = ["| look | seeds | runs | decided | open |", "|---|---|---|---|---|"]
     for stage in stages_json(report):
         runs = " · ".join(whole(f"{arm} {n}") for arm, n in stage["runs"].items())
         cells = [str(stage["look"]), str(stage["seeds_per_arm"]), runs]
         cells += [_decided_cell(stage["decided"]), str(stage["open_after"])]
         rows.append("| " + " | ".join(cells) + " |")
-    made = len(report.looks)
     return (
-        f"**Stages** (adaptive: {made} of {len(report.design.looks)} looks made; "
-        f"planned at {planned} seeds per arm)\n\n" + "\n".join(rows) + "\n\n<small>seeds: per "
+        f"**Stages** ({looks_text(report)})\n\n" + "\n".join(rows) + "\n\n<small>seeds: per "
         "arm, from seed 0; runs: each arm's finished runs; decided: the claims that look "
         "decided (hover for their names); open: claims still undecided after it.</small>"
     )

@@ -146,6 +146,17 @@ def looks_made(results: ExperimentResults) -> tuple[Design, tuple[int, ...]]:
     return design, made or (n,)
 
 
+def looks_text(report: ExperimentReport) -> str:
+    """The looks a report made, in words: for its page, the dashboard and the experiments page."""
+    if not report.results.looks:
+        return f"one look at {len(report.results.seeds)} seeds per arm (not adaptive)"
+    planned = ", ".join(map(str, report.design.looks))
+    return (
+        f"adaptive: {len(report.looks)} of {len(report.design.looks)} looks made; "
+        f"planned at {planned} seeds per arm"
+    )
+
+
 def _need(c: Comparison, judged: ClaimVerdict, margin: float | None, steps: float) -> Need:
     iv = judged.interval
     sides = 1 if c.paired else 2

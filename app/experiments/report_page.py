@@ -18,6 +18,7 @@ from app.experiments.report import (
     format_number,
     interval_level,
     interval_text,
+    looks_text,
     margin_text,
     need_text,
     stages_json,
@@ -143,6 +144,7 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
             ("source", results.source),
             ("scale", results.scale),
             ("seeds", ", ".join(map(str, results.seeds)) + f" ({len(results.seeds)} runs per arm)"),
+            ("looks", looks_text(report)),
             ("arms", "; ".join(f"{a.name}: {a.label}" for a in results.arms)),
             ("unit of analysis", "the run (seed): a run's value is its mean over trials"),
         )

@@ -308,6 +308,15 @@ def test_the_looks_of_an_adaptive_run_decide_claims_early() -> None:
     assert to_json(analyse(partial))["looks_made"] == [3]
 
 
+def test_the_page_says_how_many_of_its_looks_an_adaptive_run_made(tmp_path: Path) -> None:
+    # an adaptive run stopped between looks: five seeds made the first look (3) of two (3, 6)
+    cut = dataclasses.replace(synthetic_results(tuple(range(5))), looks=(3, 6))
+    page = write_report(cut, tmp_path / "cut").read_text()
+    assert "<td>adaptive: 1 of 2 looks made; planned at 3, 6 seeds per arm</td>" in page
+    plain = write_report(synthetic_results(), tmp_path / "plain").read_text()
+    assert f"<td>one look at {len(SEEDS)} seeds per arm (not adaptive)</td>" in plain
+
+
 def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
     results = synthetic_results()
     one_condition = dataclasses.replace(
