@@ -147,7 +147,7 @@ def looks_made(results: ExperimentResults) -> tuple[Design, tuple[int, ...]]:
 
 
 def looks_text(report: ExperimentReport) -> str:
-    """The looks a report made, in words: for its page, the dashboard and the experiments page."""
+    """The looks a report made, in words: for the report's page and the dashboard's Stages line."""
     if not report.results.looks:
         return f"one look at {len(report.results.seeds)} seeds per arm (not adaptive)"
     planned = ", ".join(map(str, report.design.looks))
