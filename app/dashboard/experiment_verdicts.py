@@ -100,7 +100,7 @@ def _seeds(seeds: float) -> str:
 
 def _claim_cell(c: ComparisonReport) -> str:
     names = list(c.comparison.side_names())
-    if c.comparison.paired:
+    if c.comparison.within_arm:
         names = [f"{c.arm_a.name} ({name})" for name in names]
     sides = ", ".join(
         f"{name} {format_number(s.mean)} ± {format_number(s.sd)}"

@@ -209,8 +209,8 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
                 spec,
                 args.scale,
                 args.runs_dir,
-                stage_seeds=args.stage_seeds or DEFAULT_STAGE_SEEDS,
-                max_seeds=args.max_seeds or DEFAULT_MAX_SEEDS,
+                stage_seeds=args.stage_seeds,
+                max_seeds=args.max_seeds,
                 options=options,
             )
         else:

@@ -245,7 +245,7 @@ def runs_figure(
     if not drawn:
         return None
     labels = list(comparison.side_names())
-    if comparison.paired:  # one arm: its name over what tells the sides apart
+    if comparison.within_arm:  # one arm: its name over what tells the sides apart
         labels = [f"{comparison.a}\n{label}" for label in labels]
     axes.set_xticks([0, 1], labels)
     axes.set_xlim(-0.5, 1.6)

@@ -30,6 +30,7 @@ from app.experiments.sequential import (
     ClaimData,
     ClaimVerdict,
     Design,
+    interval,
     judge,
     seeds_for_power,
 )
@@ -54,7 +55,10 @@ class ClaimStats:
     """A claim's descriptive statistics, its verdict and, undecided, what it would need."""
 
     stats: PairStats
-    holm_p: float  # two-sided p, Holm-adjusted over the experiment's claims (for the reader)
+    # Two-sided p, Holm-adjusted over the primary claims of a one-look report (for the reader);
+    # NaN for an exploratory claim and for every claim of a sequential report, whose verdicts
+    # rest on the looks' boundaries, which a fixed-sample p would contradict.
+    holm_p: float
     judged: ClaimVerdict
     margin: float | None  # the effect the verdict rules out, in the metric's units
     need: Need | None
@@ -94,9 +98,9 @@ class ComparisonReport:
         where = f" in {self.condition.label}" if self.condition else ""
         higher = _DIRECTION_WORDS[self.comparison.direction]
         if self.comparison.direction == "equivalent":
-            b_side = self.arm_b.label if not self.comparison.paired else "its other side"
+            b_side = self.arm_b.label if not self.comparison.within_arm else "its other side"
             return f"{self.arm_a.label} has {higher} {self.metric.label}{where} as {b_side}"
-        if self.comparison.paired:  # one arm against itself on another metric or condition
+        if self.comparison.within_arm:  # one arm against itself on another metric or condition
             other = [self.metric_b.label] if self.metric_b else []
             other += [f"in {self.condition_b.label}"] if self.condition_b else []
             return f"{self.arm_a.label} has a {higher} {self.metric.label}{where} than " + (
@@ -116,6 +120,10 @@ class ExperimentReport:
     alpha: float
     design: Design  # the planned looks (one look at every seed when not adaptive)
     looks: tuple[int, ...]  # seeds per arm at each look made
+
+    def of_family(self, family: str) -> tuple[ComparisonReport, ...]:
+        """The primary claims (judged with family-wise error control) or the exploratory ones."""
+        return tuple(c for c in self.comparisons if c.comparison.family == family)
 
     def of_kind(self, kind: str) -> tuple[ComparisonReport, ...]:
         """The thesis's questions ("question") or the within-arm sanity claims ("sanity")."""
@@ -176,9 +184,29 @@ def _need(c: Comparison, judged: ClaimVerdict, margin: float | None, steps: floa
     return Need(at_thesis, at_ours, hours(at_thesis), hours(at_ours))
 
 
+def _judge_families(
+    comparisons: tuple[Comparison, ...],
+    looks: list[list[ClaimData]],
+    design: Design,
+    alpha: float,
+) -> list[ClaimVerdict]:
+    """The primary claims judged together over the looks (family-wise error α); each
+    exploratory claim's unadjusted two-sided interval at level α at the last look, its verdict
+    `exploratory`."""
+    primary = [i for i, c in enumerate(comparisons) if c.family == "primary"]
+    judged_primary = judge([[look[i] for i in primary] for look in looks], design, alpha)
+    out: dict[int, ClaimVerdict] = dict(zip(primary, judged_primary, strict=True))
+    last = len(looks) - 1
+    for i in range(len(comparisons)):
+        if i not in out:
+            iv = interval(looks[last][i], alpha)
+            out[i] = ClaimVerdict("exploratory", iv, alpha, last, alpha)
+    return [out[i] for i in range(len(comparisons))]
+
+
 def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentReport:
     """Every comparison's statistics and verdict (the looks of an adaptive run, Holm across
-    the experiment's comparisons).
+    the experiment's primary comparisons; exploratory ones with unadjusted intervals).
 
     Args:
         results: the experiment's per-run values.
@@ -210,18 +238,22 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
             margins[i].append(margin)
             claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin))
         looks.append(claims)
-    judged = judge(looks, design, alpha) if results.comparisons else ()
+    judged = _judge_families(results.comparisons, looks, design, alpha)
     pairs = [
         compare(a[: made[j.look]], b[: made[j.look]], c.direction, names=c.side_names(),
                 paired=c.paired)
         for c, (a, b), j in zip(results.comparisons, values, judged, strict=True)
     ]  # fmt: skip
-    two_sided = [min(1.0, 2 * min(p.p, p.p_opposite)) for p in pairs]
-    adjusted = holm(two_sided) if pairs else np.array([])
+    adjusted = np.full(len(pairs), np.nan)
+    primary = [i for i, c in enumerate(results.comparisons) if c.family == "primary"]
+    if primary and not results.looks:
+        two_sided = [min(1.0, 2 * min(pairs[i].p, pairs[i].p_opposite)) for i in primary]
+        adjusted[primary] = holm(two_sided)
     claims_out = []
     for i, (c, j) in enumerate(zip(results.comparisons, judged, strict=True)):
         margin = margins[i][j.look]
-        need = _need(c, j, margin, results.steps_per_run) if j.verdict == "undecided" else None
+        undecided = j.verdict == "undecided"
+        need = _need(c, j, margin, results.steps_per_run) if undecided else None
         claims_out.append(ClaimStats(pairs[i], float(adjusted[i]), j, margin, need))
     return ExperimentReport(
         results=results,
@@ -291,6 +323,7 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
         "name": c.name,
         "claim": report.sentence,
         "kind": c.kind,
+        "family": c.family,
         "source": c.source,
         "metric": report.metric.name,
         "metric_label": report.metric.label,
@@ -354,14 +387,13 @@ def stages_json(report: ExperimentReport) -> list[dict[str, Any]]:
             )
             for arm in results.arms
         }
+        primary = report.of_family("primary")
         decided = [
             {"name": c.comparison.name, "verdict": c.claim.verdict}
-            for c in report.comparisons
+            for c in primary
             if c.claim.verdict != "undecided" and c.claim.judged.look == k
         ]
-        still_open = sum(
-            c.claim.verdict == "undecided" or c.claim.judged.look > k for c in report.comparisons
-        )
+        still_open = sum(c.claim.verdict == "undecided" or c.claim.judged.look > k for c in primary)
         out.append({"look": k + 1, "seeds_per_arm": n, "runs": runs, "decided": decided,
                     "open_after": still_open})  # fmt: skip
     return out

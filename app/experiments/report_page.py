@@ -73,7 +73,7 @@ def _row(*cells: str, header: bool = False) -> str:
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
     s, claim, c = report.stats, report.claim, report.comparison
     sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
-    if c.paired:  # one arm: each side says its metric or condition
+    if c.within_arm:  # one arm: each side says its metric or condition
         parts: list[list[str]] = [[], []]
         if report.metric_b is not None:
             parts[0].append(report.metric.label)

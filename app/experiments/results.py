@@ -15,7 +15,8 @@ import numpy as np
 MetricKind = Literal["scalar", "curve"]
 MetricScope = Literal["training", "condition"]
 Direction = Literal["greater", "less", "equivalent"]
-Verdict = Literal["held", "reversed", "ruled out", "undecided"]
+# `exploratory` is not a verdict: what an exploratory claim shows in a verdict's place.
+Verdict = Literal["held", "reversed", "ruled out", "undecided", "exploratory"]
 VERDICTS: tuple[Verdict, ...] = ("held", "reversed", "ruled out", "undecided")
 # How a verdict is marked, as (background, text) colours: on the report's page and the dashboard.
 VERDICT_COLOURS: dict[Verdict, tuple[str, str]] = {
@@ -23,9 +24,15 @@ VERDICT_COLOURS: dict[Verdict, tuple[str, str]] = {
     "reversed": ("#fde2e1", "#9b1c1c"),
     "ruled out": ("#fff1c2", "#7a4b00"),
     "undecided": ("#eee", "#555"),
+    "exploratory": ("#e8eefc", "#2b4a8b"),
 }
 MarginForm = Literal["absolute", "relative"]
 ClaimKind = Literal["question", "sanity"]
+# Which error family a claim belongs to: `primary` claims share the family-wise error control
+# (Holm over the looks); `exploratory` ones are reported with their unadjusted interval only
+# and never counted among the verdicts. Specs that say nothing put every claim in the family.
+Family = Literal["primary", "exploratory"]
+FAMILIES: tuple[Family, ...] = ("primary", "exploratory")
 # Simulated steps per second on one core of this machine, measured: ch3-bs-rl at thesis scale,
 # 3.9 G steps in 71 min on 2 cores (0.92 M/s). Prices the seeds an undecided claim needs.
 CORE_STEPS_PER_SECOND = 0.46e6
@@ -147,11 +154,15 @@ class Comparison:
     margin_form: MarginForm = "absolute"
     margin_source: str = ""  # where the margin comes from, and why
     role: ClaimKind | None = None  # None: "sanity" for one arm against itself, else "question"
+    family: Family = "primary"
+    # Tested paired by seed (the arms' common random numbers) or not, as declared before the
+    # runs; None: paired exactly when one arm is compared with itself (the same runs).
+    pairing: bool | None = None
 
     @property
     def kind(self) -> ClaimKind:
         """A thesis question (method against baseline) or a sanity claim (within one arm)."""
-        return self.role or ("sanity" if self.paired else "question")
+        return self.role or ("sanity" if self.within_arm else "question")
 
     def margin_for(self, mean_b: float) -> float | None:
         """The margin in the metric's units, given our mean of side b."""
@@ -162,10 +173,14 @@ class Comparison:
         return self.margin
 
     @property
-    def paired(self) -> bool:
-        """The same runs on both sides (one arm in two conditions or on two metrics): tests
-        paired by seed."""
+    def within_arm(self) -> bool:
+        """The same runs on both sides: one arm in two conditions or on two metrics."""
         return self.condition_b is not None or self.metric_b is not None
+
+    @property
+    def paired(self) -> bool:
+        """Tested paired by seed: as declared, else exactly when the runs are the same."""
+        return self.within_arm if self.pairing is None else self.pairing
 
     def keys(self) -> tuple[tuple[str, str, str], tuple[str, str, str]]:
         """The (metric, arm, condition) of a's values and of b's in `ExperimentResults.scalars`."""
@@ -178,7 +193,7 @@ class Comparison:
 
     def side_names(self) -> tuple[str, str]:
         """What tells the two sides apart: the arms, or (paired) b's metric and condition."""
-        if not self.paired:
+        if not self.within_arm:
             return self.a, self.b
         a, b = self.keys()
         differ = [i for i in (0, 2) if a[i] != b[i]] or [1]

@@ -40,6 +40,7 @@ from app.experiments.results import (
     Comparison,
     Condition,
     Direction,
+    Family,
     MarginForm,
     ThesisValue,
 )
@@ -122,6 +123,16 @@ class ComparisonSpec(_Frozen):
         description="question (a thesis's method-versus-baseline claim) or sanity (within one "
         "arm); unset: sanity when one arm is compared with itself",
     )
+    family: Family = Field(
+        "primary",
+        description="primary: judged with the experiment's family-wise error control; "
+        "exploratory: reported with its unadjusted interval, never counted among the verdicts",
+    )
+    paired: bool | None = Field(
+        None,
+        description="test paired by seed (the arms share seeds, start poses and broken sensors) "
+        "or not, declared before the runs; unset: paired when one arm is compared with itself",
+    )
 
     @model_validator(mode="after")
     def _margin_explained(self) -> ComparisonSpec:
@@ -140,6 +151,27 @@ class ThesisValueSpec(_Frozen):
     condition: str | None = None
     value: float
     source: str
+
+
+class DesignSpec(_Frozen):
+    """A pre-registered sequential design: the looks, the cap and the power analysis behind
+    them, declared before any run (a decisive experiment)."""
+
+    looks: tuple[int, ...] = Field(
+        min_length=1, description="seeds per arm at each look (Lan–DeMets O'Brien–Fleming)"
+    )
+    max_primary: int = Field(4, ge=1, le=10, description="at most this many primary claims")
+    core_hours: float = Field(gt=0, description="the cap in core-hours, all looks together")
+    power: str = Field(description="the power analysis that fixed the looks and the cap")
+
+    @model_validator(mode="after")
+    def _increasing(self) -> DesignSpec:
+        if (
+            any(b <= a for a, b in zip(self.looks, self.looks[1:], strict=False))
+            or min(self.looks) < 2
+        ):
+            raise ValueError(f"design.looks must increase from at least 2: {list(self.looks)}")
+        return self
 
 
 class ScaleSpec(_Frozen):
@@ -182,7 +214,18 @@ class ExperimentSpec(_Frozen):
         "controllers, another physics), reported apart",
     )
     preset: str = Field(description=f"base preset: {', '.join(PRESET_NAMES)}")
-    seeds: int = Field(default=10, ge=1, le=10_000, description="seeds 0..n-1 (paired)")
+    seeds: int = Field(
+        default=10, ge=1, le=10_000, description="seeds first_seed..first_seed+n-1 (paired)"
+    )
+    first_seed: int = Field(
+        default=0,
+        ge=0,
+        le=2**31 - 10_001,
+        description="the first run seed; a new pre-registration takes seeds no report used",
+    )
+    design: DesignSpec | None = Field(
+        None, description="a pre-registered sequential design (decisive experiments)"
+    )
     config: dict[str, Any] = Field(default_factory=dict, description="base overlay")
     arms: tuple[ArmSpec, ...] = Field(min_length=1)
     conditions: tuple[ConditionSpec, ...] = ()
@@ -237,6 +280,8 @@ class ExperimentSpec(_Frozen):
                     raise ValueError(f"{where}: metric {metric!r} is a curve, not a number")
                 if metric == "fault_effect" and self.control is None:
                     raise ValueError(f"{where}: fault_effect needs the experiment's control")
+        if self.design is not None:
+            self._check_design(self.design)
         for value in self.thesis:
             where = f"thesis value of {value.arm!r} ({value.source})"
             if value.arm not in arms:
@@ -244,12 +289,32 @@ class ExperimentSpec(_Frozen):
             _check_metric(where, value.metric, value.condition, conditions)
         return self
 
+    def _check_design(self, design: DesignSpec) -> None:
+        primary = [c.name for c in self.comparisons if c.family == "primary"]
+        if not primary or len(primary) > design.max_primary:
+            raise ValueError(
+                f"design: {len(primary)} primary claims; a decisive experiment names 1 to "
+                f'{design.max_primary} (mark the others family = "exploratory")'
+            )
+        undeclared = [c.name for c in self.comparisons if c.paired is None]
+        if undeclared:
+            raise ValueError(
+                f"design: comparison {undeclared[0]!r} must declare paired = true or false"
+            )
+        for name, scale in self.scales.items():
+            if name != "smoke" and scale.seeds is not None and scale.seeds != design.looks[-1]:
+                raise ValueError(
+                    f"design: scale {name!r} has {scale.seeds} seeds; the last look has "
+                    f"{design.looks[-1]}"
+                )
+
     # -- what the runner needs --
 
     def seed_list(self, scale: Scale, seeds: int | None = None) -> tuple[int, ...]:
-        """The paired run seeds 0..n-1: `seeds` if given, else the scale's, else the file's."""
+        """The paired run seeds first_seed.. (n of them): `seeds` if given, else the scale's,
+        else the file's."""
         count = seeds or self.scale(scale).seeds or self.seeds
-        return tuple(range(count))
+        return tuple(range(self.first_seed, self.first_seed + count))
 
     def scale(self, scale: str) -> ScaleSpec:
         """The overlay of a scale this experiment defines."""
@@ -307,7 +372,10 @@ class ExperimentSpec(_Frozen):
 
     def comparisons_info(self) -> tuple[Comparison, ...]:
         """The claims as the statistics see them."""
-        return tuple(Comparison(**c.model_dump()) for c in self.comparisons)
+        return tuple(
+            Comparison(**c.model_dump(exclude={"paired"}), pairing=c.paired)
+            for c in self.comparisons
+        )
 
     def check_control(self, scale: str) -> None:
         """The control condition has no fault and every condition's length (fault_effect

@@ -5,6 +5,7 @@ drift) and, at `smoke` scale, runs end to end into a report with one verdict per
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import re
@@ -27,9 +28,11 @@ THESIS_SHIPPED = (
     "ch2-reward-source",
     "ch2-training-noise",
     "ch3-bs-rl",
+    "ch3-bs-rl-decisive",
     "ch4-exponent",
     "ch4-schedules",
     "ch5-cs-bs-rl",
+    "ch5-cs-bs-rl-decisive",
     "physics-equivalence",
 )
 #: Beyond the thesis: claims that are our hypotheses, citing no table or figure of it.
@@ -143,14 +146,18 @@ def test_the_shipped_experiments_are_these() -> None:
 @pytest.mark.parametrize("name", SHIPPED)
 def test_loads_at_every_scale(name: str) -> None:
     spec = load_shipped(name)  # validates every arm x condition x scale config
-    assert set(spec.scales) == set(SCALES)
-    for scale in SCALES:
+    # A decisive experiment pre-registers one design at the thesis's scale (and smoke, for tests).
+    scales = ("smoke", "thesis") if spec.design is not None else SCALES
+    assert set(spec.scales) == set(scales)
+    for scale in scales:
         assert spec.scale(scale).measured, f"{name} at {scale}: no cost stated"
         for arm in spec.arms:
             run = spec.run_config(arm.name, scale, 0)
             for condition in spec.conditions:
                 spec.condition_settings(condition, run, scale)
         assert len(spec.conditions_info(scale)) == len(spec.conditions)
+    if spec.design is not None:
+        return  # test_a_decisive_experiment_is_pre_registered_on_fresh_seeds
     assert spec.seed_list("small") == spec.seed_list("thesis") == tuple(range(10))
     for arm in spec.arms:
         small, thesis = (spec.run_config(arm.name, scale, 0) for scale in ("small", "thesis"))
@@ -158,6 +165,41 @@ def test_loads_at_every_scale(name: str) -> None:
         assert (thesis.training.population, thesis.training.generations) == (300, 1000)
         for condition in spec.conditions:
             assert spec.condition_settings(condition, small, "small").repeats == 30
+            assert spec.condition_settings(condition, thesis, "thesis").repeats == 300
+
+
+DECISIVE = ("ch3-bs-rl-decisive", "ch5-cs-bs-rl-decisive")
+
+
+@pytest.mark.parametrize("name", DECISIVE)
+def test_a_decisive_experiment_is_pre_registered_on_fresh_seeds(name: str) -> None:
+    spec = load_shipped(name)
+    assert spec.design is not None and spec.design.looks == (25, 50, 75, 100)
+    # Fresh seeds: none that a committed report (or the other decisive experiment) used.
+    used: set[int] = set()
+    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+        with values.open() as handle:
+            used |= {int(row["seed"]) for row in csv.DictReader(handle)}
+    others = [load_shipped(other) for other in DECISIVE if other != name]
+    for other in others:
+        used |= set(other.seed_list("thesis"))
+    assert used and not used & set(spec.seed_list("thesis"))
+    assert len(spec.seed_list("thesis")) == spec.design.looks[-1]
+    primary = [c for c in spec.comparisons if c.family == "primary"]
+    assert 1 <= len(primary) <= 4
+    assert all(c.paired is not None for c in spec.comparisons)  # declared, claim by claim
+    # The primary claims are the questions table's: before/after one sensor, the fault's cost.
+    assert {c.metric for c in primary} <= {
+        "mean_reward_before_fault",
+        "mean_reward_after_fault",
+        "fault_effect",
+    }
+    assert {c.condition for c in primary} == {"break-1"}
+    for arm in spec.arms:
+        thesis = spec.run_config(arm.name, "thesis", spec.first_seed)
+        assert (thesis.training.population, thesis.training.generations) == (300, 1000)
+        assert thesis.training.physics == "analytic"
+        for condition in spec.conditions:
             assert spec.condition_settings(condition, thesis, "thesis").repeats == 300
 
 
@@ -248,5 +290,7 @@ def test_runs_end_to_end_at_smoke_scale(name: str, client: Any, tmp_path: Path) 
     )
     verdicts = {c["name"]: c["verdict"] for c in report["comparisons"]}
     assert list(verdicts) == [c.name for c in spec.comparisons]
-    assert set(verdicts.values()) <= set(VERDICTS)
+    for comparison in spec.comparisons:
+        allowed = VERDICTS if comparison.family == "primary" else ("exploratory",)
+        assert verdicts[comparison.name] in allowed
     assert len(report["thesis"]) == len(spec.thesis)
