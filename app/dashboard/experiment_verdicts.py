@@ -31,6 +31,7 @@ from app.experiments.report import (
     interval_level,
     looks_text,
     stages_json,
+    tally,
 )
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import POWER, Design
@@ -122,6 +123,8 @@ def claim_row(c: ComparisonReport) -> list[str]:
     iv = c.claim.judged.interval
     delta = f"{format_number(iv.difference)} [{format_number(iv.low)}, {format_number(iv.high)}]"
     verdict = badge(c.claim.verdict)
+    if c.claim.post_hoc:
+        verdict += f"<br><small>{whole('post hoc')}</small>"
     if c.claim.verdict == "undecided" and c.claim.need is not None:
         verdict += f"<br><small>{whole(f'need {_seeds(c.claim.need.seeds_at_thesis)}')}</small>"
     runs = whole(f"{c.claim.runs[0]}, {c.claim.runs[1]}")
@@ -133,19 +136,30 @@ def verdict_tables(report: ExperimentReport) -> str:
     if not report.comparisons:
         return "This experiment makes no comparisons."
     parts = []
-    for kind, title in KINDS:
-        claims = report.of_kind(kind)
+    groups = [
+        (title, tuple(c for c in report.of_kind(kind) if c.comparison.family == "primary"))
+        for kind, title in KINDS
+    ]
+    groups.append(
+        ("Exploratory: unadjusted 95% intervals, not verdicts", report.of_family("exploratory"))
+    )
+    for title, claims in groups:
         if not claims:
             continue
         rows = [f"| {CLAIM_HEADER} | runs | verdict |", "|---|---|---|"]
         rows += ["| " + " | ".join(claim_row(c)) + " |" for c in claims]
         parts.append(f"**{title}** ({len(claims)})\n\n" + "\n".join(rows))
-    counts = Counter(c.claim.verdict for c in report.comparisons)
-    tally = ", ".join(f"{counts[v]} {badge(v)}" for v in VERDICTS if counts[v])
-    levels = sorted({interval_level(c.claim) for c in report.comparisons})
+    tallies = []
+    for group, counts in tally(report).items():
+        words = ", ".join(f"{counts[v]} {badge(v)}" for v in VERDICTS if counts.get(v))
+        tallies += [f"{group}: {words}"] if words else []
+    primary = report.of_family("primary")
+    levels = sorted({interval_level(c.claim) for c in primary})
     parts.append(
-        f"<small>{tally}. Δ = a − b, its interval at the level of the look that decided it "
-        f"({', '.join(levels)}; family-wise α = {report.alpha:g} over all claims and looks); "
+        f"<small>{'; '.join(tallies) or 'no primary claim'}. Δ = a − b, its interval at the "
+        f"level of the look that decided it ({', '.join(levels)}; family-wise α = "
+        f"{report.alpha:g} over the primary claims and looks); post hoc: the claim or its "
+        "margin was declared after data of both its sides; "
         f"runs: a, b at that look; need: seeds per arm for {100 * POWER:.0f}% power at the "
         "thesis's effect (– none declared). Hover a claim for its sentence.</small>"
     )
@@ -157,8 +171,8 @@ def _decided_cell(decided: list[dict[str, Any]]) -> str:
         return "–"
     counts = Counter(d["verdict"] for d in decided)
     names = ", ".join(f"{d['name']} ({d['verdict']})" for d in decided)
-    tally = " ".join(f"{counts[v]} {badge(v)}" for v in VERDICTS if counts[v])
-    return f'<span title="{_attribute(names)}">{tally}</span>'
+    counted = " ".join(f"{counts[v]} {badge(v)}" for v in VERDICTS if counts[v])
+    return f'<span title="{_attribute(names)}">{counted}</span>'
 
 
 def stages_table(report: ExperimentReport) -> str:

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Iterator
@@ -121,6 +122,13 @@ def add_parser(commands: Any) -> None:
         "between its marker lines; the text around them is kept.",
     )
     page.add_argument("--docs", default="docs/experiments", help="folder of the reports")
+    verbs.add_parser(
+        "provenance",
+        help="rewrite app/experiments/provenance.json from this checkout's git history",
+        description="For every shipped experiment: the commit that declared each claim and its "
+        "margin, and the first commit that published data of both its sides per report folder. "
+        "Run it at the root of a full (not shallow) clone after committing a spec or a report.",
+    )
 
 
 def _spec(args: argparse.Namespace) -> ExperimentSpec:
@@ -167,6 +175,14 @@ def main(args: argparse.Namespace) -> int:
         from app.experiments.reproduced import write_page
 
         print(f"wrote {write_page(args.docs)}")
+        return 0
+    if args.verb == "provenance":
+        from app.experiments.provenance import ProvenanceError, write_file
+
+        try:
+            print(f"wrote {write_file('.', shipped_names())}")
+        except ProvenanceError as error:
+            raise ExperimentError(str(error)) from None
         return 0
     spec = _spec(args)
     spec.scale(args.scale)
@@ -222,6 +238,17 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     return 0
 
 
+def _planned_looks(values: Path) -> tuple[int, ...]:
+    """The looks an adaptive report planned, from the report.json beside its values.csv (none:
+    one look): a report written again from its values judges them over the same looks."""
+    try:
+        report = json.loads((values.parent / "report.json").read_text())
+        looks = tuple(int(n) for n in report.get("looks_planned") or ())
+    except (OSError, ValueError, TypeError, AttributeError):
+        return ()
+    return looks if len(looks) > 1 else ()  # one planned look: a plain, one-look report
+
+
 def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     import tempfile
 
@@ -231,6 +258,7 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="gnp-lab-empty-") as empty:
         template = harvest.collect(spec, args.scale, empty)  # the shape, every value NaN
     results = read_values_csv(args.from_values, spec, template)
+    results = dataclasses.replace(results, looks=_planned_looks(Path(args.from_values)))
     if args.format == "json":
         return _print_json(results)
     if not args.out:

@@ -68,11 +68,18 @@ def runs_text(comparison: dict[str, Any]) -> str:
     return f"{a} runs" if comparison["paired"] and a == b else f"{a} + {b} runs"
 
 
+def verdict_words(comparison: dict[str, Any]) -> str:
+    """'**held**', or '**ruled out**, post hoc' for a verdict judged on data seen before its
+    claim or margin was declared."""
+    late = ", post hoc" if comparison.get("post_hoc") else ""
+    return f"**{comparison['verdict']}**{late}"
+
+
 def answer(comparison: dict[str, Any] | None) -> str:
     """'**held** (20 + 20 runs)': the verdict and the runs behind it; 'not run' without one."""
     if comparison is None or not ran(comparison):
         return "not run"
-    return f"**{comparison['verdict']}** ({runs_text(comparison)})"
+    return f"{verdict_words(comparison)} ({runs_text(comparison)})"
 
 
 def measured(comparison: dict[str, Any] | None) -> str:
@@ -87,20 +94,57 @@ def measured(comparison: dict[str, Any] | None) -> str:
 
 
 def tally(comparisons: list[dict[str, Any]]) -> str:
-    """'2 held, 3 undecided, 1 not run'; '—' for no claims."""
-    counts: dict[str, int] = {
-        v: sum(ran(c) and c["verdict"] == v for c in comparisons) for v in VERDICTS
-    }
-    counts["not run"] = sum(not ran(c) for c in comparisons)
-    return ", ".join(f"{n} {v}" for v, n in counts.items() if n) or "—"
+    """'2 held, 3 undecided; post hoc: 1 ruled out; 1 not run; 4 exploratory': pre-registered
+    verdicts first, post hoc ones apart, exploratory claims only counted; '—' for no claims."""
+    primary = [c for c in comparisons if c.get("family", "primary") == "primary" and ran(c)]
+
+    def counted(group: list[dict[str, Any]]) -> str:
+        counts = {v: sum(c["verdict"] == v for c in group) for v in VERDICTS}
+        return ", ".join(f"{n} {v}" for v, n in counts.items() if n)
+
+    parts = [counted([c for c in primary if not c.get("post_hoc")])]
+    late = counted([c for c in primary if c.get("post_hoc")])
+    parts.append(f"post hoc: {late}" if late else "")
+    not_run = sum(not ran(c) for c in comparisons)
+    explored = sum(c.get("family") == "exploratory" and ran(c) for c in comparisons)
+    parts += [
+        f"{not_run} not run" if not_run else "",
+        f"{explored} exploratory" if explored else "",
+    ]
+    return "; ".join(p for p in parts if p) or "—"
+
+
+DECISIVE = "-decisive"  # the pre-registered experiment asking the same question: NAME-decisive
+
+
+def decisive_cell(
+    reports: dict[tuple[str, str], dict[str, Any]], experiment: str, claim: str
+) -> str:
+    """The answering claim's verdict in the decisive experiment of the same question, if it
+    asks it: its verdict, 'exploratory', 'not run yet', or '—' where there is none."""
+    from app.experiments.spec import load_shipped, shipped_names
+
+    name = experiment + DECISIVE
+    if name not in shipped_names():
+        return "—"
+    spec = load_shipped(name)
+    declared = next((c for c in spec.comparisons if c.name == claim), None)
+    if declared is None:
+        return "—"
+    found = _claims(reports.get((name, "thesis"))).get(claim)
+    if found is None or not ran(found):
+        return f"not run yet ({declared.family})"
+    if declared.family == "exploratory":
+        return f"exploratory ({runs_text(found)})"
+    return answer(found)
 
 
 def answers_table(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
     """The headline table: a row per question, its verdict at `small` and at `thesis` scale."""
     out = [
-        "| question | experiment: answering claim | small | thesis | small: Δ [interval] "
-        "| small: the other claims on it |",
-        "|---|---|---|---|---|---|",
+        "| question | experiment: answering claim | small | thesis | decisive (thesis scale) "
+        "| small: Δ [interval] | small: the other claims on it |",
+        "|---|---|---|---|---|---|---|",
     ]
     for question in load_questions():
         small = _claims(reports.get((question.experiment, "small")))
@@ -112,6 +156,7 @@ def answers_table(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
             f"{question.experiment}: `{question.claim}`",
             answer(small.get(question.claim)),
             thesis_cell,
+            decisive_cell(reports, question.experiment, question.claim),
             measured(small.get(question.claim)),
             tally(others),
         ]

@@ -9,11 +9,13 @@ figures and files are `app.experiments.report_page.write_report`'s.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from app.experiments.margins import Margin, margin_of
+from app.experiments.provenance import Declared, declared
 from app.experiments.results import (
     CORE_STEPS_PER_SECOND,
     METRICS,
@@ -23,6 +25,7 @@ from app.experiments.results import (
     ExperimentResults,
     Metric,
     ThesisValue,
+    Verdict,
 )
 from app.experiments.sequential import (
     ALPHA,
@@ -30,6 +33,8 @@ from app.experiments.sequential import (
     ClaimData,
     ClaimVerdict,
     Design,
+    Interval,
+    decide,
     interval,
     judge,
     seeds_for_power,
@@ -62,6 +67,14 @@ class ClaimStats:
     judged: ClaimVerdict
     margin: float | None  # the effect the verdict rules out, in the metric's units
     need: Need | None
+    margin_rule: Margin  # how `margin` was reached
+    # When the claim and its margin were declared (None: a claim the history does not know),
+    # and whether its verdict was judged on data seen before them.
+    provenance: Declared | None = None
+    post_hoc: bool | None = None
+    # The same claim analysed the other way (paired by seed if declared unpaired, and back),
+    # at the verdict's level: a sensitivity check beside the verdict. None within one arm.
+    other_pairing: tuple[Interval, Verdict] | None = None
 
     @property
     def verdict(self) -> str:
@@ -184,6 +197,30 @@ def _need(c: Comparison, judged: ClaimVerdict, margin: float | None, steps: floa
     return Need(at_thesis, at_ours, hours(at_thesis), hours(at_ours))
 
 
+def post_hoc(
+    c: Comparison, judged: ClaimVerdict, origin: Declared | None, declared_margin: float | None
+) -> bool | None:
+    """Whether a verdict rests on a claim or margin declared after the data it is judged on.
+
+    A held or reversed rests on the claim alone; a ruled out (and an equivalence verdict) on
+    its margin too, which is pre-registered only if it was declared before the data and the
+    declared margin (`declared_margin`, in units) alone gives the same verdict: the margin rule
+    of `app.experiments.margins` came after every report before issue #30. None: unknown
+    (a claim the history does not know) or not a verdict (exploratory).
+    """
+    if origin is None or judged.verdict == "exploratory":
+        return None
+    if not origin.claim_first:
+        return True
+    if judged.verdict == "ruled out" or (
+        c.direction == "equivalent" and judged.verdict != "undecided"
+    ):
+        if not origin.margin_first:
+            return True
+        return decide(judged.interval, c.direction, declared_margin) != judged.verdict
+    return False
+
+
 def _judge_families(
     comparisons: tuple[Comparison, ...],
     looks: list[list[ClaimData]],
@@ -227,16 +264,18 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
         key_a, key_b = c.keys()
         values.append((results.scalars.get(key_a, missing), results.scalars.get(key_b, missing)))
     design, made = looks_made(results)
-    margins: list[list[float | None]] = [[] for _ in results.comparisons]
+    margins: list[list[Margin]] = [[] for _ in results.comparisons]
     looks = []
     for n in made:
         claims = []
         for i, (c, (a, b)) in enumerate(zip(results.comparisons, values, strict=True)):
             b_look = b[:n]
             mean_b = float(np.nanmean(b_look)) if np.isfinite(b_look).any() else math.nan
-            margin = c.margin_for(mean_b)
+            key_a, key_b = c.keys()
+            thesis_a, thesis_b = _thesis_value(results, key_a), _thesis_value(results, key_b)
+            margin = margin_of(c, METRICS[c.metric], thesis_a, thesis_b, mean_b)
             margins[i].append(margin)
-            claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin))
+            claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin.value))
         looks.append(claims)
     judged = _judge_families(results.comparisons, looks, design, alpha)
     pairs = [
@@ -253,8 +292,22 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
     for i, (c, j) in enumerate(zip(results.comparisons, judged, strict=True)):
         margin = margins[i][j.look]
         undecided = j.verdict == "undecided"
-        need = _need(c, j, margin, results.steps_per_run) if undecided else None
-        claims_out.append(ClaimStats(pairs[i], float(adjusted[i]), j, margin, need))
+        need = _need(c, j, margin.value, results.steps_per_run) if undecided else None
+        origin = declared(results.name, results.scale, c.name)
+        b_look = values[i][1][: made[j.look]]
+        mean_b = float(np.nanmean(b_look)) if np.isfinite(b_look).any() else math.nan
+        late = post_hoc(c, j, origin, c.margin_for(mean_b))
+        other = None
+        if not c.within_arm and j.verdict != "exploratory":
+            a_look = values[i][0][: made[j.look]]
+            data = ClaimData(a_look, b_look, c.direction, not c.paired, margin.value)
+            iv = interval(data, j.level)
+            other = (iv, decide(iv, c.direction, margin.value))
+        claims_out.append(
+            ClaimStats(
+                pairs[i], float(adjusted[i]), j, margin.value, need, margin, origin, late, other
+            )
+        )
     return ExperimentReport(
         results=results,
         comparisons=tuple(
@@ -345,14 +398,26 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
         "runs": list(claim.runs),
         "look": claim.judged.look + 1,
         "margin": None
-        if c.margin is None
+        if c.margin is None and claim.margin_rule.basis == "none"
         else {
             "value": c.margin,
             "form": c.margin_form,
             "source": c.margin_source,
             "in_units": json_number(claim.margin if claim.margin is not None else math.nan),
+            "basis": claim.margin_rule.basis,
+            "rule": claim.margin_rule.text,
         },
         "need": _need_json(claim.need),
+        "post_hoc": claim.post_hoc,
+        "provenance": None if claim.provenance is None else asdict(claim.provenance),
+        "other_pairing": None
+        if claim.other_pairing is None
+        else {
+            "paired": not c.paired,
+            "low": json_number(claim.other_pairing[0].low),
+            "high": json_number(claim.other_pairing[0].high),
+            "verdict": claim.other_pairing[1],
+        },
         "paired": s.paired,
         "t_test": {
             "test": s.tests[0],
@@ -426,6 +491,7 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
             }
             for c in results.conditions
         ],
+        "tally": tally(report),
         "comparisons": [_comparison_json(c) for c in report.comparisons],
         "thesis": [
             {
@@ -451,13 +517,53 @@ def interval_text(claim: ClaimStats) -> str:
     return f"[{format_number(iv.low)}, {format_number(iv.high)}]"
 
 
+def verdict_label(claim: ClaimStats) -> str:
+    """The verdict as the page shows it: post hoc ones say so."""
+    return f"{claim.verdict} (post hoc)" if claim.post_hoc else claim.verdict
+
+
+def provenance_text(claim: ClaimStats) -> str:
+    """When the claim and its margin were declared, against its data, in words."""
+    d = claim.provenance
+    if d is None:
+        return "not recorded (not a shipped experiment's claim)"
+    words = f"claim {d.claim_commit}, margin {d.margin_commit}; "
+    words += f"first data {d.data_commit}" if d.data_commit else "no data committed yet"
+    if claim.post_hoc is None:
+        return words
+    if not claim.post_hoc:
+        return words + ": pre-registered"
+    if not d.claim_first:
+        return words + ": post hoc (the claim came after its data)"
+    if not d.margin_first:
+        return words + ": post hoc (the margin came after the data)"
+    return words + ": post hoc (the declared margin alone gives another verdict)"
+
+
+def sensitivity_text(claim: ClaimStats) -> str:
+    """The claim analysed the other way (paired or unpaired), at the verdict's level."""
+    if claim.other_pairing is None:
+        return "–"
+    iv, verdict = claim.other_pairing
+    how = "unpaired" if claim.stats.paired else "paired by seed"
+    return f"{how}: [{format_number(iv.low)}, {format_number(iv.high)}] {verdict}"
+
+
+def tally(report: ExperimentReport) -> dict[str, dict[str, int]]:
+    """Verdict counts: pre-registered (or unrecorded) and post hoc, primary claims only."""
+    out: dict[str, dict[str, int]] = {"pre-registered": {}, "post hoc": {}}
+    for c in report.of_family("primary"):
+        group = out["post hoc" if c.claim.post_hoc else "pre-registered"]
+        group[c.claim.verdict] = group.get(c.claim.verdict, 0) + 1
+    return out
+
+
 def margin_text(report: ComparisonReport) -> str:
-    c = report.comparison
-    if c.margin is None:
-        return "none declared"
-    form = f"{c.margin:g} of b's mean" if c.margin_form == "relative" else f"{c.margin:g}"
-    sign = "±" if c.direction == "equivalent" else ""
-    return f"{sign}{format_number(report.claim.margin)} ({form}; {c.margin_source})"
+    rule = report.claim.margin_rule
+    if rule.value is None:
+        return rule.text
+    sign = "±" if report.comparison.direction == "equivalent" else ""
+    return f"{sign}{format_number(rule.value)} ({rule.text})"
 
 
 def need_text(need: Need) -> str:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from app.experiments.figures import DeltaBar, FigureFile, SavedFigures, save_figures
 from app.experiments.report import (
+    ClaimStats,
     ComparisonReport,
     ExperimentReport,
     analyse,
@@ -21,11 +22,14 @@ from app.experiments.report import (
     looks_text,
     margin_text,
     need_text,
+    provenance_text,
+    sensitivity_text,
     stages_json,
+    tally,
     thesis_beside_ours,
     to_json,
 )
-from app.experiments.results import METRICS, VERDICT_COLOURS, Arm, ExperimentResults
+from app.experiments.results import METRICS, VERDICT_COLOURS, VERDICTS, Arm, ExperimentResults
 from app.experiments.values import VALUES_COLUMNS, write_values_csv
 
 _CSS = (
@@ -70,6 +74,23 @@ def _row(*cells: str, header: bool = False) -> str:
     return "<tr>" + "".join(f"<{tag}>{cell}</{tag}>" for cell in cells) + "</tr>"
 
 
+def _declared_cell(claim: ClaimStats) -> str:
+    if claim.post_hoc is None:
+        return "–"
+    return "post hoc" if claim.post_hoc else "pre-registered"
+
+
+def tally_text(report: ExperimentReport) -> str:
+    """'pre-registered: 3 held, 2 undecided; post hoc: 1 ruled out; 4 exploratory'."""
+    parts = []
+    for group, counts in tally(report).items():
+        if counts:
+            words = ", ".join(f"{counts[v]} {v}" for v in VERDICTS if v in counts)
+            parts.append(f"{group}: {words}")
+    explored = len(report.of_family("exploratory"))
+    return "; ".join(parts + ([f"{explored} exploratory"] if explored else [])) or "none"
+
+
 def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
     s, claim, c = report.stats, report.claim, report.comparison
     sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
@@ -104,6 +125,8 @@ def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str
         ("difference of means (a − b)", format_number(s.difference)),
         (f"verdict's interval ({interval_level(claim)})", interval_text(claim)),
         ("effect ruled out by 'ruled out'", margin_text(report)),
+        ("declared (commits)", provenance_text(claim)),
+        ("the other analysis, same level", sensitivity_text(claim)),
         ("runs (a, b); look", f"{claim.runs[0]}, {claim.runs[1]}; {claim.judged.look + 1}"),
         (f"{t_test} t (df)", f"{format_number(s.t)} ({format_number(s.df)})"),
         (f"{t_test} p, one-tailed (other direction)",
@@ -125,7 +148,7 @@ def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str
         else ""
     )
     return f"""
-<h3>{_e(c.name)} {_verdict_html(claim.verdict)}</h3>
+<h3>{_e(c.name)} {_verdict_html(claim.verdict)}{" post hoc" if claim.post_hoc else ""}</h3>
 <p>Claim ({_e(c.source)}): {_e(report.sentence)}. a = {_e(c.a)}, b = {_e(c.b)}.</p>
 <div class="comparison"><div>
 <table>{_row("arm", "runs (n)", "unfinished", "mean ± sd", "thesis", header=True)}{arm_rows}
@@ -145,27 +168,38 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
             ("scale", results.scale),
             ("seeds", ", ".join(map(str, results.seeds)) + f" ({len(results.seeds)} runs per arm)"),
             ("looks", looks_text(report)),
+            ("verdicts (primary claims)", tally_text(report)),
             ("arms", "; ".join(f"{a.name}: {a.label}" for a in results.arms)),
             ("unit of analysis", "the run (seed): a run's value is its mean over trials"),
         )
     )
 
-    def verdict_rows(kind: str) -> str:
+    def verdict_rows(claims: tuple[ComparisonReport, ...]) -> str:
         return "".join(
             _row(_e(c.comparison.name), _e(c.sentence), _e(c.comparison.source),
                  _e(f"{format_number(c.stats.difference)} {interval_text(c.claim)}"),
-                 _e(f"{c.claim.runs[0]}, {c.claim.runs[1]}"), _verdict_html(c.claim.verdict))
-            for c in report.of_kind(kind)
+                 _e(f"{c.claim.runs[0]}, {c.claim.runs[1]}"), _verdict_html(c.claim.verdict),
+                 _e(_declared_cell(c.claim)), _e(sensitivity_text(c.claim)))
+            for c in claims
         )  # fmt: skip
 
     verdict_head = _row("comparison", "claim", "claimed in", "Δ [interval]", "runs (a, b)",
-                        "verdict", header=True)  # fmt: skip
-    questions, sanity = verdict_rows("question"), verdict_rows("sanity")
+                        "verdict", "declared", "the other analysis", header=True)  # fmt: skip
+    primary = [c for c in report.comparisons if c.comparison.family == "primary"]
+    questions = verdict_rows(tuple(c for c in primary if c.comparison.kind == "question"))
+    sanity = verdict_rows(tuple(c for c in primary if c.comparison.kind == "sanity"))
+    exploratory = verdict_rows(report.of_family("exploratory"))
     summary = (
         f"<h3>The thesis's questions</h3><table>{verdict_head}{questions}</table>"
         if questions
         else ""
     ) + (f"<h3>Within one arm (sanity)</h3><table>{verdict_head}{sanity}</table>" if sanity else "")
+    summary += (
+        "<h3>Exploratory (unadjusted 95% intervals; not verdicts, never counted)</h3>"
+        f"<table>{verdict_head}{exploratory}</table>"
+        if exploratory
+        else ""
+    )
     stage_rows = "".join(
         _row(str(st["look"]), str(st["seeds_per_arm"]),
              _e(", ".join(f"{arm} {n}" for arm, n in st["runs"].items())),
@@ -215,21 +249,32 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
 <p>{_e(results.description)}</p>
 <table class="facts">{facts}</table>
 <p>Each arm is run with the same seeds; the unit of analysis is the run, so n counts runs,
-never trials. As in the thesis, arms are compared as independent samples (Welch); one arm
-compared across two conditions or metrics has the same runs on both sides and is tested paired
-by seed (paired t). Each claim's verdict rests on an interval of Δ = mean(a) − mean(b):
-<i>held</i> when it lies on the claimed side of 0 (an equivalence claim: inside ±margin),
-<i>reversed</i> when it lies on the other side, <i>ruled out</i> when it excludes the thesis's
-effect (the margin declared in the experiment's file before the runs), else <i>undecided</i>,
-with the seeds per arm that 80% power would need at the thesis's effect and at ours, and their
-cost in core-hours. The intervals are two-sided t-intervals at level α/r (α = {report.alpha:g},
-r the claims holding a share: Holm over all claims, both directions in one family; a claim
-held or reversed hands its share on, one ruled out keeps it) widened, for an adaptive run, by
-the Lan–DeMets O'Brien–Fleming boundary of the look, so the chance of any wrong held or
-reversed over all claims and looks is at most α. Mann–Whitney U (Wilcoxon signed-rank
-when paired), P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> =
-X<sub>b</sub>) (rliable) and Hedges' g describe each claim too. Unfinished runs (NaN) are left
-out and counted.</p>
+never trials. Arms are compared as independent samples (Welch) unless the experiment declares a
+claim paired by seed; one arm compared across two conditions or metrics has the same runs on
+both sides and is tested paired (paired t). Each claim's verdict rests on an interval of
+Δ = mean(a) − mean(b): <i>held</i> when it lies on the claimed side of 0 (an equivalence claim:
+inside ±margin), <i>reversed</i> when it lies on the other side, <i>ruled out</i> when it
+excludes the effect named in the claim's "effect ruled out" row, else <i>undecided</i>, with the
+seeds per arm that 80% power would need at that effect and at ours, and their cost in
+core-hours. Where the thesis prints both sides' values, that effect is the thesis's own, read
+absolute and relative to the baseline, and a claim is ruled out only if its interval excludes
+both (a reading no run could reach is dropped; printed values pointing the other way leave
+nothing to rule out); where it prints none, it is the smallest effect of interest declared in
+the experiment's file, and says so. The intervals are two-sided t-intervals at level α/r
+(α = {report.alpha:g}, r the primary claims holding a share: Holm over the primary claims,
+both directions in one family; a claim held or reversed hands its share on, one ruled out keeps
+it) widened, for an adaptive run, by the Lan–DeMets O'Brien–Fleming boundary of the look, so
+under the normal approximation the chance of any wrong held or reversed among this
+experiment's primary claims, over all its looks, is at most α (per experiment, not across
+experiments). Exploratory claims show an unadjusted 95% interval and no verdict. A verdict
+whose claim or margin was declared after data of both its sides had been committed is
+labelled <i>post hoc</i> and counted apart. "The other analysis" is the same claim paired by
+seed when it is declared unpaired (and unpaired when paired), at the verdict's level: a
+sensitivity check, not a verdict. Mann–Whitney U (Wilcoxon signed-rank when paired),
+P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> = X<sub>b</sub>)
+(rliable) and Hedges' g describe each claim too; a sequential report shows no fixed-sample
+adjusted p, which its boundaries would contradict. Unfinished runs (NaN) are left out and
+counted.</p>
 <h2>Verdicts</h2>
 {summary}
 {stages}

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from app.experiments import planning
-from app.experiments.questions import answers_table, ran, runs_text, tally
+from app.experiments.questions import answers_table, ran, runs_text, tally, verdict_words
 from app.experiments.spec import (
     SCALES,
     ExperimentError,
@@ -96,8 +96,18 @@ def _verdict(comparison: dict[str, Any]) -> str:
     if comparison["verdict"] == "undecided" and need:
         seeds = need["seeds_per_arm_at_thesis_effect"]
         if seeds is not None:
-            used += f"; 80% power at the thesis's effect: {seeds:.0f} seeds per arm"
-    return f"**{comparison['verdict']}** ({used})"
+            used += f"; 80% power at {_margin_words(comparison)}: {seeds:.0f} seeds per arm"
+    return f"{verdict_words(comparison)} ({used})"
+
+
+def _margin_words(comparison: dict[str, Any]) -> str:
+    """What the claim's margin is: the thesis's printed effect or a declared one."""
+    margin = comparison.get("margin") or {}
+    if margin.get("basis") == "thesis":
+        return "the thesis's printed effect"
+    if "smallest effect" in (margin.get("source") or ""):
+        return "the smallest effect of interest"
+    return "the declared margin"
 
 
 def _cell(text: str) -> str:
@@ -247,13 +257,19 @@ def _every(c: dict[str, Any], report: dict[str, Any]) -> bool:
 
 READING = (
     "Each claim compares two sides on Δ = mean(a) − mean(b) over runs (seeds). Its interval "
-    "is a two-sided t-interval at level α/r (α = 0.05, r the claims holding a share; Holm "
-    "over the experiment's claims, both directions in one family; widened by the "
-    "O'Brien–Fleming boundary of its look in an adaptive run). `held`: the interval lies on "
-    "the claimed side of 0; `reversed`: on the other side; `ruled out`: it excludes the "
-    "thesis's effect (its own Δ relative to its baseline where it prints numbers, else a "
-    "smallest effect of interest declared before the runs); `undecided`: none of these, "
-    "with the seeds per arm that 80% power would need at the thesis's effect. "
+    "is a two-sided t-interval at level α/r (α = 0.05, r the primary claims holding a share; "
+    "Holm over the experiment's primary claims, both directions in one family; widened by the "
+    "O'Brien–Fleming boundary of its look in an adaptive run), so under normal theory the "
+    "chance of any wrong held or reversed is at most 5% per experiment, not over the page. "
+    "`held`: the interval lies on the claimed side of 0; `reversed`: on the other side; "
+    "`ruled out`: it excludes the effect the claim names: where the thesis prints both sides' "
+    "values, its own Δ under both readings, absolute and relative to its baseline (a reading no "
+    "run could reach is dropped; values pointing against the claim leave nothing to rule out); "
+    "elsewhere a smallest effect of interest, 0.02 unless the file says otherwise; "
+    "`undecided`: none of these, with the seeds per arm that 80% power would need at that "
+    "effect (the label says which). `post hoc`: the claim or its margin was declared after "
+    "data of both its sides had been committed; such verdicts are counted apart. "
+    "`exploratory` (decisive experiments): an unadjusted interval, never a verdict. "
     "`not run`: the claim was added after the report's runs (no values yet).\n"
 )
 

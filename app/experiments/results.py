@@ -7,6 +7,7 @@ and the report (`app.experiments.report`) read only this. Nothing here knows abo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -48,6 +49,13 @@ class Metric:
     kind: MetricKind  # one number per run, or one curve per run
     scope: MetricScope  # of the training phase, or of one implementation condition
     description: str
+    # The values a run can take: a reward per step is C × terms in 0..1 (Eq. 2.7), a fitness
+    # its mean (Eq. 2.8), a fault effect the difference of two of them.
+    bounds: tuple[float, float] = (0.0, 1.0)
+
+    @property
+    def span(self) -> float:
+        return self.bounds[1] - self.bounds[0]
 
 
 METRICS: dict[str, Metric] = {
@@ -96,6 +104,7 @@ METRICS: dict[str, Metric] = {
             "condition",
             "reward per step from the fault step on, minus the same steps of the no-fault "
             "control condition with the same trial seeds (negative: the fault costs reward)",
+            bounds=(-1.0, 1.0),
         ),
         Metric(
             "convergence_generation",
@@ -104,6 +113,7 @@ METRICS: dict[str, Metric] = {
             "training",
             f"first generation whose best fitness reaches {CONVERGENCE_SHARE:.0%} of the "
             "run's final best fitness (counted from 1)",
+            bounds=(1.0, math.inf),
         ),
         Metric(
             "reward_per_step",

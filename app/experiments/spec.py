@@ -275,6 +275,12 @@ class ExperimentSpec(_Frozen):
                         f"{where}: b is the same as a (metric {metric_b!r}, condition "
                         f"{condition_b!r}); give b another condition_b or metric_b"
                     )
+            span = METRICS[comp.metric].span
+            if comp.margin is not None and comp.margin_form == "absolute" and comp.margin > span:
+                raise ValueError(
+                    f"{where}: margin {comp.margin:g} exceeds what {comp.metric} can differ by "
+                    f"({span:g}): no run could reach it"
+                )
             for metric in {comp.metric, comp.metric_b or comp.metric}:
                 if METRICS[metric].kind != "scalar":
                     raise ValueError(f"{where}: metric {metric!r} is a curve, not a number")

@@ -232,9 +232,14 @@ def test_the_verdicts_interval_is_welchs_at_the_claims_holm_share() -> None:
 
 def test_an_undecided_claim_says_the_seeds_and_core_hours_it_needs() -> None:
     steps = 2.3e6  # simulated steps per run
+    base = synthetic_results()
+    key = ("final_best_fitness", "BS", ""), ("final_best_fitness", "RL", "")
+    # A fitness lies in 0..1 (a margin must be reachable from b's mean): scale the values into it.
+    scale = 2 * max(float(np.nanmax(base.scalars[k])) for k in key)
     results = dataclasses.replace(
-        synthetic_results(),
+        base,
         steps_per_run=steps,
+        scalars={**base.scalars, **{k: base.scalars[k] / scale for k in key}},
         comparisons=(
             Comparison("fitness", "BS", "RL", "final_best_fitness", None, "greater", "Fig. 3.6",
                        margin=0.05, margin_form="relative", margin_source="test"),
@@ -262,6 +267,8 @@ def test_an_undecided_claim_says_the_seeds_and_core_hours_it_needs() -> None:
         "form": "relative",
         "source": "test",
         "in_units": pytest.approx(0.05 * rl.mean()),
+        "basis": "declared",
+        "rule": "0.05 of b's mean; test",
     }
     assert entry["need"]["seeds_per_arm_at_thesis_effect"] == at_thesis
     assert entry["need"]["core_hours_at_thesis_effect"] == pytest.approx(hours)

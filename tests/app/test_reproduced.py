@@ -69,20 +69,33 @@ def test_rewriting_keeps_the_hand_written_text_and_lists_each_claim(tmp_path: Pa
             continue
         assert f"{comparison['a']['mean']:.3f} vs {comparison['b']['mean']:.3f}" in row
         runs = comparison["runs"]
-        assert f"**{comparison['verdict']}** ({runs[0]}" in row
+        late = ", post hoc" if comparison["post_hoc"] else ""
+        assert f"**{comparison['verdict']}**{late} ({runs[0]}" in row
     assert "Not run yet" in page  # the experiments without a report are named, not dropped
 
 
 def test_an_undecided_claim_shows_the_seeds_it_would_need(tmp_path: Path) -> None:
     report = json.loads(REPORT.read_text())
     first, second = report["comparisons"][:2]
-    first.update(verdict="reversed", runs=[10, 9], need=None)
+    first.update(verdict="reversed", runs=[10, 9], need=None, post_hoc=False)
     need = dict(power=0.8, seeds_per_arm_at_thesis_effect=123.0)
-    second.update(verdict="undecided", runs=[10, 10], need=need)
+    margin = dict(second["margin"], basis="thesis")
+    second.update(verdict="undecided", runs=[10, 10], need=need, margin=margin, post_hoc=False)
     _copy_report(tmp_path, {"comparisons": [first, second]})
     page = write_page(tmp_path).read_text()
     assert "**reversed** (10 + 9 runs) |" in page
-    assert "**undecided** (10 + 10 runs; 80% power at the thesis's effect: 123 seeds" in page
+    assert (
+        "**undecided** (10 + 10 runs; 80% power at the thesis's printed effect: 123 seeds" in page
+    )
+    # A post hoc verdict says so, and a margin that is the smallest effect of interest is named.
+    first.update(post_hoc=True)
+    second.update(
+        margin=dict(second["margin"], basis="declared", source="smallest effect of interest")
+    )
+    _copy_report(tmp_path / "again", {"comparisons": [first, second]})
+    page = write_page(tmp_path / "again").read_text()
+    assert "**reversed**, post hoc (10 + 9 runs) |" in page
+    assert "80% power at the smallest effect of interest: 123 seeds" in page
 
 
 def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
@@ -179,9 +192,10 @@ def test_a_question_takes_its_answering_claims_verdict_and_tallies_the_rest(
 ) -> None:
     report = json.loads(REPORT.read_text())
     by_name = {c["name"]: c for c in report["comparisons"]}
-    by_name["after-1-sensor"].update(verdict="reversed")
+    by_name["after-1-sensor"].update(verdict="reversed", post_hoc=False)
     for name, verdict in (("after-2-sensors", "held"), ("after-3-sensors", "ruled out")):
-        by_name[name].update(verdict=verdict)
+        by_name[name].update(verdict=verdict, post_hoc=False)
+    by_name["after-4-sensors"].update(verdict="ruled out", post_hoc=True)
     _copy_report(tmp_path, {"comparisons": list(by_name.values())})
     page = write_page(tmp_path).read_text()
     row = next(line for line in page.splitlines() if "`after-1-sensor`" in line)
@@ -189,7 +203,8 @@ def test_a_question_takes_its_answering_claims_verdict_and_tallies_the_rest(
     runs = by_name["after-1-sensor"]["runs"]
     assert cells[2] == f"**reversed** ({runs[0]} + {runs[1]} runs)"
     assert cells[3] == "—"  # no thesis-scale report in this folder
-    assert cells[5] == "1 held, 1 ruled out, 2 undecided |"
+    assert cells[4] == "not run yet (primary)"  # the decisive experiment asks it too
+    assert cells[6] == "1 held, 1 ruled out, 1 undecided; post hoc: 1 ruled out |"
     fifth = next(line for line in page.splitlines() if "`training-fitness-CS-BS`" in line)
     assert fifth.split(" | ")[2:4] == ["not run", "—"]  # ch5 has no report here
 
