@@ -103,14 +103,14 @@ def run_adaptive(
     with contextlib.ExitStack() as stack:
         for n in design.looks:
             tasks = [t for t in plan(spec, scale, runs_dir, n) if t.arm in arms]
-            todo = [t for t in tasks if not inspect(t).complete(t)]
+            todo = options.pending(tasks)
             if todo:
                 if client is None and own is None:
                     own = stack.enter_context(connect(options.scheduler, options.workers))
                 first = spec.first_seed
                 say(f"stage {len(stages) + 1}: seeds {first}-{first + n - 1} of {', '.join(arms)}")
                 errors += options.execute(tasks, client or own)
-            results = collect(spec, scale, runs_dir, n, design.looks)
+            results = collect(spec, scale, runs_dir, n, design.looks, ledger=options.ledger)
             # After every look, so that `report` and `status` see the looks made so far.
             write_summary(results, summary_path(runs_dir, spec.name, scale))
             if errors:

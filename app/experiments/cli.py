@@ -65,6 +65,13 @@ def add_parser(commands: Any) -> None:
             verb.add_argument(
                 "--seeds", type=_positive, metavar="N", help="seeds 0..N-1 (default: the scale's)"
             )
+            verb.add_argument(
+                "--ledger",
+                metavar="DIR",
+                help="a committed report folder whose ledger.json counts its runs as finished "
+                "(default: this checkout's docs/experiments/NAME-SCALE when it has one; 'none': "
+                "no ledger)",
+            )
 
     run = verbs.add_parser("run", help="run (or finish) an experiment, then write its report")
     common(run)
@@ -196,10 +203,35 @@ def main(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
 
 
-def _write_report(results: ExperimentResults, out: Path) -> str:
+def _write_report(
+    spec: ExperimentSpec, scale: str, results: ExperimentResults, out: Path, curves: bool = False
+) -> str:
+    """Write the report folder `out` and the ledger of its finished runs beside it."""
+    from app.experiments import ledger
     from app.experiments.report_page import write_report
 
-    return f"report: {write_report(results, out)}"
+    index = write_report(results, out, keep_curves=curves)
+    ledger.write(spec, scale, results, out)
+    return f"report: {index}"
+
+
+def _ledger(spec: ExperimentSpec, args: argparse.Namespace) -> Any:
+    """The ledger asked for (`--ledger DIR`, 'none'), else this checkout's committed one."""
+    from app.experiments import ledger
+
+    if hasattr(args, "held_ledger"):  # loaded once per command
+        return args.held_ledger
+    args.held_ledger = None
+    if args.ledger == "none":
+        return None
+    folder = Path(args.ledger) if args.ledger else ledger.default_folder(spec, args.scale)
+    if folder is None:
+        return None
+    held = ledger.load(spec, args.scale, folder)
+    if not getattr(args, "quiet", False):
+        print(f"ledger: {len(held.runs)} finished run(s) from {folder}", file=sys.stderr)
+    args.held_ledger = held
+    return held
 
 
 def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
@@ -216,7 +248,11 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     folder = layout.experiment_dir(args.runs_dir, spec.name)
     with experiment_lock(folder), _scheduler_client(args.scheduler) as client:
         options = RunOptions(
-            client=client, workers=args.workers, quiet=args.quiet, definition=definition
+            client=client,
+            workers=args.workers,
+            quiet=args.quiet,
+            definition=definition,
+            ledger=_ledger(spec, args),
         )
         if args.adaptive:
             from app.experiments.adaptive import run_adaptive
@@ -234,7 +270,7 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
                 spec, args.scale, args.runs_dir, seeds=args.seeds, options=options
             )
     print(f"summary: {layout.summary_path(args.runs_dir, spec.name, args.scale)}")
-    print(_write_report(results, folder / f"report-{args.scale}"))
+    print(_write_report(spec, args.scale, results, folder / f"report-{args.scale}"))
     return 0
 
 
@@ -263,9 +299,7 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         return _print_json(results)
     if not args.out:
         raise ExperimentError("--from-values writes a report folder: give --out")
-    from app.experiments.report_page import write_report
-
-    print(f"report: {write_report(results, Path(args.out), keep_curves=True)}")
+    print(_write_report(spec, args.scale, results, Path(args.out), curves=True))
     return 0
 
 
@@ -318,7 +352,8 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         return _from_values(spec, args)
     results = _collected(spec, args)
     folder = layout.experiment_dir(args.runs_dir, spec.name)
-    if not any(Path(t.path).exists() for t in planning.plan(spec, args.scale, args.runs_dir)):
+    planned = planning.plan(spec, args.scale, args.runs_dir)
+    if not any(Path(t.path).exists() for t in planned) and _ledger(spec, args) is None:
         raise ExperimentError(
             f"no runs of {spec.name!r} at scale {args.scale!r} in {folder}; "
             f"start them with: gnp-lab experiment run {spec.name} --scale {args.scale}"
@@ -327,7 +362,7 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     if args.format == "json":
         return _print_json(results)
     out = Path(args.out) if args.out else folder / f"report-{args.scale}"
-    print(_write_report(results, out))
+    print(_write_report(spec, args.scale, results, out))
     return 0
 
 
@@ -346,7 +381,7 @@ def _collected(spec: ExperimentSpec, args: argparse.Namespace) -> ExperimentResu
             summary = None
         if summary is not None and summary.looks:
             looks, seeds = summary.looks, len(summary.seeds)
-    return harvest.collect(spec, args.scale, args.runs_dir, seeds, looks)
+    return harvest.collect(spec, args.scale, args.runs_dir, seeds, looks, _ledger(spec, args))
 
 
 def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ missing), as the `ExperimentResults` the summary, the report and the dashboard r
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,6 +13,9 @@ from app.experiments.planning import inspect, plan, work
 from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
 from app.experiments.spec import ExperimentSpec
 from app.store import RunReader
+
+if TYPE_CHECKING:
+    from app.experiments.ledger import Ledger
 
 
 def convergence_generation(best_fitness: np.ndarray) -> float:
@@ -48,8 +52,10 @@ def collect(
     runs_dir: str | Path,
     seeds: int | None = None,
     looks: tuple[int, ...] = (),
+    ledger: Ledger | None = None,
 ) -> ExperimentResults:
-    """The experiment's results from its run files (NaN where a run or condition is missing).
+    """The experiment's results from its run files (NaN where a run or condition is missing),
+    and from `ledger`'s values for the runs it holds that have no run file here.
 
     `looks` are the seeds per arm at each planned look of an adaptive run (see `run_adaptive`).
     """
@@ -95,7 +101,7 @@ def collect(
                 curves[("reward_per_step", task.arm, name)][row] = result.reward_per_step
     _fault_effects(spec, conditions, scalars, curves)
     cost = work(spec, scale)
-    return ExperimentResults(
+    results = ExperimentResults(
         name=spec.name,
         description=spec.description,
         source=spec.source,
@@ -111,3 +117,6 @@ def collect(
         scalars=scalars,
         curves=curves,
     )
+    from app.experiments.ledger import fill
+
+    return fill(results, ledger)

@@ -17,6 +17,7 @@ from app.experiments.cluster import connect
 from app.experiments.execution import execute
 from app.experiments.harvest import collect
 from app.experiments.layout import keep_definition, summary_path
+from app.experiments.ledger import Ledger
 from app.experiments.planning import Task, inspect, plan
 from app.experiments.progress import Echo, Watch
 from app.experiments.results import ExperimentResults
@@ -42,10 +43,18 @@ class RunOptions:
     echo: Echo | None = None
     watch: Watch | None = None
     definition: str | None = None
+    ledger: Ledger | None = None  # a committed report's finished runs: not run again
 
     def execute(self, tasks: list[Task], client: Any) -> list[str]:
-        """`execution.execute` of `tasks` on `client` with these options."""
+        """`execution.execute` of `tasks` (but the ledger's) on `client` with these options."""
+        if self.ledger is not None:
+            tasks = self.ledger.pending(tasks)
         return execute(tasks, client, self.quiet, self.echo, self.watch)
+
+    def pending(self, tasks: list[Task]) -> list[Task]:
+        """The tasks neither finished here nor held by the ledger."""
+        open_tasks = [t for t in tasks if not inspect(t).complete(t)]
+        return self.ledger.pending(open_tasks) if self.ledger is not None else open_tasks
 
 
 def run_experiment(
@@ -65,17 +74,18 @@ def run_experiment(
     options = options or RunOptions()
     spec.scale(scale)
     tasks = plan(spec, scale, runs_dir, seeds)
-    states = [inspect(task) for task in tasks]  # refuse a foreign file before starting anything
+    for task in tasks:  # refuse a foreign file before starting anything
+        inspect(task)
     if options.definition is not None:
         keep_definition(runs_dir, spec.name, options.definition)
-    if all(state.complete(task) for state, task in zip(states, tasks, strict=True)):
+    if not options.pending(tasks):
         errors: list[str] = []
     elif options.client is not None:
         errors = options.execute(tasks, options.client)
     else:
         with connect(options.scheduler, options.workers) as own:
             errors = options.execute(tasks, own)
-    results = collect(spec, scale, runs_dir, seeds)
+    results = collect(spec, scale, runs_dir, seeds, ledger=options.ledger)
     unwritten = ""
     try:
         write_summary(results, summary_path(runs_dir, spec.name, scale))
