@@ -47,7 +47,7 @@ def stages_of(spec: ExperimentSpec, stage_seeds: int | None, max_seeds: int | No
         if stage_seeds or max_seeds:
             raise ExperimentError(
                 f"{spec.name} pre-registers its looks ({', '.join(map(str, spec.design.looks))} "
-                "seeds per arm); drop --stage-seeds and --max-seeds"
+                "seeds per arm): other stage sizes (--stage-seeds, --max-seeds) are refused"
             )
         return Design(spec.design.looks)
     try:
