@@ -16,6 +16,7 @@ import numpy as np
 
 import gnp
 import sim
+from app import fused
 from app.config import CFrom
 from app.recording import TrajectoryRecorder
 
@@ -129,11 +130,7 @@ class Batch:
     ) -> None:
         if population.size != world.n:
             raise ValueError(f"{population.size} controllers for {world.n} robots")
-        gnp_controllers = GnpControllers(cfg, population, engine_seeds)
-        self._drive(world, gnp_controllers, c_from)
-        self.cfg = cfg
-        self.population = population
-        self.state = gnp_controllers.state
+        self._drive(world, GnpControllers(cfg, population, engine_seeds), c_from)
 
     @classmethod
     def driven_by(cls, world: sim.World, controllers: Controllers, c_from: CFrom = "true") -> Batch:
@@ -155,6 +152,24 @@ class Batch:
     @property
     def size(self) -> int:
         return self.world.n
+
+    @property
+    def gnp(self) -> GnpControllers:
+        """The GNP controllers (their config, population and engine state: the ones `step`
+        runs, not copies); a TypeError for other controllers."""
+        if not isinstance(self.controllers, GnpControllers):
+            raise TypeError(f"the batch is driven by {type(self.controllers).__name__}, not GNP")
+        return self.controllers
+
+    @property
+    def population(self) -> gnp.Population:
+        """The GNP controllers' population, Q tables learning in place."""
+        return self.gnp.population
+
+    @property
+    def state(self) -> gnp.EngineState:
+        """The GNP controllers' engine state."""
+        return self.gnp.state
 
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
@@ -232,14 +247,41 @@ def rollout(
     eps, alp = per_step(epsilon, steps), per_step(alpha, steps)
     sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
-    trace = recorder is not None
     poses = batch.world.arena.start_poses
-    for t in range(steps):
+    compiled = (
+        recorder is None
+        and second_stage
+        and batch.world.physics == "analytic"
+        and isinstance(batch.controllers, GnpControllers)
+    )
+    t = 0
+    while t < steps:
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
             assert episode_starts is not None
             batch.new_episode(poses[episode_starts[:, t // redraw_every]])
+        run = _run_length(batch.world, t, steps, redraw_every) if compiled else 0
+        if run > 0:  # `run` steps in one compiled call (see app.fused)
+            batch.reward, each = fused.steps(
+                batch.world,
+                batch.gnp.cfg,
+                batch.gnp.population,
+                batch.gnp.state,
+                batch.reward,
+                eps[t : t + run],
+                alp[t : t + run],
+                learn=learn,
+                judge_observed=batch.c_from == "observed",
+                term_sums=sums,
+            )
+            step_sums[t : t + run] = each.sum(axis=1)
+            t += run
+            continue
         record = batch.step(
-            float(eps[t]), float(alp[t]), learn=learn, trace=trace, second_stage=second_stage
+            float(eps[t]),
+            float(alp[t]),
+            learn=learn,
+            trace=recorder is not None,
+            second_stage=second_stage,
         )
         sums += record.term_table
         step_sums[t] = record.reward.sum()
@@ -253,4 +295,14 @@ def rollout(
                 record.term_table,
                 record.trace,
             )
+        t += 1
     return Rollout(term_sums=sums, step_reward_sums=step_sums)
+
+
+def _run_length(world: sim.World, t: int, steps: int, redraw_every: int) -> int:
+    """How many steps from step `t` of a rollout the compiled loop may take in one call: up
+    to the next new episode or the end, and not the step in which a fault fires (0 if that
+    is the first)."""
+    end = steps if redraw_every <= 0 else min(steps, (t // redraw_every + 1) * redraw_every)
+    fires = [s - world.t for s in world.fault_steps if world.t < s <= world.t + end - t]
+    return min([end - t, *(f - 1 for f in fires)])

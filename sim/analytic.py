@@ -20,6 +20,7 @@ Positions are kept in a copy of the arena at the same kind of offset as the pymu
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -89,18 +90,13 @@ class AnalyticBodies:
 
     def read_poses(self, out: np.ndarray) -> None:
         """Arena-local poses (N, 3) into out."""
-        out[:, 0] = self.state[:, _X] - self.offset[0]
-        out[:, 1] = self.state[:, _Y] - self.offset[1]
-        out[:, 2] = self.state[:, _A]
+        read_local_poses(self.state, self.offset, out)
 
-    def advance(
-        self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
-    ) -> None:
-        """Drive the robots through ``substeps`` physics steps of ``dt`` (as ``World.step``)."""
+    def arrays(self, dt: float, substeps: int) -> BodyArrays:
+        """The bodies' own arrays (views, not copies) and solver settings, for ``move``."""
         if self.forces.shape[0] != substeps:
             self.forces = np.zeros((substeps, len(self.rows), 3))
-        kernels.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
-        solve_discs(
+        return BodyArrays(
             self.state,
             self.forces,
             self.walls,
@@ -114,7 +110,66 @@ class AnalyticBodies:
             self.seen_wall,
             self.seen_impulse,
             self.seen_stamp,
+            self.rows,
+            self.offset,
         )
+
+    def advance(
+        self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
+    ) -> None:
+        """Drive the robots through ``substeps`` physics steps of ``dt`` (as ``World.step``)."""
+        move(self.arrays(dt, substeps), angles, spins, commands)
+
+
+class BodyArrays(NamedTuple):
+    """What ``move`` reads and updates: an ``AnalyticBodies``' arrays and solver settings
+    (``solve_discs`` describes them), one argument for compiled callers (``sim.loop``)."""
+
+    state: np.ndarray
+    forces: np.ndarray
+    walls: np.ndarray
+    cell: float
+    dt: float
+    bias_coef: float
+    iterations: int
+    body: np.ndarray
+    persistence: int
+    stamps: np.ndarray
+    seen_wall: np.ndarray
+    seen_impulse: np.ndarray
+    seen_stamp: np.ndarray
+    rows: np.ndarray
+    offset: np.ndarray
+
+
+@nb.njit(cache=True)
+def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray) -> None:
+    """One control period of every body: the force drive, then the substeps' contacts."""
+    kernels.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
+    solve_discs(
+        bodies.state,
+        bodies.forces,
+        bodies.walls,
+        bodies.cell,
+        bodies.dt,
+        bodies.bias_coef,
+        bodies.iterations,
+        bodies.body,
+        bodies.persistence,
+        bodies.stamps,
+        bodies.seen_wall,
+        bodies.seen_impulse,
+        bodies.seen_stamp,
+    )
+
+
+@nb.njit(cache=True)
+def read_local_poses(state: np.ndarray, offset: np.ndarray, out: np.ndarray) -> None:
+    """Arena-local poses (N, 3) into out, from body states in the copy's frame."""
+    for i in range(state.shape[0]):
+        out[i, 0] = state[i, _X] - offset[0]
+        out[i, 1] = state[i, _Y] - offset[1]
+        out[i, 2] = state[i, _A]
 
 
 @nb.njit(cache=True)

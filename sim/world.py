@@ -20,6 +20,7 @@ from sim.khepera import (
     MOMENT,
     N_SENSORS,
 )
+from sim.loop import WorldArrays
 
 FaultMode = Literal["dead", "saturated", "stuck", "random"]
 FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
@@ -508,6 +509,45 @@ class World:
         self._fresh = False
         self.t += 1
         self._fire_scheduled()
+
+    # --- a compiled loop's view (sim.loop) ---
+
+    def arrays(self) -> WorldArrays:
+        """The world's own arrays (views, not copies), its readings up to date, for a loop
+        compiled around ``sim.loop``'s functions; analytic physics only."""
+        if self._analytic is None:
+            raise WorldError("only an analytic world steps in compiled code (pymunk steps in C)")
+        self._update_readings()
+        grid = self._wall_grid
+        return WorldArrays(
+            self._poses,
+            self._readings,
+            self._observed,
+            self._commands,
+            self._spins,
+            self._fault_mode,
+            self._stuck,
+            self._keys,
+            self._noise_sigma,
+            grid.table,
+            grid.frame,
+            grid.starts,
+            grid.members,
+            self._analytic.arrays(self.control_period / self.substeps, self.substeps),
+        )
+
+    @property
+    def fault_steps(self) -> frozenset[int]:
+        """The clock values at which scheduled faults fire."""
+        return frozenset(f.step for f in self._schedule)
+
+    def stepped(self, steps: int) -> None:
+        """Account for ``steps`` steps a compiled loop took on ``arrays()``, its last one
+        sensed: the clock moves on; no scheduled fault may fire on the way."""
+        if any(self.t < s <= self.t + steps for s in self.fault_steps):
+            raise WorldError("a fault fires within the steps: step through it by World.step")
+        self.t += steps
+        self._fresh = True
 
     # --- faults ---
 

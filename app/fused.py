@@ -1,0 +1,101 @@
+"""The lab's loop compiled: k steps of a batch of GNP controllers in an analytic world, one call.
+
+`app.rollout.Batch.step` runs one step as a few calls from Python (observe, act, step, sense,
+judge); between them Python builds and checks arrays. When the controllers are GNP and the
+physics analytic, every stage is a numba function (`sim.loop` for the world, `gnp.kernel`'s
+`step_kernel` for the controllers), and `steps` here runs k steps of them in one compiled
+call, on the world's and the controllers' own arrays, in the order `Batch.step` takes: the
+same kernels on the same arrays, so the same bits (tests/app/test_fused.py compares them step
+by step). A step in which a scheduled fault fires, and any step something watches (the
+trajectory recorder, the dashboard), goes through `Batch.step`: both paths share all state,
+so they interleave freely.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+import gnp
+import sim
+from gnp.engine import check_population, kernel_arguments, method_code
+from gnp.kernel import step_kernel
+from sim import loop
+
+
+def steps(
+    world: sim.World,
+    cfg: gnp.GnpConfig,
+    population: gnp.Population,
+    state: gnp.EngineState,
+    reward: np.ndarray,
+    epsilon: np.ndarray,
+    alpha: np.ndarray,
+    *,
+    learn: bool,
+    judge_observed: bool,
+    term_sums: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Advance the batch by len(epsilon) steps in one compiled call (see `Batch.step`).
+
+    Args:
+        world: an analytic world no fault fires in during these steps.
+        cfg, population, state: the GNP controllers, updated in place.
+        reward: (N,) reward of the step before, fed to the first step's controllers.
+        epsilon, alpha: (k,) ε and α of each step, in [0, 1].
+        learn: online Sarsa on.
+        judge_observed: C of the reward judged from what the controllers see after the step
+            (`c_from` "observed"), else from the true readings.
+        term_sums: (N, len(sim.TERM_NAMES)) each reward term summed, added to in place.
+
+    Returns:
+        The last step's reward (N,), and each step's reward (k, N).
+    """
+    epsilon = np.ascontiguousarray(epsilon, dtype=np.float64)
+    alpha = np.ascontiguousarray(alpha, dtype=np.float64)
+    for name, values in (("epsilon", epsilon), ("alpha", alpha)):
+        if values.size and not (values.min() >= 0.0 and values.max() <= 1.0):
+            raise gnp.GnpError(f"{name} must lie in [0, 1]")
+    check_population(cfg, population, state)
+    k, n = len(epsilon), world.n
+    last = np.array(reward, dtype=np.float64)  # contiguous, and the caller's stays unchanged
+    each = np.empty((k, n))
+    brain = kernel_arguments(method_code(cfg), cfg, population, state)
+    _run(world.arrays(), brain, epsilon, alpha, learn, judge_observed, world.t, last, each,
+         term_sums, np.empty((n, len(sim.TERM_NAMES))))  # fmt: skip
+    world.stepped(k)
+    return last, each
+
+
+@njit(cache=True)
+def _run(
+    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table
+):  # pragma: no cover - compiled
+    """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge."""
+    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
+        brain
+    )
+    rates = np.empty((1, 2))  # one (ε, α) for every controller, as `gnp.step` passes them
+    no_visits = np.empty((5, 0, 0), np.int32)  # no trace
+    no_count = np.empty(0, np.int32)
+    n = reward.shape[0]
+    for s in range(epsilon.shape[0]):
+        loop.observe(world, t0 + s)
+        rates[0, 0] = epsilon[s]
+        rates[0, 1] = alpha[s]
+        step_kernel(
+            method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk,
+            wheels, rng, world.observed, reward, rates, learn, no_visits, no_count,
+        )  # fmt: skip
+        loop.step(world, wheels)
+        loop.sense(world)
+        if judge_observed:
+            loop.observe(world, t0 + s + 1)
+            loop.judge(world.observed, wheels, table)
+        else:
+            loop.judge(world.readings, wheels, table)
+        for i in range(n):
+            reward[i] = table[i, 0]
+            each[s, i] = table[i, 0]
+            for j in range(table.shape[1]):
+                term_sums[i, j] += table[i, j]
