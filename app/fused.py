@@ -19,8 +19,14 @@ from numba import njit
 import gnp
 import sim
 from gnp.engine import check_population, kernel_arguments, method_code
-from gnp.kernel import step_kernel
+from gnp.kernel import records_part, step_kernel
 from sim import loop
+
+ROBOTS_PER_BLOCK = 32
+"""Robots that live the k steps together before the next ones start. Robots share no data, so
+any split gives the same bits; a small block keeps its robots' records (7.8 KB each for
+thesis-ch3) and world state in cache from step to step, where the whole batch, stage by stage,
+would evict them every step (the controller is bound by the latency of those loads)."""
 
 
 def steps(
@@ -62,16 +68,17 @@ def steps(
     each = np.empty((k, n))
     brain = kernel_arguments(method_code(cfg), cfg, population, state)
     _run(world.arrays(), brain, epsilon, alpha, learn, judge_observed, world.t, last, each,
-         term_sums, np.empty((n, len(sim.TERM_NAMES))))  # fmt: skip
+         term_sums, np.empty((n, len(sim.TERM_NAMES))), ROBOTS_PER_BLOCK)  # fmt: skip
     world.stepped(k)
     return last, each
 
 
 @njit(cache=True)
 def _run(
-    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table
+    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block
 ):  # pragma: no cover - compiled
-    """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge."""
+    """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge;
+    block by block of robots."""
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
         brain
     )
@@ -79,23 +86,30 @@ def _run(
     no_visits = np.empty((5, 0, 0), np.int32)  # no trace
     no_count = np.empty(0, np.int32)
     n = reward.shape[0]
-    for s in range(epsilon.shape[0]):
-        loop.observe(world, t0 + s)
-        rates[0, 0] = epsilon[s]
-        rates[0, 1] = alpha[s]
-        step_kernel(
-            method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk,
-            wheels, rng, world.observed, reward, rates, learn, no_visits, no_count,
-        )  # fmt: skip
-        loop.step(world, wheels)
-        loop.sense(world)
-        if judge_observed:
-            loop.observe(world, t0 + s + 1)
-            loop.judge(world.observed, wheels, table)
-        else:
-            loop.judge(world.readings, wheels, table)
-        for i in range(n):
-            reward[i] = table[i, 0]
-            each[s, i] = table[i, 0]
-            for j in range(table.shape[1]):
-                term_sums[i, j] += table[i, j]
+    for lo in range(0, n, block):
+        hi = min(n, lo + block)
+        part = loop.part(world, lo, hi)
+        part_records = records_part(records, n_nodes, layout, lo, hi)
+        part_walk, part_wheels, part_rng = walk[lo:hi], wheels[lo:hi], rng[lo:hi]
+        part_reward, part_table = reward[lo:hi], table[lo:hi]
+        for s in range(epsilon.shape[0]):
+            loop.observe(part, t0 + s)
+            rates[0, 0] = epsilon[s]
+            rates[0, 1] = alpha[s]
+            step_kernel(
+                method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, part_records, layout,
+                part_walk, part_wheels, part_rng, part.observed, part_reward, rates, learn,
+                no_visits, no_count,
+            )  # fmt: skip
+            loop.step(part, part_wheels)
+            loop.sense(part)
+            if judge_observed:
+                loop.observe(part, t0 + s + 1)
+                loop.judge(part.observed, part_wheels, part_table)
+            else:
+                loop.judge(part.readings, part_wheels, part_table)
+            for i in range(hi - lo):
+                part_reward[i] = part_table[i, 0]
+                each[s, lo + i] = part_table[i, 0]
+                for j in range(part_table.shape[1]):
+                    term_sums[lo + i, j] += part_table[i, j]

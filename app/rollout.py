@@ -154,7 +154,7 @@ class Batch:
         return self.world.n
 
     @property
-    def gnp(self) -> GnpControllers:
+    def gnp_controllers(self) -> GnpControllers:
         """The GNP controllers (their config, population and engine state: the ones `step`
         runs, not copies); a TypeError for other controllers."""
         if not isinstance(self.controllers, GnpControllers):
@@ -164,12 +164,12 @@ class Batch:
     @property
     def population(self) -> gnp.Population:
         """The GNP controllers' population, Q tables learning in place."""
-        return self.gnp.population
+        return self.gnp_controllers.population
 
     @property
     def state(self) -> gnp.EngineState:
         """The GNP controllers' engine state."""
-        return self.gnp.state
+        return self.gnp_controllers.state
 
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
@@ -263,9 +263,9 @@ def rollout(
         if run > 0:  # `run` steps in one compiled call (see app.fused)
             batch.reward, each = fused.steps(
                 batch.world,
-                batch.gnp.cfg,
-                batch.gnp.population,
-                batch.gnp.state,
+                batch.gnp_controllers.cfg,
+                batch.gnp_controllers.population,
+                batch.gnp_controllers.state,
                 batch.reward,
                 eps[t : t + run],
                 alp[t : t + run],

@@ -28,11 +28,12 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 HERE = Path(__file__).resolve().parents[1]
 
 
-def _config(population: int, steps: int):  # type: ignore[no-untyped-def]
+def _config(population: int, steps: int) -> Any:
     from app.config import build_config, load_preset
 
     return build_config(

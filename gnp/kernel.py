@@ -268,6 +268,14 @@ def _prefetch_walk(c, run):  # pragma: no cover - compiled
         _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
 
 
+@njit(cache=True, inline="always")
+def records_part(records: np.ndarray, n_nodes: int, layout: tuple, lo: int, hi: int) -> np.ndarray:
+    """The records of controllers lo..hi − 1 (a view): `step_kernel` runs them as a population
+    of their own, with the same rows of the engine state."""
+    size = n_nodes * layout[0]
+    return records[lo * size : hi * size]
+
+
 @njit(cache=True, **_WITHOUT_NRT)  # type: ignore[call-overload]
 def step_kernel(
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,

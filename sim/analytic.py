@@ -27,6 +27,7 @@ import numpy as np
 
 from sim import kernels
 from sim.khepera import BODY_RADIUS_MM, MASS, MOMENT
+from sim.sensors import WallGrid
 
 COLLISION_SLOP_MM = float(np.float32(0.1))
 """Penetration the contact solver leaves alone (chipmunk's default, a C float 0.1f)."""
@@ -52,11 +53,20 @@ class AnalyticBodies:
         offset: (2,) whole-millimetre offset of the arena copy the robots move in.
         iterations: Contact solver iterations per substep.
         cell: Side (mm) of the pymunk world's spatial hash cells: the contacts' order.
+        grid: The walls' ``WallGrid`` (arena-local): a cell lists every wall within a sensor's
+            reach of its points, so every wall a body in it can touch.
     """
 
     def __init__(
-        self, walls: np.ndarray, n: int, offset: np.ndarray, iterations: int, cell: float
+        self,
+        walls: np.ndarray,
+        n: int,
+        offset: np.ndarray,
+        iterations: int,
+        cell: float,
+        grid: WallGrid,
     ) -> None:
+        self.grid = grid
         self.offset = np.asarray(offset, dtype=np.float64)
         copy = walls + self.offset  # the same float64 sums as the pymunk world's segments
         delta = copy[:, 1] - copy[:, 0]
@@ -112,6 +122,9 @@ class AnalyticBodies:
             self.seen_stamp,
             self.rows,
             self.offset,
+            self.grid.frame,
+            self.grid.starts,
+            self.grid.members,
         )
 
     def advance(
@@ -140,6 +153,9 @@ class BodyArrays(NamedTuple):
     seen_stamp: np.ndarray
     rows: np.ndarray
     offset: np.ndarray
+    grid_frame: np.ndarray
+    grid_starts: np.ndarray
+    grid_members: np.ndarray
 
 
 @nb.njit(cache=True)
@@ -160,6 +176,10 @@ def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np
         bodies.seen_wall,
         bodies.seen_impulse,
         bodies.seen_stamp,
+        bodies.offset,
+        bodies.grid_frame,
+        bodies.grid_starts,
+        bodies.grid_members,
     )
 
 
@@ -187,6 +207,10 @@ def solve_discs(
     seen_wall: np.ndarray,
     seen_impulse: np.ndarray,
     seen_stamp: np.ndarray,
+    offset: np.ndarray,
+    grid_frame: np.ndarray,
+    grid_starts: np.ndarray,
+    grid_members: np.ndarray,
 ) -> None:
     """Step every robot through the substeps of ``forces``, chipmunk's cpSpaceStep for one disc.
 
@@ -209,6 +233,12 @@ def solve_discs(
         stamps: (N,) substeps since each robot was placed, updated.
         seen_wall, seen_impulse, seen_stamp: (N, M) the contacts each robot remembers: wall
             (−1 for none), accumulated normal impulse and the substep it was last touched.
+        offset: (2,) the copy frame's offset from the arena's.
+        grid_frame, grid_starts, grid_members: the walls' ``sim.sensors.WallGrid`` (arena-local):
+            a substep looks for contacts only among the walls listed for the body's cell, in
+            the same ascending order; they include every wall closer than a sensor's reach, and
+            a farther one holds no contact, so the contacts, their order and the bits are those
+            of testing every wall. A body off the grid tests every wall.
     """
     radius, m_inv, i_inv, slop = body[0], body[1], body[2], body[3]
     k_walls = walls.shape[0]
@@ -224,6 +254,7 @@ def solve_discs(
     c_jb = np.empty(k_walls)
     c_warm = np.empty(k_walls, dtype=np.bool_)
     c_key = np.empty((k_walls, 2))
+    every = np.arange(k_walls)
     for i in range(state.shape[0]):
         x, y, a = state[i, 0], state[i, 1], state[i, 2]
         vx, vy, w = state[i, 3], state[i, 4], state[i, 5]
@@ -240,7 +271,14 @@ def solve_discs(
             m = 0
             low_i = np.floor((x - radius) / cell)  # the robot's lowest hash cell
             low_j = np.floor((y - radius) / cell)
-            for k in range(k_walls):
+            col = np.floor((x - offset[0] - grid_frame[0]) / grid_frame[2])
+            row = np.floor((y - offset[1] - grid_frame[1]) / grid_frame[2])
+            if 0.0 <= col < grid_frame[3] and 0.0 <= row < grid_frame[4]:
+                near = int(row) * int(grid_frame[3]) + int(col)
+                listed = grid_members[grid_starts[near] : grid_starts[near + 1]]
+            else:
+                listed = every
+            for k in listed:
                 # chipmunk's broadphase: boxes that do not overlap hold no contact
                 if (
                     walls[k, 7] > x + radius

@@ -38,6 +38,49 @@ class WorldArrays(NamedTuple):
 
 
 @nb.njit(cache=True)
+def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
+    """Robots lo..hi − 1 of a world, as a world of their own (views): robots never share
+    data, so stepping the parts one after the other steps the whole world."""
+    b = world.bodies
+    bodies = analytic.BodyArrays(
+        b.state[lo:hi],
+        b.forces[:, lo:hi],
+        b.walls,
+        b.cell,
+        b.dt,
+        b.bias_coef,
+        b.iterations,
+        b.body,
+        b.persistence,
+        b.stamps[lo:hi],
+        b.seen_wall[lo:hi],
+        b.seen_impulse[lo:hi],
+        b.seen_stamp[lo:hi],
+        b.rows[: hi - lo],  # the part's own rows of its forces
+        b.offset,
+        b.grid_frame,
+        b.grid_starts,
+        b.grid_members,
+    )
+    return WorldArrays(
+        world.poses[lo:hi],
+        world.readings[lo:hi],
+        world.observed[lo:hi],
+        world.commands[lo:hi],
+        world.spins[lo:hi],
+        world.fault_modes[lo:hi],
+        world.stuck[lo:hi],
+        world.keys[lo:hi],
+        world.noise_sigma,
+        world.wall_table,
+        world.grid_frame,
+        world.grid_starts,
+        world.grid_members,
+        bodies,
+    )
+
+
+@nb.njit(cache=True)
 def sense(world: WorldArrays) -> None:
     """The true readings at the world's poses (`World.sense`), into `world.readings`."""
     kernels.ir_readings_grid(

@@ -282,7 +282,9 @@ class World:
         self._wall_grid = arena.wall_grid
         # Analytic: every robot in the first copy's frame (copies round alike), no spaces.
         self._analytic = (
-            AnalyticBodies(arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell)
+            AnalyticBodies(
+                arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell, arena.wall_grid
+            )
             if physics == "analytic"
             else None
         )

@@ -9,6 +9,8 @@ and the rest of the records, engine walks and streams, rewards and reward sums.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -18,12 +20,12 @@ from app import fused
 from app.config import CFrom
 from app.rollout import Batch, rollout
 
-N = 10
+N = 10  # more than a block of 3: the compiled loop splits the batch
 FAULTS = (
     sim.Fault(step=4, sensors=(2,), mode="dead", robots=(0, 1, 2)),
     sim.Fault(step=7, sensors=(3, 5), mode="saturated", robots=(3, 4)),
     sim.Fault(step=7, sensors=(0, 1), mode="stuck", robots=(5, 6, 0)),
-    sim.Fault(step=12, sensors=(6, 7), mode="random"),
+    sim.Fault(step=12, sensors=(6, 7), mode="random", robots=(1, 7, 8, 9)),
 )
 CONTROLLERS = [
     pytest.param(method, fuzzy, c_from, id=f"{method}-{'fuzzy' if fuzzy else 'crisp'}-{c_from}")
@@ -33,7 +35,9 @@ CONTROLLERS = [
 ]
 
 
-def _batch(method: str, fuzzy: bool, c_from: CFrom, physics: sim.Physics = "analytic") -> Batch:
+def _batch(
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, physics: sim.Physics = "analytic"
+) -> Batch:
     cfg = gnp.GnpConfig(method=method, n_sub=2, n_branch=2, fuzzy=fuzzy)
     arena = sim.load_arena("training")
     world = sim.World(arena, n=N, seed=0, noise_sigma=50.0, physics=physics)
@@ -57,13 +61,20 @@ def _assert_same(a: Batch, b: Batch) -> None:
     assert np.array_equal(a.reward, b.reward)
 
 
+@pytest.fixture(params=[3, fused.ROBOTS_PER_BLOCK], ids=["blocks-of-3", "one-block"])
+def block(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> int:
+    """Robots per block of the compiled loop: several blocks, and the whole batch in one."""
+    monkeypatch.setattr(fused, "ROBOTS_PER_BLOCK", request.param)
+    return int(request.param)
+
+
 @pytest.fixture
 def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """How many steps each call of the compiled loop took."""
     calls: list[int] = []
     original = fused.steps
 
-    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+    def counted(*args: Any, **kwargs: Any) -> Any:
         calls.append(len(args[5]))
         return original(*args, **kwargs)
 
@@ -73,7 +84,7 @@ def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
 def test_each_compiled_step_is_batch_step_to_the_bit(
-    method: str, fuzzy: bool, c_from: CFrom, compiled_calls: list[int]
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
 ) -> None:
     each, compiled = _batch(method, fuzzy, c_from), _batch(method, fuzzy, c_from)
     for _ in range(20):
@@ -87,7 +98,7 @@ def test_each_compiled_step_is_batch_step_to_the_bit(
 
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
 def test_a_compiled_rollout_is_the_per_step_rollout_to_the_bit(
-    method: str, fuzzy: bool, c_from: CFrom, compiled_calls: list[int]
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
 ) -> None:
     """Many steps per call, through faults and new episodes, with ε and α changing per step."""
     steps, redraw = 60, 25
