@@ -1,24 +1,25 @@
 """The lab's loop compiled: k steps of a batch of GNP controllers in an analytic world, one call.
 
-`app.rollout.Batch.step` runs one step as a few calls from Python (observe, act, step, sense,
-judge); between them Python builds and checks arrays. When the controllers are GNP and the
-physics analytic, every stage is a numba function (`sim.loop` for the world, `gnp.kernel`'s
-`step_kernel` for the controllers), and `steps` here runs k steps of them in one compiled
-call, on the world's and the controllers' own arrays, in the order `Batch.step` takes: the
-same kernels on the same arrays, so the same bits (tests/app/test_fused.py compares them step
-by step). A step in which a scheduled fault fires, and any step something watches (the
-trajectory recorder, the dashboard), goes through `Batch.step`: both paths share all state,
-so they interleave freely.
+When the controllers are GNP and the physics analytic, every stage of `app.rollout.Batch.step`
+is a numba function (`sim.loop` for the world, `gnp.kernel.step_kernel` for the controllers),
+and `steps` here runs k steps of them in one compiled call, on the world's and the controllers'
+own arrays, in `Batch.step`'s order: the same kernels on the same arrays, so the same bits
+(tests/app/test_fused.py compares them step by step). Watched steps (the trajectory recorder,
+the dashboard: `watch`) also keep what each step saw, commanded, read and earned, and the
+controllers' trace. A step in which a scheduled fault fires goes through the stages one call
+at a time (`Batch.step`'s other path): both paths share all state, so they interleave freely.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 import gnp
 import sim
-from gnp.engine import check_population, kernel_arguments, method_code
+from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
 from gnp.kernel import records_part, step_kernel
 from sim import loop
 
@@ -28,6 +29,23 @@ any split gives the same bits. Measured (thesis-ch3, σ = 50, 300 and 500 robots
 as the whole batch at 300 robots and 8% faster at 500; blocks of 16 or fewer lose up to 30%
 (every stage's call and scratch arrays, and the engine's two lanes have fewer controllers to
 overlap)."""
+
+
+@dataclass(frozen=True)
+class Watched:
+    """What k watched steps did; arrays (k, N, ...), as `app.rollout.StepRecord`'s per step."""
+
+    poses: np.ndarray  # (k, N, 3) after each step, headings in [-π, π)
+    observations: np.ndarray  # (k, N, 8)
+    commands: np.ndarray  # (k, N, 2)
+    readings: np.ndarray  # (k, N, 8) true readings after each step
+    term_tables: np.ndarray  # (k, N, len(sim.TERM_NAMES))
+    visits: np.ndarray  # (k, len(gnp.VISIT_FIELDS), N, max visits), −1 past each count
+    count: np.ndarray  # (k, N)
+
+    def trace(self, s: int) -> gnp.StepTrace:
+        """The controllers' trace of step s (views)."""
+        return gnp.engine.step_trace(self.visits[s], self.count[s])
 
 
 def steps(
@@ -42,7 +60,8 @@ def steps(
     learn: bool,
     judge_observed: bool,
     term_sums: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    watch: bool = False,
+) -> tuple[np.ndarray, np.ndarray, Watched | None]:
     """Advance the batch by len(epsilon) steps in one compiled call (see `Batch.step`).
 
     Args:
@@ -54,9 +73,11 @@ def steps(
         judge_observed: C of the reward judged from what the controllers see after the step
             (`c_from` "observed"), else from the true readings.
         term_sums: (N, len(sim.TERM_NAMES)) each reward term summed, added to in place.
+        watch: also return what each step did (`Watched`).
 
     Returns:
-        The last step's reward (N,), and each step's reward (k, N).
+        The last step's reward (N,), each step's reward (k, N), and with `watch` what each
+        step did, else None.
     """
     epsilon = np.ascontiguousarray(epsilon, dtype=np.float64)
     alpha = np.ascontiguousarray(alpha, dtype=np.float64)
@@ -67,26 +88,42 @@ def steps(
     k, n = len(epsilon), world.n
     last = np.array(reward, dtype=np.float64)  # contiguous, and the caller's stays unchanged
     each = np.empty((k, n))
+    kept = k if watch else 0
+    watched = Watched(
+        poses=np.empty((kept, n, 3)),
+        observations=np.empty((kept, n, sim.N_SENSORS)),
+        commands=np.empty((kept, n, 2)),
+        readings=np.empty((kept, n, sim.N_SENSORS)),
+        term_tables=np.empty((kept, n, len(sim.TERM_NAMES))),
+        visits=np.full((max(kept, 1), len(VISIT_FIELDS), n if watch else 0,
+                        cfg.max_visits_per_step if watch else 0), -1, TRACE_DTYPE),
+        count=np.zeros((max(kept, 1), n if watch else 0), TRACE_DTYPE),
+    )  # fmt: skip
     brain = kernel_arguments(method_code(cfg), cfg, population, state)
     _run(world.arrays(), brain, epsilon, alpha, learn, judge_observed, world.t, last, each,
-         term_sums, np.empty((n, len(sim.TERM_NAMES))), ROBOTS_PER_BLOCK)  # fmt: skip
+         term_sums, np.empty((n, len(sim.TERM_NAMES))), ROBOTS_PER_BLOCK, watched.poses,
+         watched.observations, watched.commands, watched.readings, watched.term_tables,
+         watched.visits, watched.count)  # fmt: skip
     world.stepped(k)
-    return last, each
+    if not watch:
+        return last, each, None
+    return last, each, Watched(**{**watched.__dict__, "poses": sim.world.wrapped(watched.poses)})
 
 
 @njit(cache=True)
 def _run(
-    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block
-):  # pragma: no cover - compiled
+    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block,
+    poses_out, seen_out, commands_out, readings_out, table_out, visits_out, count_out,
+):  # fmt: skip  # pragma: no cover - compiled
     """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge;
-    block by block of robots."""
+    block by block of robots; each step's arrays kept in the `_out` arrays when they have k
+    rows (the trace when `visits_out` has robots)."""
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
         brain
     )
     rates = np.empty((1, 2))  # one (ε, α) for every controller, as `gnp.step` passes them
-    no_visits = np.empty((5, 0, 0), np.int32)  # no trace
-    no_count = np.empty(0, np.int32)
     n = reward.shape[0]
+    watch = seen_out.shape[0] > 0
     for lo in range(0, n, block):
         hi = min(n, lo + block)
         part = loop.part(world, lo, hi)
@@ -97,11 +134,15 @@ def _run(
             loop.observe(part, t0 + s)
             rates[0, 0] = epsilon[s]
             rates[0, 1] = alpha[s]
+            row = s if watch else 0
             step_kernel(
                 method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, part_records, layout,
                 part_walk, part_wheels, part_rng, part.observed, part_reward, rates, learn,
-                no_visits, no_count,
+                visits_out[row][:, lo:hi], count_out[row][lo:hi],
             )  # fmt: skip
+            if watch:
+                seen_out[s, lo:hi] = part.observed
+                commands_out[s, lo:hi] = part_wheels
             loop.step(part, part_wheels)
             loop.sense(part)
             if judge_observed:
@@ -109,6 +150,10 @@ def _run(
                 loop.judge(part.observed, part_wheels, part_table)
             else:
                 loop.judge(part.readings, part_wheels, part_table)
+            if watch:
+                poses_out[s, lo:hi] = part.poses
+                readings_out[s, lo:hi] = part.readings
+                table_out[s, lo:hi] = part_table
             for i in range(hi - lo):
                 part_reward[i] = part_table[i, 0]
                 each[s, lo + i] = part_table[i, 0]

@@ -108,7 +108,7 @@ and the StepTrace when `step` was asked for it, else None. A plain tuple, as Gym
 `Env.step` returns: building a named tuple added ~13% to a one-controller call."""
 
 
-def _trace(visits: np.ndarray, count: np.ndarray) -> StepTrace:
+def step_trace(visits: np.ndarray, count: np.ndarray) -> StepTrace:
     """The StepTrace of the kernel's `visits` (one row per VISIT_FIELDS; views, not copies)."""
     return StepTrace(**dict(zip(VISIT_FIELDS, visits, strict=True)), count=count)
 
@@ -264,7 +264,7 @@ def step(
         visits, count = _NO_TRACE, _NO_COUNT
     run_kernel(_KERNEL_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
     if trace:
-        return state.wheels.copy(), _trace(visits, count)
+        return state.wheels.copy(), step_trace(visits, count)
     return state.wheels.copy(), None
 
 
@@ -360,7 +360,7 @@ def _first_stage_only(
     finally:
         if bs:
             conn[..., 0] = first
-    steps = _trace(visits, count)
+    steps = step_trace(visits, count)
     if bs:
         node, sub, branch, u = steps.node, steps.sub, steps.branch, steps.u
         c, k = np.nonzero(node > 0)

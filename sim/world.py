@@ -64,6 +64,13 @@ _POSE_FIELDS = pb.BodyFields.POSITION | pb.BodyFields.ANGLE
 _DRIVE_FIELDS = pb.BodyFields.FORCE | pb.BodyFields.TORQUE
 
 
+def wrapped(poses: np.ndarray) -> np.ndarray:
+    """A copy of poses (..., 3) with headings in [-π, π) (the world keeps them unwrapped)."""
+    out = np.array(poses, dtype=np.float64)
+    out[..., 2] = np.mod(out[..., 2] + np.pi, 2 * np.pi) - np.pi
+    return out
+
+
 class WorldError(ValueError):
     """Bad input to a ``World`` (shapes, ranges, sensor or robot indices, fault modes)."""
 
@@ -329,9 +336,7 @@ class World:
     @property
     def poses(self) -> np.ndarray:
         """(N, 3) arena-local poses: x mm, y mm, heading rad in [-π, π)."""
-        poses = self._poses.copy()
-        poses[:, 2] = np.mod(poses[:, 2] + np.pi, 2 * np.pi) - np.pi
-        return poses
+        return wrapped(self._poses)
 
     @property
     def seeds(self) -> np.ndarray:

@@ -1,10 +1,12 @@
-"""The compiled loop (app.fused) steps a batch exactly as `Batch.step` does, bit for bit.
+"""The compiled loop (app.fused) steps a batch exactly as its stages one at a time do, bit for bit.
 
-Two copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing
-during the steps, episodes redrawn): one stepped by `Batch.step`, the other by `rollout`,
-which takes the compiled path wherever it can. After every step, and after longer runs, every
-array either holds must be equal: poses, true readings, observations, wheel commands, Q tables
-and the rest of the records, engine walks and streams, rewards and reward sums.
+Copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing during
+the steps, episodes redrawn): one stepped by `Batch.staged_step` (the stages called one by one
+from Python, as the loop ran before it was compiled), the others by `Batch.step` and `rollout`,
+which take the compiled path wherever they can, watched (recorded, traced) or not. After every
+step, and after longer runs, every array they hold must be equal: poses, true readings,
+observations, wheel commands, Q tables and the rest of the records, engine walks and streams,
+rewards and reward sums, and what each step reports and records.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import gnp
 import sim
 from app import fused
 from app.config import CFrom
+from app.recording import TrajectoryRecorder
 from app.rollout import Batch, rollout
 
 N = 10  # more than a block of 3: the compiled loop splits the batch
@@ -83,17 +86,23 @@ def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
-def test_each_compiled_step_is_batch_step_to_the_bit(
+def test_each_compiled_step_is_the_staged_step_to_the_bit(
     method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
 ) -> None:
-    each, compiled = _batch(method, fuzzy, c_from), _batch(method, fuzzy, c_from)
+    staged, stepped, rolled = (_batch(method, fuzzy, c_from) for _ in range(3))
     for _ in range(20):
-        record = each.step(0.1, 0.1)
-        outcome = rollout(compiled, 1, 0.1, 0.1)
-        _assert_same(each, compiled)
+        record = staged.staged_step(0.1, 0.1, trace=True)
+        again = stepped.step(0.1, 0.1, trace=True)
+        outcome = rollout(rolled, 1, 0.1, 0.1)
+        _assert_same(staged, stepped)
+        _assert_same(staged, rolled)
+        for field in ("observations", "commands", "readings", "term_table"):
+            assert np.array_equal(getattr(again, field), getattr(record, field)), field
+        for field in (*gnp.VISIT_FIELDS, "count"):
+            assert np.array_equal(getattr(again.trace, field), getattr(record.trace, field))
         assert np.array_equal(outcome.term_sums, record.term_table)
         assert outcome.step_reward_sums[0] == record.reward.sum()
-    assert len(compiled_calls) == 20 - len({f.step for f in FAULTS})  # fault steps: Batch.step
+    assert len(compiled_calls) == 2 * (20 - len({f.step for f in FAULTS}))  # fault steps: staged
 
 
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
@@ -105,21 +114,50 @@ def test_a_compiled_rollout_is_the_per_step_rollout_to_the_bit(
     epsilon = np.linspace(0.3, 0.0, steps)
     alpha = np.linspace(0.0, 0.2, steps)
     starts = np.random.default_rng(5).integers(0, 10, (N, 3))
-    each, compiled = _batch(method, fuzzy, c_from), _batch(method, fuzzy, c_from)
+    each, compiled, recorded = (_batch(method, fuzzy, c_from) for _ in range(3))
+    recorder = TrajectoryRecorder(N, steps, each.gnp_controllers.cfg)
+    expected = TrajectoryRecorder(N, steps, each.gnp_controllers.cfg)
     sums = np.zeros((N, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
     poses = each.world.arena.start_poses
     for t in range(steps):  # the per-step loop, as rollout ran it before the compiled path
         if t > 0 and t % redraw == 0:
             each.new_episode(poses[starts[:, t // redraw]])
-        record = each.step(float(epsilon[t]), float(alpha[t]))
+        record = each.staged_step(float(epsilon[t]), float(alpha[t]), trace=True)
         sums += record.term_table
         step_sums[t] = record.reward.sum()
+        assert record.trace is not None
+        expected.record(
+            each.world.poses,
+            record.readings,
+            record.observations,
+            record.commands,
+            record.term_table,
+            record.trace,
+        )
     outcome = rollout(compiled, steps, epsilon, alpha, episode_starts=starts, redraw_every=redraw)
-    _assert_same(each, compiled)
-    assert np.array_equal(outcome.term_sums, sums)
-    assert np.array_equal(outcome.step_reward_sums, step_sums)
-    assert max(compiled_calls) > 1 and sum(compiled_calls) == steps - len({f.step for f in FAULTS})
+    watched = rollout(
+        recorded,
+        steps,
+        epsilon,
+        alpha,
+        recorder=recorder,
+        episode_starts=starts,
+        redraw_every=redraw,
+    )
+    for batch, result in ((compiled, outcome), (recorded, watched)):
+        _assert_same(each, batch)
+        assert np.array_equal(result.term_sums, sums)
+        assert np.array_equal(result.step_reward_sums, step_sums)
+    lives, again = expected.trajectory(starts[:, 0]), recorder.trajectory(starts[:, 0])
+    for field in ("poses", "readings", "observations", "commands"):
+        assert np.array_equal(getattr(again, field), getattr(lives, field)), field
+    for name in sim.TERM_NAMES:
+        assert np.array_equal(again.terms[name], lives.terms[name]), name
+    for name, values in lives.trace.items():
+        assert np.array_equal(again.trace[name], values), name
+    fault_steps = len({f.step for f in FAULTS})
+    assert max(compiled_calls) > 1 and sum(compiled_calls) == 2 * (steps - fault_steps)
 
 
 def test_the_compiled_path_is_taken_only_for_gnp_in_an_analytic_world(
