@@ -246,6 +246,8 @@ class Batch:
         given to add the reward terms to."""
         g = self.gnp_controllers
         watch = term_sums is None
+        if term_sums is None:
+            term_sums = np.zeros((self.size, len(sim.TERM_NAMES)))
         self.reward, each, watched = fused.steps(
             self.world,
             g.cfg,
@@ -256,7 +258,7 @@ class Batch:
             alpha,
             learn=learn,
             judge_observed=self.c_from == "observed",
-            term_sums=np.zeros((self.size, len(sim.TERM_NAMES))) if watch else term_sums,
+            term_sums=term_sums,
             watch=watch,
         )
         return each, watched
