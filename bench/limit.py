@@ -12,9 +12,10 @@ training arena; then each stage replays its share of that life alone, on the rec
 - controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
 - reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
 - loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn), step by
-  step, in a pymunk and in an analytic world;
-- rollout analytic: `app.rollout.rollout`, as training and implementation run the loop: for GNP
-  controllers in an analytic world, the compiled loop (`app.fused`: k steps in one call).
+  step: in a pymunk world the stages one call at a time, in an analytic world ("loop analytic")
+  one compiled call a step (`app.fused`, watched as the dashboard and the recorder watch it);
+- rollout analytic: `app.rollout.rollout`, as training and implementation run the loop: k steps
+  in one compiled call, robots in blocks (`app.fused`).
 Each repeat of a loop starts from the life's start (world reset, fresh controllers): it lives the
 recorded life. A loop's limit is what its stages add up to (1 / Σ 1/rate); loop / limit below 1
 is the loop's own overhead, above 1 what fusing the stages saves (one pass over the robots'
@@ -22,6 +23,18 @@ data instead of five). Rates are robot-steps per CPU second of this process (bes
 alternating, so a busy machine's drifts hit every stage alike): per-core throughput. Worlds are
 built once, outside the timing (300 copies of an arena's walls take pymunk a few tenths of a
 second); each timed life starts with a reset (and fresh controllers): a small share of it.
+
+What each stage's arithmetic costs, against what it takes (the figures `--steps 500` prints on a
+loaded 2-core VM, ns per robot-step; issue #31):
+- sensing ~105 ns: 8 rays against the 1.2 walls of the robot's cell, one `sincos`: ~15 ns;
+- noise ~185 ns: four Box–Muller pairs, 4 × (`log`, `sqrt`, `sincos`) of glibc and 4 hashes:
+  ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md);
+- physics analytic ~345 ns: the drive's two `sincos`, then 3 substeps of integration, contact
+  search and, on a wall (a third of the robots), 5 solver passes: ~30-60 ns of arithmetic, the
+  rest chipmunk's branchy contact bookkeeping done operation by operation;
+- controller ~210 ns: 2-4 visits, each an ε-greedy draw or two, a Sarsa update and 2-3 dependent
+  loads of the next record: ~20 ns of arithmetic, the rest load latency;
+- reward ~20 ns: 16 comparisons and a `sqrt`: ~5 ns.
 
 Another physics is one more line in STAGES (as "physics analytic" is), and a loop that runs it
 one more line in LOOPS.
