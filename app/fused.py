@@ -20,8 +20,9 @@ from numba import njit
 import gnp
 import sim
 from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
-from gnp.kernel import records_part, step_kernel
+from gnp.kernel import records_part, walk_kernel
 from sim import loop
+from sim.khepera import N_SENSORS
 
 ROBOTS_PER_BLOCK = 64
 """Robots that live the k steps together before the next ones start. Robots share no data, so
@@ -124,21 +125,30 @@ def _run(
     rates = np.empty((1, 2))  # one (ε, α) for every controller, as `gnp.step` passes them
     n = reward.shape[0]
     watch = seen_out.shape[0] > 0
+    # Unwatched and judged from the true readings, a step's observations are only what its
+    # judgment nodes read: each pair of sensors is drawn when first read (`loop.read_lazily`).
+    lazy = not watch and not judge_observed
+    drawn = np.zeros((n, N_SENSORS // 2), np.bool_)
     for lo in range(0, n, block):
         hi = min(n, lo + block)
         part = loop.part(world, lo, hi)
         part_records = records_part(records, n_nodes, layout, lo, hi)
         part_walk, part_wheels, part_rng = walk[lo:hi], wheels[lo:hi], rng[lo:hi]
-        part_reward, part_table = reward[lo:hi], table[lo:hi]
+        part_reward, part_table, part_drawn = reward[lo:hi], table[lo:hi], drawn[lo:hi]
         for s in range(epsilon.shape[0]):
-            loop.observe(part, t0 + s)
+            if lazy:
+                part_drawn[:] = False
+            else:
+                if s == 0 or not judge_observed:  # else the last step's judge observed step s
+                    loop.observe(part, t0 + s)
+                part_drawn[:] = True
             rates[0, 0] = epsilon[s]
             rates[0, 1] = alpha[s]
             row = s if watch else 0
-            step_kernel(
+            _act(
                 method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, part_records, layout,
                 part_walk, part_wheels, part_rng, part.observed, part_reward, rates, learn,
-                visits_out[row][:, lo:hi], count_out[row][lo:hi],
+                visits_out[row][:, lo:hi], count_out[row][lo:hi], (part, t0 + s, part_drawn),
             )  # fmt: skip
             if watch:
                 seen_out[s, lo:hi] = part.observed
@@ -159,3 +169,16 @@ def _run(
                 each[s, lo + i] = part_table[i, 0]
                 for j in range(part_table.shape[1]):
                     term_sums[lo + i, j] += part_table[i, j]
+
+
+@njit(cache=True, _nrt=False)
+def _act(
+    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
+    obs, reward, rates, learn, visits, count, source,
+):  # fmt: skip  # pragma: no cover - compiled
+    """`gnp.kernel.step_kernel` whose judgment nodes read through `sim.loop.read_lazily`
+    (compiled without numba's reference counting, as `step_kernel` is)."""
+    walk_kernel(
+        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
+        rng, obs, reward, rates, learn, visits, count, loop.read_lazily, source,
+    )  # fmt: skip

@@ -107,6 +107,30 @@ def observe(world: WorldArrays, t: int) -> None:
     )
 
 
+@nb.njit(cache=True, inline="always")
+def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
+    """What robot i sees of sensor j at the step `source` = (world, t, drawn) names, drawn
+    the first time a sensor of its pair is read in the step (`drawn`: (N, 4) bool, cleared each
+    step): the value `observe` gives, computed only for the sensors a controller reads (a
+    thesis-ch3 controller reads 1.1 of the 4 pairs a step)."""
+    world, t, drawn = source
+    i, b = int(i), int(j) >> 1
+    if not drawn[i, b]:
+        kernels.observe_pair(
+            world.readings,
+            world.keys,
+            np.uint64(t),
+            world.noise_sigma,
+            world.fault_modes,
+            world.stuck,
+            observed,
+            i,
+            b,
+        )
+        drawn[i, b] = True
+    return observed[i, j]
+
+
 @nb.njit(cache=True)
 def step(world: WorldArrays, commands: np.ndarray) -> None:
     """One control period at wheel `commands` (`World.step` without its clock and faults)."""
