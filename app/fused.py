@@ -171,7 +171,7 @@ def _run(
                     term_sums[lo + i, j] += part_table[i, j]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def _act(
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
     obs, reward, rates, learn, visits, count, source,
