@@ -16,6 +16,7 @@ import numpy as np
 
 import gnp
 import sim
+from app import fused
 from app.config import CFrom
 from app.recording import TrajectoryRecorder
 
@@ -129,11 +130,7 @@ class Batch:
     ) -> None:
         if population.size != world.n:
             raise ValueError(f"{population.size} controllers for {world.n} robots")
-        gnp_controllers = GnpControllers(cfg, population, engine_seeds)
-        self._drive(world, gnp_controllers, c_from)
-        self.cfg = cfg
-        self.population = population
-        self.state = gnp_controllers.state
+        self._drive(world, GnpControllers(cfg, population, engine_seeds), c_from)
 
     @classmethod
     def driven_by(cls, world: sim.World, controllers: Controllers, c_from: CFrom = "true") -> Batch:
@@ -156,11 +153,39 @@ class Batch:
     def size(self) -> int:
         return self.world.n
 
+    @property
+    def gnp_controllers(self) -> GnpControllers:
+        """The GNP controllers (their config, population and engine state: the ones `step`
+        runs, not copies); a TypeError for other controllers."""
+        if not isinstance(self.controllers, GnpControllers):
+            raise TypeError(f"the batch is driven by {type(self.controllers).__name__}, not GNP")
+        return self.controllers
+
+    @property
+    def population(self) -> gnp.Population:
+        """The GNP controllers' population, Q tables learning in place."""
+        return self.gnp_controllers.population
+
+    @property
+    def state(self) -> gnp.EngineState:
+        """The GNP controllers' engine state."""
+        return self.gnp_controllers.state
+
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
         self.world.place(poses)
         self.controllers.reset_episode()
         self.reward = np.zeros(self.size)
+
+    def compiled(self, second_stage: bool = True) -> bool:
+        """Whether `step` and `rollout` may run this batch in compiled calls (`app.fused`):
+        GNP controllers, analytic physics, the method's second stage on (or none)."""
+        controllers = self.controllers
+        return (
+            self.world.physics == "analytic"
+            and isinstance(controllers, GnpControllers)
+            and (second_stage or not controllers.cfg.traits.two_stage)
+        )
 
     def step(
         self,
@@ -173,6 +198,29 @@ class Batch:
     ) -> StepRecord:
         """One control step of every robot; `second_stage` off is the live ablation of
         `gnp.step` (BS: greedy branch connection, CS: no credit branch)."""
+        if self.compiled(second_stage) and compiled_steps(self.world, 0, 1, 0) == 1:
+            _, watched = self.run_compiled(np.array([epsilon]), np.array([alpha]), learn, None)
+            assert watched is not None
+            return StepRecord(
+                watched.observations[0],
+                watched.commands[0],
+                watched.readings[0],
+                watched.term_tables[0],
+                watched.trace(0) if trace else None,
+            )
+        return self.staged_step(epsilon, alpha, learn=learn, trace=trace, second_stage=second_stage)
+
+    def staged_step(
+        self,
+        epsilon: float,
+        alpha: float,
+        *,
+        learn: bool = True,
+        trace: bool = False,
+        second_stage: bool = True,
+    ) -> StepRecord:
+        """`step` one stage at a time from Python, for any controllers and physics (the
+        compiled path's oracle in the tests)."""
         seen = self.world.observe()
         commands, step_trace = self.controllers.act(
             seen,
@@ -189,6 +237,31 @@ class Batch:
         table = sim.reward_table(judged, commands)
         self.reward = table[:, 0]
         return StepRecord(seen, commands, readings, table, step_trace)
+
+    def run_compiled(
+        self, epsilon: np.ndarray, alpha: np.ndarray, learn: bool, term_sums: np.ndarray | None
+    ) -> tuple[np.ndarray, fused.Watched | None]:
+        """len(epsilon) steps in one compiled call (see `compiled`; no fault may fire in
+        them): each step's reward (k, N), and what each step did unless `term_sums` (N, 4) is
+        given to add the reward terms to."""
+        g = self.gnp_controllers
+        watch = term_sums is None
+        if term_sums is None:
+            term_sums = np.zeros((self.size, len(sim.TERM_NAMES)))
+        self.reward, each, watched = fused.steps(
+            self.world,
+            g.cfg,
+            g.population,
+            g.state,
+            self.reward,
+            epsilon,
+            alpha,
+            learn=learn,
+            judge_observed=self.c_from == "observed",
+            term_sums=term_sums,
+            watch=watch,
+        )
+        return each, watched
 
 
 @dataclass(frozen=True)
@@ -232,14 +305,42 @@ def rollout(
     eps, alp = per_step(epsilon, steps), per_step(alpha, steps)
     sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
-    trace = recorder is not None
     poses = batch.world.arena.start_poses
-    for t in range(steps):
+    compiled = batch.compiled(second_stage)
+    t = 0
+    while t < steps:
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
             assert episode_starts is not None
             batch.new_episode(poses[episode_starts[:, t // redraw_every]])
+        run = compiled_steps(batch.world, t, steps, redraw_every) if compiled else 0
+        if run > 0 and recorder is None:  # `run` steps in one compiled call (see app.fused)
+            each, _ = batch.run_compiled(eps[t : t + run], alp[t : t + run], learn, sums)
+            step_sums[t : t + run] = each.sum(axis=1)
+            t += run
+            continue
+        if run > 0:  # watched: the recorder takes each step's arrays afterwards
+            run = min(run, WATCHED_STEPS_PER_CALL)
+            each, watched = batch.run_compiled(eps[t : t + run], alp[t : t + run], learn, None)
+            assert watched is not None and recorder is not None
+            for s in range(run):
+                sums += watched.term_tables[s]
+                recorder.record(
+                    watched.poses[s],
+                    watched.readings[s],
+                    watched.observations[s],
+                    watched.commands[s],
+                    watched.term_tables[s],
+                    watched.trace(s),
+                )
+            step_sums[t : t + run] = each.sum(axis=1)
+            t += run
+            continue
         record = batch.step(
-            float(eps[t]), float(alp[t]), learn=learn, trace=trace, second_stage=second_stage
+            float(eps[t]),
+            float(alp[t]),
+            learn=learn,
+            trace=recorder is not None,
+            second_stage=second_stage,
         )
         sums += record.term_table
         step_sums[t] = record.reward.sum()
@@ -253,4 +354,18 @@ def rollout(
                 record.term_table,
                 record.trace,
             )
+        t += 1
     return Rollout(term_sums=sums, step_reward_sums=step_sums)
+
+
+WATCHED_STEPS_PER_CALL = 256
+"""Most steps of a watched compiled call: what it keeps of each step grows with them."""
+
+
+def compiled_steps(world: sim.World, t: int, steps: int, redraw_every: int) -> int:
+    """How many steps from step `t` of a rollout the compiled loop may take in one call: up
+    to the next new episode or the end, and not the step in which a fault fires (0 if that
+    is the first)."""
+    end = steps if redraw_every <= 0 else min(steps, (t // redraw_every + 1) * redraw_every)
+    fires = [s - world.t for s in world.fault_steps if world.t < s <= world.t + end - t]
+    return min([end - t, *(f - 1 for f in fires)])

@@ -11,15 +11,33 @@ training arena; then each stage replays its share of that life alone, on the rec
 - physics pymunk: `World.step` through the recorded commands (the same contacts);
 - controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
 - reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
-- loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn).
-The limit is what the loop's stages add up to (1 / Σ 1/rate); loop / limit below 1 is the loop's
-own overhead. Rates are robot-steps per CPU second of this process (best of `--rounds`,
+- loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn), step by
+  step: in a pymunk world the stages one call at a time, in an analytic world ("loop analytic")
+  one compiled call a step (`app.fused`, watched as the dashboard and the recorder watch it);
+- rollout analytic: `app.rollout.rollout`, as training and implementation run the loop: k steps
+  in one compiled call, robots in blocks (`app.fused`).
+Each repeat of a loop starts from the life's start (world reset, fresh controllers): it lives the
+recorded life. A loop's limit is what its stages add up to (1 / Σ 1/rate); loop / limit below 1
+is the loop's own overhead, above 1 what fusing the stages saves (one pass over the robots'
+data instead of five). Rates are robot-steps per CPU second of this process (best of `--rounds`,
 alternating, so a busy machine's drifts hit every stage alike): per-core throughput. Worlds are
 built once, outside the timing (300 copies of an arena's walls take pymunk a few tenths of a
 second); each timed life starts with a reset (and fresh controllers): a small share of it.
 
-Another physics is one more line in STAGES (as "physics analytic" is), and it joins the table
-(not the loop's limit, which is the pymunk loop's: see LOOP_STAGES).
+What each stage's arithmetic costs, against what it takes (the figures `--steps 500` prints on a
+loaded 2-core VM, ns per robot-step; issue #31):
+- sensing ~105 ns: 8 rays against the 1.2 walls of the robot's cell, one `sincos`: ~15 ns;
+- noise ~185 ns: four Box–Muller pairs, 4 × (`log`, `sqrt`, `sincos`) of glibc and 4 hashes:
+  ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md);
+- physics analytic ~345 ns: the drive's two `sincos`, then 3 substeps of integration, contact
+  search and, on a wall (a third of the robots), 5 solver passes: ~30-60 ns of arithmetic, the
+  rest chipmunk's branchy contact bookkeeping done operation by operation;
+- controller ~210 ns: 2-4 visits, each an ε-greedy draw or two, a Sarsa update and 2-3 dependent
+  loads of the next record: ~20 ns of arithmetic, the rest load latency;
+- reward ~20 ns: 16 comparisons and a `sqrt`: ~5 ns.
+
+Another physics is one more line in STAGES (as "physics analytic" is), and a loop that runs it
+one more line in LOOPS.
 """
 
 from __future__ import annotations
@@ -36,7 +54,7 @@ import gnp
 import sim
 from app.arenas import arena_of
 from app.config import RunConfig, build_config, load_preset
-from app.rollout import Batch
+from app.rollout import Batch, rollout
 from app.seeds import life_seeds
 from app.training import initial_population
 from sim import kernels
@@ -75,10 +93,11 @@ class Life:
         world.reset(self.start, seeds=self.world_seeds)
         return world
 
-    def batch(self) -> Batch:
-        """The lab's loop at the life's start, with fresh copies of the controllers."""
+    def batch(self, world: sim.World) -> Batch:
+        """The lab's loop in `world` (at the life's start), with fresh copies of the
+        controllers."""
         copy = gnp.take(self.population, np.arange(self.population.size))
-        return Batch(self.world(), self.config.controller.gnp_config(), copy, self.engine_seeds)
+        return Batch(world, self.config.controller.gnp_config(), copy, self.engine_seeds)
 
 
 def record(config: RunConfig, robots: int, steps: int) -> Life:
@@ -186,18 +205,29 @@ def reward(life: Life) -> Timed:
     return run
 
 
-def loop(life: Life) -> Timed:
+def loop(life: Life, **options: Any) -> Timed:
+    """`Batch.step`, step by step: the loop as the dashboard and the recorder run it."""
     eps, alpha = life.config.training.epsilon, life.config.training.alpha
-    batch = life.batch()
-    cfg = life.config.controller.gnp_config()
+    world = life.world(**options)
 
     def run() -> None:
-        batch.world.reset(life.start, seeds=life.world_seeds)
-        batch.population = gnp.take(life.population, np.arange(life.population.size))
-        batch.state = gnp.init_state(cfg, batch.size, life.engine_seeds)
-        batch.reward = np.zeros(batch.size)
+        world.reset(life.start, seeds=life.world_seeds)
+        batch = life.batch(world)  # fresh controllers: each repeat lives the recorded life
         for _ in range(len(life.commands)):
             batch.step(eps, alpha)
+
+    return run
+
+
+def rollout_life(life: Life, **options: Any) -> Timed:
+    """`app.rollout.rollout`: the loop as training and implementation run it (compiled, for
+    GNP controllers in an analytic world: `app.fused`)."""
+    eps, alpha = life.config.training.epsilon, life.config.training.alpha
+    world = life.world(**options)
+
+    def run() -> None:
+        world.reset(life.start, seeds=life.world_seeds)
+        rollout(life.batch(world), len(life.commands), eps, alpha)
 
     return run
 
@@ -211,10 +241,16 @@ STAGES: dict[str, Callable[[Life], Timed]] = {
     "controller": controller,
     "reward": reward,
     "loop": loop,
+    "loop analytic": lambda life: loop(life, physics="analytic"),
+    "rollout analytic": lambda life: rollout_life(life, physics="analytic"),
 }
 """Each stage's timed replay, built from the recorded life (one line adds a stage)."""
-LOOP_STAGES = ("sensing", "noise", "physics pymunk", "controller", "reward")
-"""The stages the loop runs in turn: their limit is what the loop could reach per core."""
+LOOPS = {
+    "loop": ("sensing", "noise", "physics pymunk", "controller", "reward"),
+    "loop analytic": ("sensing", "noise", "physics analytic", "controller", "reward"),
+    "rollout analytic": ("sensing", "noise", "physics analytic", "controller", "reward"),
+}
+"""Each loop and the stages it runs in turn: their limit is what the loop could reach per core."""
 
 
 def cpu_seconds(run: Timed) -> float:
@@ -243,18 +279,19 @@ def main() -> None:
         for name, run in runs.items():
             best[name] = min(best[name], cpu_seconds(run))
     rate = {name: life.work / seconds for name, seconds in best.items()}
-    limit = 1.0 / sum(1.0 / rate[name] for name in LOOP_STAGES)
     method = config.controller.method
     print(
         f"{args.preset} ({method}, σ = {args.noise:g}), {args.robots} robots × {args.steps} "
         f"steps; robot-steps per CPU second, best of {args.rounds}"
     )
-    print(f"  {'stage':20} {'rate':>12} {'× loop':>8} {'share of limit':>15}")
+    print(f"  {'stage':20} {'rate':>12} {'ns/robot-step':>14}")
     for name in runs:
-        share = f"{limit / rate[name]:14.0%}" if name in LOOP_STAGES else ""
-        print(f"  {name:20} {rate[name]:12,.0f} {rate[name] / rate['loop']:8.2f} {share:>15}")
-    print(f"  {'limit of loop':20} {limit:12,.0f} {limit / rate['loop']:8.2f}")
-    print(f"  loop / limit: {rate['loop'] / limit:.2f}")
+        print(f"  {name:20} {rate[name]:12,.0f} {1e9 / rate[name]:14.0f}")
+    for name, stages in LOOPS.items():
+        limit = 1.0 / sum(1.0 / rate[stage] for stage in stages)
+        print(
+            f"  {name}: limit of its stages {limit:,.0f}, {name} / limit {rate[name] / limit:.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -108,7 +108,7 @@ and the StepTrace when `step` was asked for it, else None. A plain tuple, as Gym
 `Env.step` returns: building a named tuple added ~13% to a one-controller call."""
 
 
-def _trace(visits: np.ndarray, count: np.ndarray) -> StepTrace:
+def step_trace(visits: np.ndarray, count: np.ndarray) -> StepTrace:
     """The StepTrace of the kernel's `visits` (one row per VISIT_FIELDS; views, not copies)."""
     return StepTrace(**dict(zip(VISIT_FIELDS, visits, strict=True)), count=count)
 
@@ -251,10 +251,7 @@ def step(
         StepTrace if `trace`, else None.
     """
     n = state.walk.shape[0]
-    records = pop.records
-    dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches)
-    if records.shape != (n, cfg.n_nodes) or (records.dtype is not dtype and records.dtype != dtype):
-        _raise_mismatch(cfg, pop, n)
+    check_population(cfg, pop, state)
     obs = _floats(observations, (n, N_SENSORS), "observations")
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
@@ -267,8 +264,46 @@ def step(
         visits, count = _NO_TRACE, _NO_COUNT
     run_kernel(_KERNEL_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
     if trace:
-        return state.wheels.copy(), _trace(visits, count)
+        return state.wheels.copy(), step_trace(visits, count)
     return state.wheels.copy(), None
+
+
+def kernel_arguments(
+    method_code: int, cfg: GnpConfig, pop: Population, state: EngineState
+) -> tuple:
+    """`step_kernel`'s leading arguments, those that stay the same from step to step: the
+    method, the config's sizes, the population's records and the engine state (arrays are the
+    population's and the state's own, so a compiled loop that calls `step_kernel` with them
+    learns in place)."""
+    return (
+        method_code,
+        cfg.fuzzy,
+        cfg.gamma,
+        cfg.n_nodes,
+        cfg.n_judgment,
+        cfg.n_sub,
+        cfg.n_conn_branches,
+        # One array for the whole population: every array argument costs the call time.
+        pop.record_bytes,
+        record_layout(cfg.n_sub, cfg.n_conn_branches),
+        state.walk,
+        state.wheels,
+        state.rng,
+    )
+
+
+def method_code(cfg: GnpConfig) -> int:
+    """The kernel's code of `cfg`'s method, both stages on."""
+    return _KERNEL_CODE[cfg.method]
+
+
+def check_population(cfg: GnpConfig, pop: Population, state: EngineState) -> None:
+    """Raise GnpError unless `pop` is built for `cfg` and has one individual per controller."""
+    n = state.walk.shape[0]
+    records = pop.records
+    dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches)
+    if records.shape != (n, cfg.n_nodes) or (records.dtype is not dtype and records.dtype != dtype):
+        _raise_mismatch(cfg, pop, n)
 
 
 def run_kernel(
@@ -285,25 +320,7 @@ def run_kernel(
 ) -> None:
     """One call of the compiled kernel on checked arguments (see `step`)."""
     step_kernel(
-        method_code,
-        cfg.fuzzy,
-        cfg.gamma,
-        cfg.n_nodes,
-        cfg.n_judgment,
-        cfg.n_sub,
-        cfg.n_conn_branches,
-        # One array for the whole population: every array argument costs the call time.
-        pop.record_bytes,
-        record_layout(cfg.n_sub, cfg.n_conn_branches),
-        state.walk,
-        state.wheels,
-        state.rng,
-        obs,
-        rew,
-        rates,
-        learn,
-        visits,
-        count,
+        *kernel_arguments(method_code, cfg, pop, state), obs, rew, rates, learn, visits, count
     )
 
 
@@ -343,7 +360,7 @@ def _first_stage_only(
     finally:
         if bs:
             conn[..., 0] = first
-    steps = _trace(visits, count)
+    steps = step_trace(visits, count)
     if bs:
         node, sub, branch, u = steps.node, steps.sub, steps.branch, steps.u
         c, k = np.nonzero(node > 0)

@@ -133,7 +133,14 @@ _METHOD, _N_NODES, _WORDS32, _LAYOUT, _WALK, _COUNT = 0, 3, 7, 10, 11, 19
 
 
 @njit(cache=True, inline="always")
-def _visit(c, used, k, run):  # pragma: no cover - compiled
+def read_observed(obs, source, i, j):  # pragma: no cover - compiled
+    """What controller i sees of sensor j: `obs[i, j]` (`step_kernel`'s reader; a caller of
+    `walk_kernel` may draw each reading when a judgment node first reads it)."""
+    return obs[i, j]
+
+
+@njit(cache=True, inline="always")
+def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
     """Controller c's next visit (after the start node, if it stands there): choose, learn,
     run, and move on. Its walk (`walk[c]`, `rng[c]`) is read from and written back to memory,
     so that controllers can take turns (see `step_kernel`). Returns (used, k): the step's
@@ -195,7 +202,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
         fn = words8[_ix(b + fn_ + p)]
         if node <= n_judgment:  # nodes 1..n_judgment judge
             used += _JUDGMENT_COST
-            x = obs[i, _ix(fn)]
+            x = read(obs, source, i, _ix(fn))
             lo = words16[_ix(h + beta + p)]
             hi = words16[_ix(h + alpha + p)]
             if fuzzy:
@@ -235,7 +242,7 @@ def _visit(c, used, k, run):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _turn(c, used, k, waiting, run):  # pragma: no cover - compiled
+def _turn(c, used, k, waiting, run, read, source):  # pragma: no cover - compiled
     """Lane of controller c: one visit; once c's step is done the lane takes the next waiting
     controller. A lane whose controller number reaches N is idle. Returns (c, used, k,
     waiting) for the lane's next turn."""
@@ -243,7 +250,7 @@ def _turn(c, used, k, waiting, run):  # pragma: no cover - compiled
     n_ctrl = walk.shape[0]
     if c >= n_ctrl:
         return c, used, k, waiting
-    used, k = _visit(c, used, k, run)
+    used, k = _visit(c, used, k, run, read, source)
     if used >= STEP_BUDGET:
         if count.shape[0] > 0:
             count[c] = k
@@ -268,6 +275,14 @@ def _prefetch_walk(c, run):  # pragma: no cover - compiled
         _prefetch_record(words32, (c * n_nodes + walk[c, 6]) * r32, 1)
 
 
+@njit(cache=True, inline="always")
+def records_part(records: np.ndarray, n_nodes: int, layout: tuple, lo: int, hi: int) -> np.ndarray:
+    """The records of controllers lo..hi − 1 (a view): `step_kernel` runs them as a population
+    of their own, with the same rows of the engine state."""
+    size = n_nodes * layout[0]
+    return records[lo * size : hi * size]
+
+
 @njit(cache=True, **_WITHOUT_NRT)  # type: ignore[call-overload]
 def step_kernel(
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
@@ -280,6 +295,21 @@ def step_kernel(
     the latency of these loads, not by arithmetic). Controllers never share data, so the
     turns change nothing in what each one does.
     """
+    walk_kernel(
+        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
+        rng, obs, reward, rates, learn, visits, count, read_observed, obs,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def walk_kernel(
+    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
+    obs, reward, rates, learn, visits, count, read, source,
+):  # fmt: skip  # pragma: no cover - compiled
+    """`step_kernel`'s body, inlined into its caller, whose judgment nodes read sensor j of
+    controller i as `read(obs, source, i, j)`: a compiled caller may pass a numba function
+    that fills `obs` on demand (pass it by name in the call: inlined, the call is static and
+    the caller stays cacheable)."""
     words32, words16, words8 = (
         records.view(np.float32),
         records.view(np.int16),
@@ -296,5 +326,5 @@ def step_kernel(
     a, b, waiting = 0, 1, 2
     used_a = used_b = k_a = k_b = 0
     while a < n_ctrl or b < n_ctrl:
-        a, used_a, k_a, waiting = _turn(a, used_a, k_a, waiting, run)
-        b, used_b, k_b, waiting = _turn(b, used_b, k_b, waiting, run)
+        a, used_a, k_a, waiting = _turn(a, used_a, k_a, waiting, run, read, source)
+        b, used_b, k_b, waiting = _turn(b, used_b, k_b, waiting, run, read, source)

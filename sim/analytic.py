@@ -20,12 +20,14 @@ Positions are kept in a copy of the arena at the same kind of offset as the pymu
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from sim import kernels
 from sim.khepera import BODY_RADIUS_MM, MASS, MOMENT
+from sim.sensors import WallGrid
 
 COLLISION_SLOP_MM = float(np.float32(0.1))
 """Penetration the contact solver leaves alone (chipmunk's default, a C float 0.1f)."""
@@ -51,11 +53,20 @@ class AnalyticBodies:
         offset: (2,) whole-millimetre offset of the arena copy the robots move in.
         iterations: Contact solver iterations per substep.
         cell: Side (mm) of the pymunk world's spatial hash cells: the contacts' order.
+        grid: The walls' ``WallGrid`` (arena-local): a cell lists every wall within a sensor's
+            reach of its points, so every wall a body in it can touch.
     """
 
     def __init__(
-        self, walls: np.ndarray, n: int, offset: np.ndarray, iterations: int, cell: float
+        self,
+        walls: np.ndarray,
+        n: int,
+        offset: np.ndarray,
+        iterations: int,
+        cell: float,
+        grid: WallGrid,
     ) -> None:
+        self.grid = grid
         self.offset = np.asarray(offset, dtype=np.float64)
         copy = walls + self.offset  # the same float64 sums as the pymunk world's segments
         delta = copy[:, 1] - copy[:, 0]
@@ -89,18 +100,13 @@ class AnalyticBodies:
 
     def read_poses(self, out: np.ndarray) -> None:
         """Arena-local poses (N, 3) into out."""
-        out[:, 0] = self.state[:, _X] - self.offset[0]
-        out[:, 1] = self.state[:, _Y] - self.offset[1]
-        out[:, 2] = self.state[:, _A]
+        read_local_poses(self.state, self.offset, out)
 
-    def advance(
-        self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
-    ) -> None:
-        """Drive the robots through ``substeps`` physics steps of ``dt`` (as ``World.step``)."""
+    def arrays(self, dt: float, substeps: int) -> BodyArrays:
+        """The bodies' own arrays (views, not copies) and solver settings, for ``move``."""
         if self.forces.shape[0] != substeps:
             self.forces = np.zeros((substeps, len(self.rows), 3))
-        kernels.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
-        solve_discs(
+        return BodyArrays(
             self.state,
             self.forces,
             self.walls,
@@ -114,7 +120,76 @@ class AnalyticBodies:
             self.seen_wall,
             self.seen_impulse,
             self.seen_stamp,
+            self.rows,
+            self.offset,
+            self.grid.frame,
+            self.grid.starts,
+            self.grid.members,
         )
+
+    def advance(
+        self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
+    ) -> None:
+        """Drive the robots through ``substeps`` physics steps of ``dt`` (as ``World.step``)."""
+        move(self.arrays(dt, substeps), angles, spins, commands)
+
+
+class BodyArrays(NamedTuple):
+    """What ``move`` reads and updates: an ``AnalyticBodies``' arrays and solver settings
+    (``solve_discs`` describes them), one argument for compiled callers (``sim.loop``)."""
+
+    state: np.ndarray
+    forces: np.ndarray
+    walls: np.ndarray
+    cell: float
+    dt: float
+    bias_coef: float
+    iterations: int
+    body: np.ndarray
+    persistence: int
+    stamps: np.ndarray
+    seen_wall: np.ndarray
+    seen_impulse: np.ndarray
+    seen_stamp: np.ndarray
+    rows: np.ndarray
+    offset: np.ndarray
+    grid_frame: np.ndarray
+    grid_starts: np.ndarray
+    grid_members: np.ndarray
+
+
+@nb.njit(cache=True)
+def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray) -> None:
+    """One control period of every body: the force drive, then the substeps' contacts."""
+    kernels.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
+    solve_discs(
+        bodies.state,
+        bodies.forces,
+        bodies.walls,
+        bodies.cell,
+        bodies.dt,
+        bodies.bias_coef,
+        bodies.iterations,
+        bodies.body,
+        bodies.persistence,
+        bodies.stamps,
+        bodies.seen_wall,
+        bodies.seen_impulse,
+        bodies.seen_stamp,
+        bodies.offset,
+        bodies.grid_frame,
+        bodies.grid_starts,
+        bodies.grid_members,
+    )
+
+
+@nb.njit(cache=True)
+def read_local_poses(state: np.ndarray, offset: np.ndarray, out: np.ndarray) -> None:
+    """Arena-local poses (N, 3) into out, from body states in the copy's frame."""
+    for i in range(state.shape[0]):
+        out[i, 0] = state[i, _X] - offset[0]
+        out[i, 1] = state[i, _Y] - offset[1]
+        out[i, 2] = state[i, _A]
 
 
 @nb.njit(cache=True)
@@ -132,6 +207,10 @@ def solve_discs(
     seen_wall: np.ndarray,
     seen_impulse: np.ndarray,
     seen_stamp: np.ndarray,
+    offset: np.ndarray,
+    grid_frame: np.ndarray,
+    grid_starts: np.ndarray,
+    grid_members: np.ndarray,
 ) -> None:
     """Step every robot through the substeps of ``forces``, chipmunk's cpSpaceStep for one disc.
 
@@ -154,6 +233,12 @@ def solve_discs(
         stamps: (N,) substeps since each robot was placed, updated.
         seen_wall, seen_impulse, seen_stamp: (N, M) the contacts each robot remembers: wall
             (−1 for none), accumulated normal impulse and the substep it was last touched.
+        offset: (2,) the copy frame's offset from the arena's.
+        grid_frame, grid_starts, grid_members: the walls' ``sim.sensors.WallGrid`` (arena-local):
+            a substep looks for contacts only among the walls listed for the body's cell, in
+            the same ascending order; they include every wall closer than a sensor's reach, and
+            a farther one holds no contact, so the contacts, their order and the bits are those
+            of testing every wall. A body off the grid tests every wall.
     """
     radius, m_inv, i_inv, slop = body[0], body[1], body[2], body[3]
     k_walls = walls.shape[0]
@@ -169,6 +254,7 @@ def solve_discs(
     c_jb = np.empty(k_walls)
     c_warm = np.empty(k_walls, dtype=np.bool_)
     c_key = np.empty((k_walls, 2))
+    every = np.arange(k_walls)
     for i in range(state.shape[0]):
         x, y, a = state[i, 0], state[i, 1], state[i, 2]
         vx, vy, w = state[i, 3], state[i, 4], state[i, 5]
@@ -185,7 +271,14 @@ def solve_discs(
             m = 0
             low_i = np.floor((x - radius) / cell)  # the robot's lowest hash cell
             low_j = np.floor((y - radius) / cell)
-            for k in range(k_walls):
+            col = np.floor((x - offset[0] - grid_frame[0]) / grid_frame[2])
+            row = np.floor((y - offset[1] - grid_frame[1]) / grid_frame[2])
+            if 0.0 <= col < grid_frame[3] and 0.0 <= row < grid_frame[4]:
+                near = int(row) * int(grid_frame[3]) + int(col)
+                listed = grid_members[grid_starts[near] : grid_starts[near + 1]]
+            else:
+                listed = every
+            for k in listed:
                 # chipmunk's broadphase: boxes that do not overlap hold no contact
                 if (
                     walls[k, 7] > x + radius

@@ -403,36 +403,57 @@ def observe(
         stuck: (N, 8) the value a ``stuck`` sensor keeps.
         out: (N, 8) result.
     """
-    noise = np.zeros(N_SENSORS)
-    uniform = np.zeros(N_SENSORS)
     for i in range(true.shape[0]):
-        key = keys[i]
-        if sigma > 0.0:
-            for b in range(N_SENSORS // 2):
-                u1, u2 = _halves(_hash(key, step, _BLOCK_NORMAL + b))
-                r = sigma * np.sqrt(-2.0 * np.log(u1))
-                noise[2 * b] = r * np.cos(_TWO_PI * u2)
-                noise[2 * b + 1] = r * np.sin(_TWO_PI * u2)
-        has_random = False
-        for j in range(N_SENSORS):
-            has_random |= mode[i, j] == 4
-        if has_random:
-            for b in range(N_SENSORS // 2):
-                uniform[2 * b], uniform[2 * b + 1] = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
-        for j in range(N_SENSORS):
-            x = true[i, j]
-            if sigma > 0.0:
-                x = min(IR_MAX, max(0.0, x + noise[j]))
-            f = mode[i, j]
-            if f == 1:  # dead
-                x = 0.0
-            elif f == 2:  # saturated
-                x = IR_MAX
-            elif f == 3:  # stuck
-                x = stuck[i, j]
-            elif f == 4:  # random
-                x = IR_MAX * uniform[j]
-            out[i, j] = x
+        for b in range(N_SENSORS // 2):
+            observe_pair(true, keys, step, sigma, mode, stuck, out, i, b)
+
+
+@nb.njit(cache=True, inline="always")
+def observe_pair(
+    true: np.ndarray,
+    keys: np.ndarray,
+    step: np.uint64,
+    sigma: float,
+    mode: np.ndarray,
+    stuck: np.ndarray,
+    out: np.ndarray,
+    i: int,
+    b: int,
+) -> None:
+    """``observe`` of robot i's sensors 2b and 2b + 1 alone (one Box–Muller pair, and one pair
+    of uniforms if either sensor reads at random): the same values, drawn only when needed."""
+    key = keys[i]
+    noise_0 = noise_1 = 0.0
+    if sigma > 0.0:
+        u1, u2 = _halves(_hash(key, step, _BLOCK_NORMAL + b))
+        r = sigma * np.sqrt(-2.0 * np.log(u1))
+        noise_0 = r * np.cos(_TWO_PI * u2)
+        noise_1 = r * np.sin(_TWO_PI * u2)
+    uniform_0 = uniform_1 = 0.0
+    if mode[i, 2 * b] == 4 or mode[i, 2 * b + 1] == 4:
+        uniform_0, uniform_1 = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
+    out[i, 2 * b] = _seen(
+        true[i, 2 * b], sigma, noise_0, mode[i, 2 * b], stuck[i, 2 * b], uniform_0
+    )
+    out[i, 2 * b + 1] = _seen(
+        true[i, 2 * b + 1], sigma, noise_1, mode[i, 2 * b + 1], stuck[i, 2 * b + 1], uniform_1
+    )
+
+
+@nb.njit(cache=True, inline="always")
+def _seen(x: float, sigma: float, noise: float, f: int, stuck: float, uniform: float) -> float:
+    """One sensor as the controller sees it: the true reading x, noise, then its fault."""
+    if sigma > 0.0:
+        x = min(IR_MAX, max(0.0, x + noise))
+    if f == 1:  # dead
+        x = 0.0
+    elif f == 2:  # saturated
+        x = IR_MAX
+    elif f == 3:  # stuck
+        x = stuck
+    elif f == 4:  # random
+        x = IR_MAX * uniform
+    return x
 
 
 def _drop_stale_cache() -> None:

@@ -15,7 +15,7 @@ TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall
 
 
 @nb.njit(cache=True)
-def _reward_kernel(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
+def reward_kernel(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
     span = 2.0 * MAX_COMMAND
     for i in range(readings.shape[0]):
         left = min(max(commands[i, 0], -MAX_COMMAND), MAX_COMMAND)
@@ -61,7 +61,7 @@ def reward_table(
         out = np.empty(shape)
     elif out.shape != shape or out.dtype != np.float64:
         raise ValueError(f"out must be a float64 array of shape {shape}, got {out.shape}")
-    _reward_kernel(readings, cmd, out)
+    reward_kernel(readings, cmd, out)
     return out
 
 

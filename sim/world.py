@@ -20,6 +20,7 @@ from sim.khepera import (
     MOMENT,
     N_SENSORS,
 )
+from sim.loop import WorldArrays
 
 FaultMode = Literal["dead", "saturated", "stuck", "random"]
 FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
@@ -61,6 +62,13 @@ walls converges in a few; measured, fewer iterations leave the penetration uncha
 
 _POSE_FIELDS = pb.BodyFields.POSITION | pb.BodyFields.ANGLE
 _DRIVE_FIELDS = pb.BodyFields.FORCE | pb.BodyFields.TORQUE
+
+
+def wrapped(poses: np.ndarray) -> np.ndarray:
+    """A copy of poses (..., 3) with headings in [-π, π) (the world keeps them unwrapped)."""
+    out = np.array(poses, dtype=np.float64)
+    out[..., 2] = np.mod(out[..., 2] + np.pi, 2 * np.pi) - np.pi
+    return out
 
 
 class WorldError(ValueError):
@@ -281,7 +289,9 @@ class World:
         self._wall_grid = arena.wall_grid
         # Analytic: every robot in the first copy's frame (copies round alike), no spaces.
         self._analytic = (
-            AnalyticBodies(arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell)
+            AnalyticBodies(
+                arena.walls, self.n, offsets[0], SOLVER_ITERATIONS, cell, arena.wall_grid
+            )
             if physics == "analytic"
             else None
         )
@@ -326,9 +336,7 @@ class World:
     @property
     def poses(self) -> np.ndarray:
         """(N, 3) arena-local poses: x mm, y mm, heading rad in [-π, π)."""
-        poses = self._poses.copy()
-        poses[:, 2] = np.mod(poses[:, 2] + np.pi, 2 * np.pi) - np.pi
-        return poses
+        return wrapped(self._poses)
 
     @property
     def seeds(self) -> np.ndarray:
@@ -508,6 +516,45 @@ class World:
         self._fresh = False
         self.t += 1
         self._fire_scheduled()
+
+    # --- a compiled loop's view (sim.loop) ---
+
+    def arrays(self) -> WorldArrays:
+        """The world's own arrays (views, not copies), its readings up to date, for a loop
+        compiled around ``sim.loop``'s functions; analytic physics only."""
+        if self._analytic is None:
+            raise WorldError("only an analytic world steps in compiled code (pymunk steps in C)")
+        self._update_readings()
+        grid = self._wall_grid
+        return WorldArrays(
+            self._poses,
+            self._readings,
+            self._observed,
+            self._commands,
+            self._spins,
+            self._fault_mode,
+            self._stuck,
+            self._keys,
+            self._noise_sigma,
+            grid.table,
+            grid.frame,
+            grid.starts,
+            grid.members,
+            self._analytic.arrays(self.control_period / self.substeps, self.substeps),
+        )
+
+    @property
+    def fault_steps(self) -> frozenset[int]:
+        """The clock values at which scheduled faults fire."""
+        return frozenset(f.step for f in self._schedule)
+
+    def stepped(self, steps: int) -> None:
+        """Account for ``steps`` steps a compiled loop took on ``arrays()``, its last one
+        sensed: the clock moves on; no scheduled fault may fire on the way."""
+        if any(self.t < s <= self.t + steps for s in self.fault_steps):
+            raise WorldError("a fault fires within the steps: step through it by World.step")
+        self.t += steps
+        self._fresh = True
 
     # --- faults ---
 

@@ -20,6 +20,7 @@ from app.config import ImplementationSettings, RunConfig, build_config
 from app.implementation import run_implementation
 from app.store import RunReader
 from app.training import train
+from sim import Physics
 
 
 def digest(arrays: dict[str, np.ndarray]) -> str:
@@ -32,7 +33,7 @@ def digest(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def run_config() -> RunConfig:
+def run_config(physics: Physics = "pymunk") -> RunConfig:
     """Small CS training with noise and episode redraws: every part of the loop runs."""
     return build_config(
         {},
@@ -44,6 +45,7 @@ def run_config() -> RunConfig:
                 "steps": 200,
                 "redraw_every": 100,
                 "noise_sigma": 50.0,
+                "physics": physics,
             },
         },
     )
@@ -61,10 +63,10 @@ IMPLEMENTATION = ImplementationSettings(
 """Random faults on two sensors drawn per trial, noise, and two worlds of trials."""
 
 
-def training_digests(workers: int = 1) -> dict[str, str]:
+def training_digests(workers: int = 1, physics: Physics = "pymunk") -> dict[str, str]:
     """Digests of the small run's history, best genomes and elite life."""
     with tempfile.TemporaryDirectory() as folder:
-        path = train(run_config(), Path(folder) / "run.h5", workers=workers)
+        path = train(run_config(physics), Path(folder) / "run.h5", workers=workers)
         with RunReader(path) as run:
             history = run.history()
             elite = run.elite()
@@ -88,10 +90,10 @@ def training_digests(workers: int = 1) -> dict[str, str]:
     return {"history": digest(table), "genomes": digest(genomes), "elite": digest(life)}
 
 
-def implementation_digests(workers: int = 1) -> dict[str, str]:
+def implementation_digests(workers: int = 1, physics: Physics = "pymunk") -> dict[str, str]:
     """Digests of an implementation phase of the small run's generation-0 best."""
     with tempfile.TemporaryDirectory() as folder:
-        config = run_config()
+        config = run_config(physics)
         path = train(
             build_config(config.model_dump(), {"training": {"generations": 1}}),
             Path(folder) / "run.h5",
@@ -107,6 +109,7 @@ def implementation_digests(workers: int = 1) -> dict[str, str]:
         name="fingerprint",
         generation=0,
         workers=workers,
+        physics=physics,
     )
     trials = result.trials
     return {

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from fingerprints import implementation_digests, training_digests
 
+import sim
 from app.implementation import run_implementation
 from app.store import RunReader
 
@@ -63,11 +64,21 @@ def test_demo_implementation_trials_replay_to_the_bit(name: str) -> None:
         assert np.array_equal(new.trace[key], values[:, :steps]), key
 
 
-def test_a_small_training_run_reproduces_the_committed_fingerprints() -> None:
-    digests = training_digests()
+# The analytic world's poses are pymunk's bit for bit, and GNP controllers in it run the compiled
+# loop (app.fused): the same digests pin that loop to the code before the speed work too.
+PHYSICS = ["pymunk", "analytic"]
+
+
+@pytest.mark.parametrize("physics", PHYSICS)
+def test_a_small_training_run_reproduces_the_committed_fingerprints(physics: sim.Physics) -> None:
+    digests = training_digests(physics=physics)
     assert digests == {k: FINGERPRINTS[k] for k in digests}
 
 
+@pytest.mark.parametrize("physics", PHYSICS)
 @pytest.mark.parametrize("workers", [1, 2])
-def test_a_small_implementation_reproduces_the_committed_fingerprint(workers: int) -> None:
-    assert implementation_digests(workers) == {"implementation": FINGERPRINTS["implementation"]}
+def test_a_small_implementation_reproduces_the_committed_fingerprint(
+    workers: int, physics: sim.Physics
+) -> None:
+    expected = {"implementation": FINGERPRINTS["implementation"]}
+    assert implementation_digests(workers, physics) == expected

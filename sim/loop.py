@@ -1,0 +1,147 @@
+"""The world's step as compiled functions on its own arrays: the world's half of a fused loop.
+
+`World.arrays` hands out the world's arrays (views, not copies) as a `WorldArrays`; `sense`,
+`observe` and `step` here do what `World.sense`, `World.observe` and `World.step` do, by the
+same kernels in the same order, so a loop compiled around them (`app.fused`) gives the world's
+bits. The analytic physics only (pymunk steps in C, outside numba), and no fault fires inside:
+the caller steps the world by `World.step` where one does (see `World.fault_steps`), and tells
+the world how many steps it took (`World.stepped`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+from sim import analytic, kernels, reward
+
+
+class WorldArrays(NamedTuple):
+    """A world's arrays and settings, one argument for compiled callers (see `World.arrays`)."""
+
+    poses: np.ndarray  # (N, 3) arena-local, heading unwrapped
+    readings: np.ndarray  # (N, 8) true readings at the poses
+    observed: np.ndarray  # (N, 8) what the controllers see (noise, then faults)
+    commands: np.ndarray  # (N, 2) clipped wheel commands of the last step
+    spins: np.ndarray  # (N,) angular velocity carried into the next step
+    fault_modes: np.ndarray  # (N, 8) int8
+    stuck: np.ndarray  # (N, 8)
+    keys: np.ndarray  # (N,) uint64 stream keys
+    noise_sigma: float
+    wall_table: np.ndarray
+    grid_frame: np.ndarray
+    grid_starts: np.ndarray
+    grid_members: np.ndarray
+    bodies: analytic.BodyArrays
+
+
+@nb.njit(cache=True)
+def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
+    """Robots lo..hi − 1 of a world, as a world of their own (views): robots never share
+    data, so stepping the parts one after the other steps the whole world."""
+    b = world.bodies
+    bodies = analytic.BodyArrays(
+        b.state[lo:hi],
+        b.forces[:, lo:hi],
+        b.walls,
+        b.cell,
+        b.dt,
+        b.bias_coef,
+        b.iterations,
+        b.body,
+        b.persistence,
+        b.stamps[lo:hi],
+        b.seen_wall[lo:hi],
+        b.seen_impulse[lo:hi],
+        b.seen_stamp[lo:hi],
+        b.rows[: hi - lo],  # the part's own rows of its forces
+        b.offset,
+        b.grid_frame,
+        b.grid_starts,
+        b.grid_members,
+    )
+    return WorldArrays(
+        world.poses[lo:hi],
+        world.readings[lo:hi],
+        world.observed[lo:hi],
+        world.commands[lo:hi],
+        world.spins[lo:hi],
+        world.fault_modes[lo:hi],
+        world.stuck[lo:hi],
+        world.keys[lo:hi],
+        world.noise_sigma,
+        world.wall_table,
+        world.grid_frame,
+        world.grid_starts,
+        world.grid_members,
+        bodies,
+    )
+
+
+@nb.njit(cache=True)
+def sense(world: WorldArrays) -> None:
+    """The true readings at the world's poses (`World.sense`), into `world.readings`."""
+    kernels.ir_readings_grid(
+        world.poses,
+        world.wall_table,
+        world.grid_frame,
+        world.grid_starts,
+        world.grid_members,
+        world.readings,
+    )
+
+
+@nb.njit(cache=True)
+def observe(world: WorldArrays, t: int) -> None:
+    """What the controllers see at world step `t` (`World.observe`), into `world.observed`."""
+    kernels.observe(
+        world.readings,
+        world.keys,
+        np.uint64(t),
+        world.noise_sigma,
+        world.fault_modes,
+        world.stuck,
+        world.observed,
+    )
+
+
+@nb.njit(cache=True, inline="always")
+def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
+    """What robot i sees of sensor j at the step `source` = (world, t, drawn) names, drawn
+    the first time a sensor of its pair is read in the step (`drawn`: (N, 4) bool, cleared each
+    step): the value `observe` gives, computed only for the sensors a controller reads (a
+    thesis-ch3 controller reads 1.1 of the 4 pairs a step)."""
+    world, t, drawn = source
+    i, b = int(i), int(j) >> 1
+    if not drawn[i, b]:
+        kernels.observe_pair(
+            world.readings,
+            world.keys,
+            np.uint64(t),
+            world.noise_sigma,
+            world.fault_modes,
+            world.stuck,
+            observed,
+            i,
+            b,
+        )
+        drawn[i, b] = True
+    return observed[i, j]
+
+
+@nb.njit(cache=True)
+def step(world: WorldArrays, commands: np.ndarray) -> None:
+    """One control period at wheel `commands` (`World.step` without its clock and faults)."""
+    if not kernels.clip_commands(commands, world.commands):
+        raise ValueError("commands contain NaN")
+    analytic.move(world.bodies, world.poses[:, 2], world.spins, world.commands)
+    analytic.read_local_poses(world.bodies.state, world.bodies.offset, world.poses)
+    kernels.wheel_spins(world.commands, world.spins)
+
+
+@nb.njit(cache=True)
+def judge(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
+    """Eq. 2.7's terms (`sim.reward_table` without its checks) into out (N, 4)."""
+    reward.reward_kernel(readings, commands, out)
