@@ -98,15 +98,17 @@ def test_sigterm_ends_an_implementation_on_one_line_with_its_workers(
 
 @pytest.mark.slow
 def test_a_killed_experiment_leaves_no_dask_process(tmp_path: Path) -> None:
-    """The LocalCluster's nannies watch their parent (distributed's own parent-alive pipe),
-    and each nanny its worker: nothing of it outlives the killed client."""
+    """The LocalCluster's processes watch their parent (distributed's own parent-alive pipe):
+    nothing of the cluster outlives the killed client."""
+    runs = tmp_path / "runs"
     process = gnp_lab("experiment", "run", "--file", write_tiny(tmp_path), "--scale", "smoke",
-                      "--runs-dir", tmp_path / "runs", "--workers", "2", "--quiet")  # fmt: skip
-    # two nannies, each with its worker
-    _wait_for(lambda: process.poll() is not None or children_of(process) >= 4, timeout=90)
+                      "--runs-dir", runs, "--workers", "2", "--quiet")  # fmt: skip
+    # Once a task writes its run: the cluster is up. (Killed while its processes still import
+    # distributed, they end only when the import is done, seconds later: see docs/decisions.)
+    _wait_for(lambda: process.poll() is not None or any(runs.rglob("*.h5")))
     assert process.poll() is None, finish(process)
     assert kill_alone(process) == []
     status, err = finish(gnp_lab("experiment", "run", "--file", tmp_path / "tiny.toml",
-                                 "--scale", "smoke", "--runs-dir", tmp_path / "runs",
+                                 "--scale", "smoke", "--runs-dir", runs,
                                  "--workers", "1", "--quiet"))  # fmt: skip
     assert status == 0, err
