@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import socket
 import sys
 import tomllib
@@ -45,6 +46,7 @@ from app.fields import nested
 from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
+from app.workers import handling, raise_interrupt
 
 if TYPE_CHECKING:
     from app.training import GenerationSummary
@@ -478,7 +480,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "export": cmd_export,
     }
     try:
-        status = handlers[args.command](args)
+        # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
+        # its temporary files removed, and it says so on one line.
+        with handling(signal.SIGTERM, raise_interrupt):
+            status = handlers[args.command](args)
         sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
         return status
     except KeyboardInterrupt:

@@ -8,7 +8,11 @@ workers' signal handling and the shutdown are decided once:
   can hold a lock across the fork, and a child is spared a fresh interpreter's imports), else
   `spawn`.
 - Signals: Ctrl-C and SIGTERM reach the whole process group; workers ignore them, the parent
-  decides and stops its workers itself. A worker whose parent died sees its pipe close and exits.
+  decides and stops its workers itself.
+- A parent's death: a worker ends within `PARENT_WATCH` seconds of it, however its parent
+  died (SIGKILL included) and whatever it was doing: a thread of its own watches its parent
+  id. A forked worker also closes every pipe end it inherited but its own, so a worker waiting
+  on its pipe sees it close at once.
 - Shutdown: `close` asks each worker to end, waits a little (not at all when interrupted
   mid-job, or for a worker never given a job: their results are not wanted) and kills what
   is left.
@@ -68,6 +72,12 @@ def handling(sig: int, handler: Any) -> Iterator[None]:
         signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
 
 
+def raise_interrupt(signum: int, frame: object) -> None:
+    """A signal handler: SIGTERM (or any) ends the main thread's work as Ctrl-C does, so every
+    `with` and `finally` under way (a pool's close, a temporary file's removal) runs."""
+    raise KeyboardInterrupt
+
+
 def _sendable(error: BaseException) -> BaseException:
     """`error` if it pickles, else a RuntimeError carrying its traceback."""
     try:
@@ -77,10 +87,44 @@ def _sendable(error: BaseException) -> BaseException:
     return error
 
 
-def _serve(conn: Connection, setup: Callable[..., Handler], args: tuple[Any, ...]) -> None:
-    """A worker's loop: build the state, then answer each job `conn` brings until None."""
+PARENT_WATCH = 0.2
+"""Seconds between a worker's looks at whether its parent still lives."""
+
+
+def watch_parent(parent: int) -> None:
+    """End this process (at once, as SIGKILL would) when process `parent` is no longer its
+    parent: it died and this one was handed to another. Looked at from a daemon thread every
+    `PARENT_WATCH` seconds, so it works whatever the main thread is doing, on any OS.
+
+    Not PR_SET_PDEATHSIG: that fires when the *thread* that started the child ends, and the
+    dashboard starts workers from threads that end before their workers do.
+    """
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_WATCH)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
+def _serve(
+    conn: Connection,
+    setup: Callable[..., Handler],
+    args: tuple[Any, ...],
+    parent: int,
+    inherited: Sequence[Connection] = (),
+) -> None:
+    """A worker's loop: build the state, then answer each job `conn` brings until None.
+
+    `parent` is the pool's process id; `inherited`, the pool's ends of the pipes (a forked
+    child has them all, its own pipe's included), closed here.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for end in inherited:
+        end.close()
+    watch_parent(parent)
     try:
         handle = setup(*args)
 
@@ -118,13 +162,21 @@ class WorkerPool:
         method: str | None = None,
     ) -> None:
         context: Any = multiprocessing.get_context(method or start_method())
+        forked = context.get_start_method() == "fork"
         self._conns: list[Connection] = []
         self._procs: list[Any] = []
         self.pending: dict[int, int] = {}  # worker → jobs given and not yet answered
         try:
             for _ in range(workers):
                 parent, child = context.Pipe()
-                proc = context.Process(target=_serve, args=(child, setup, args), daemon=True)
+                # A forked child inherits this process's ends of every pipe so far (its own
+                # too): it closes them, else no worker would see its pipe close.
+                inherited = [*self._conns, parent] if forked else []
+                proc = context.Process(
+                    target=_serve,
+                    args=(child, setup, args, os.getpid(), inherited),
+                    daemon=True,
+                )
                 proc.start()
                 child.close()
                 self._conns.append(parent)

@@ -38,6 +38,7 @@ from app.live import LiveSession
 from app.views.arena_view import ArenaView
 from app.views.graph_view import GraphView
 from app.views.scene import aim_camera, scene_frame
+from app.workers import raise_interrupt
 
 TAB_NAMES = ("Show", "Train", "Faults", "Runs", "Compare", "Experiments")
 PANEL_WIDTH = 370
@@ -213,10 +214,6 @@ class Dashboard:
             self.experiments.close()
 
 
-def _raise_interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def serve(host: str, port: int, runs_dir: Path, run: str | None) -> None:
     """Serve the dashboard until interrupted (Ctrl-C); blocking.
 
@@ -229,7 +226,7 @@ def serve(host: str, port: int, runs_dir: Path, run: str | None) -> None:
     server = viser.ViserServer(host=host, port=port, verbose=False)
     dashboard = Dashboard(server, Path(runs_dir), run)
     # SIGTERM ends the server like Ctrl-C, so a training run it started is stopped, not orphaned.
-    signal.signal(signal.SIGTERM, _raise_interrupt)
+    signal.signal(signal.SIGTERM, raise_interrupt)
     bound = server.get_port()  # viser moves on to the next free port if `port` is taken
     if bound != port:
         print(f"port {port} is in use; serving on {bound} instead", flush=True)

@@ -1,13 +1,20 @@
-"""Helpers of the lab's tests: tiny configs, file digests, dataset comparison, CLI errors."""
+"""Helpers of the lab's tests: tiny configs, file digests, dataset comparison, CLI errors,
+gnp-lab processes (started, killed, their children's fate)."""
 
 from __future__ import annotations
 
 import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
+import psutil
 import pytest
 
 from app.config import RunConfig, build_config
@@ -69,3 +76,69 @@ def one_error_line(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
     for needle in needles:
         assert needle in lines[0], err
     return lines[0]
+
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def gnp_lab(*args: str | Path) -> subprocess.Popen[bytes]:
+    """`gnp-lab ARGS` in a process of its own, in its own process group."""
+    return python("-m", "app.cli", *args)
+
+
+def python(*args: str | Path) -> subprocess.Popen[bytes]:
+    """`python ARGS` (this interpreter, the repository importable) in its own process group:
+    a test's cleanup can kill the group, though a test's kill hits the process alone."""
+    return subprocess.Popen(
+        [sys.executable, *map(str, args)],
+        cwd=ROOT,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+
+
+def finish(process: subprocess.Popen[bytes], timeout: float = 240) -> tuple[int, str]:
+    """`process`'s exit status and standard error, once it ends (killed after `timeout` s)."""
+    try:
+        _, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        _, err = process.communicate()
+        raise AssertionError(f"timed out: {err.decode()[-3000:]}") from None
+    return process.returncode, err.decode()
+
+
+def _lives(process: psutil.Process) -> bool:
+    """Running, and not a zombie (an orphan its new parent has not reaped yet is gone)."""
+    try:
+        return process.is_running() and process.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+def kill_alone(process: subprocess.Popen[bytes], within: float = 3.0) -> list[int]:
+    """SIGKILL `process` alone, as `kill -9 PID` does (not its process group); the ids of
+    its descendants of that moment still alive `within` seconds later (killed then)."""
+    children = psutil.Process(process.pid).children(recursive=True)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()  # not communicate(): a surviving child would hold its pipes open
+    deadline = time.monotonic() + within
+    while any(map(_lives, children)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    alive = [child for child in children if _lives(child)]
+    for child in alive:
+        child.kill()
+    for pipe in (process.stdout, process.stderr):
+        if pipe is not None:
+            pipe.close()
+    return [child.pid for child in alive]
+
+
+def children_of(process: subprocess.Popen[bytes]) -> int:
+    """How many descendants `process` has now."""
+    try:
+        return len(psutil.Process(process.pid).children(recursive=True))
+    except psutil.NoSuchProcess:
+        return 0

@@ -8,7 +8,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from experiment_fixtures import write_tiny
-from lab_fixtures import assert_same_data, file_digest, tiny_config
+from lab_fixtures import assert_same_data, file_digest, finish, gnp_lab, tiny_config
 
 from app.cli import main
 from app.config import to_toml
@@ -26,30 +25,8 @@ from app.implementation import implement
 from app.store import RunReader
 from app.training import train
 
-ROOT = Path(__file__).resolve().parents[2]
 MOMENTS = 10
 RNG_SEED = 21  # the kill moments are drawn from this seed: the same moments on every run
-
-
-def _gnp_lab(*args: str | Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "app.cli", *map(str, args)],
-        cwd=ROOT,
-        env=dict(os.environ, PYTHONPATH=str(ROOT)),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        start_new_session=True,  # its own process group: its workers and cluster die with it
-    )
-
-
-def _finish(process: subprocess.Popen[bytes], timeout: float = 240) -> tuple[int, str]:
-    try:
-        _, err = process.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGKILL)
-        _, err = process.communicate()
-        raise AssertionError(f"timed out: {err.decode()[-3000:]}") from None
-    return process.returncode, err.decode()
 
 
 def _kill_after(process: subprocess.Popen[bytes], seconds: float) -> bool:
@@ -131,13 +108,13 @@ def test_train_killed_at_ten_moments_resumes_to_identical_data(
             if not has_checkpoint:  # killed between creating the file and its first data
                 out.unlink()
         if out.exists():
-            process = _gnp_lab("train", "--resume", out, "--quiet", "--workers", "1")
+            process = gnp_lab("train", "--resume", out, "--quiet", "--workers", "1")
         else:
-            process = _gnp_lab("train", "--config", config_file, "--out", out, "--quiet")
+            process = gnp_lab("train", "--config", config_file, "--out", out, "--quiet")
         while process.poll() is None and _generations_done(out) < target:
             time.sleep(0.005)
         assert _kill_after(process, float(delay)), "the run ended before its kill"
-    status, err = _finish(_gnp_lab("train", "--resume", out, "--quiet", "--workers", "1"))
+    status, err = finish(gnp_lab("train", "--resume", out, "--quiet", "--workers", "1"))
     assert status == 0, err
     assert_same_data(out, reference.with_name("trained.h5"))
     assert _leftovers(tmp_path) == []
@@ -159,21 +136,21 @@ def test_implement_killed_at_ten_moments_leaves_the_run_intact(
     timing.mkdir()
     shutil.copy(out, timing / "run.h5")
     began = time.monotonic()
-    status, err = _finish(_gnp_lab(*implement_args[:3], timing, *implement_args[4:]))
+    status, err = finish(gnp_lab(*implement_args[:3], timing, *implement_args[4:]))
     took = time.monotonic() - began  # of a whole `implement`, start-up included
     assert status == 0, err
     pristine = timing / "pristine.h5"
     shutil.copy(out, pristine)
     kills = replaced = 0
     for moment in _moments(0.05 * took, 0.9 * took):
-        kills += _kill_after(_gnp_lab(*implement_args), moment)
+        kills += _kill_after(gnp_lab(*implement_args), moment)
         # Untouched, or (killed after its rename, or finished first) holding the whole result.
         if file_digest(out) != before:
             assert_same_data(out, reference)
             shutil.copy(pristine, out)  # back to the trained run for the next moment
             replaced += 1
     assert kills >= MOMENTS - 2 and replaced < MOMENTS // 2, (kills, replaced)
-    status, err = _finish(_gnp_lab(*implement_args))
+    status, err = finish(gnp_lab(*implement_args))
     assert status == 0, err
     assert_same_data(out, reference)
     assert _leftovers(tmp_path) == []
@@ -186,17 +163,17 @@ def test_experiment_killed_at_ten_moments_resumes_to_identical_data(tmp_path: Pa
     reference, runs = tmp_path / "reference", tmp_path / "runs"
     run = ("experiment", "run", "--file", spec_file, "--scale", "smoke", "--quiet")
     began = time.monotonic()
-    status, err = _finish(_gnp_lab(*run, "--runs-dir", reference, "--workers", "1"), 90)
+    status, err = finish(gnp_lab(*run, "--runs-dir", reference, "--workers", "1"), 90)
     took = time.monotonic() - began  # of a whole run, start-up included
     assert status == 0, err
     kills = sum(
-        _kill_after(_gnp_lab(*run, "--runs-dir", runs, "--workers", "2"), moment)
+        _kill_after(gnp_lab(*run, "--runs-dir", runs, "--workers", "2"), moment)
         for moment in sorted(_moments(0.05 * took, 0.9 * took))
     )
     # Each resume has less left to do than the one before, so the later moments may come after
     # its end (how many depends on the machine's speed); the early ones always cut a run.
     assert kills >= 3, kills
-    status, err = _finish(_gnp_lab(*run, "--runs-dir", runs, "--workers", "2"))
+    status, err = finish(gnp_lab(*run, "--runs-dir", runs, "--workers", "2"))
     assert status == 0, err
     for ours, theirs in zip(plan(spec, "smoke", runs), plan(spec, "smoke", reference), strict=True):
         assert_same_data(Path(ours.path), Path(theirs.path))
@@ -209,8 +186,8 @@ def test_a_second_experiment_run_is_refused_while_one_runs(tmp_path: Path) -> No
 
     spec_file = write_tiny(tmp_path)
     with experiment_lock(experiment_dir(tmp_path / "runs", "tiny")):
-        status, err = _finish(
-            _gnp_lab("experiment", "run", "--file", spec_file, "--scale", "smoke",
+        status, err = finish(
+            gnp_lab("experiment", "run", "--file", spec_file, "--scale", "smoke",
                      "--runs-dir", tmp_path / "runs")
         )  # fmt: skip
     assert status == 1
@@ -290,7 +267,7 @@ def test_training_on_a_full_disk_stops_on_one_line_and_resumes_identically(
     train(config, reference, workers=1)
     out = small_disk / "run.h5"
     (small_disk / "ballast").write_bytes(bytes(512 * 1024))  # leaves ~0.5 MiB
-    status, err = _finish(_gnp_lab("train", "--config", config_file, "--out", out, "--quiet"))
+    status, err = finish(gnp_lab("train", "--config", config_file, "--out", out, "--quiet"))
     assert status == 1
     _one_error_line(err, "no space left on the disk", "--resume")
     with RunReader(out) as run:
@@ -298,8 +275,8 @@ def test_training_on_a_full_disk_stops_on_one_line_and_resumes_identically(
         assert 0 < done < config.training.generations and run.checkpoint() is not None
     moved = tmp_path / "moved.h5"
     shutil.copy(out, moved)
-    train_resume = _gnp_lab("train", "--resume", moved, "--quiet")
-    assert _finish(train_resume)[0] == 0
+    train_resume = gnp_lab("train", "--resume", moved, "--quiet")
+    assert finish(train_resume)[0] == 0
     assert_same_data(moved, reference)
     assert _leftovers(small_disk) == []
 
@@ -312,8 +289,8 @@ def test_implementing_on_a_full_disk_leaves_the_run_intact(
     free = shutil.disk_usage(small_disk).free
     (small_disk / "ballast").write_bytes(bytes(max(0, free - 80 * 1024)))
     before = file_digest(out)
-    status, err = _finish(
-        _gnp_lab("implement", "run", "--runs-dir", small_disk, "--quiet", "--workers", "1")
+    status, err = finish(
+        gnp_lab("implement", "run", "--runs-dir", small_disk, "--quiet", "--workers", "1")
     )
     assert status == 1
     _one_error_line(err, "no space left on the disk", "implementation")

@@ -1,0 +1,87 @@
+"""The dashboard's jobs when its process is killed: the workers of a training job (started from
+the job's thread) and of an implementation job (started from a thread that has ended since, as
+a page's callback thread may) end within 3 s of a `kill -9` of the dashboard, and the run
+resumes."""
+
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+from lab_fixtures import children_of, finish, gnp_lab, kill_alone, python, tiny_config
+
+from app.store import RunReader
+
+TRAINING_JOB = """
+import sys, time
+from pathlib import Path
+from app.config import RunConfig
+from app.dashboard.training_job import TrainingJob
+
+config = RunConfig.model_validate_json(Path(sys.argv[1]).read_text())
+job = TrainingJob(config, Path(sys.argv[2]), workers=2)
+while job.active:
+    time.sleep(0.1)
+"""
+
+IMPLEMENTATION_JOB = """
+import sys, threading, time
+from pathlib import Path
+from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
+
+request = ImplementationRequest(run=Path(sys.argv[1]), sensors=(2, 3), mode="dead",
+                                fault_step=500, steps=3000, repeats=20, schedule="fixed")
+jobs = []
+starter = threading.Thread(target=lambda: jobs.append(ImplementationJob(request)))
+starter.start()
+starter.join()  # the thread that started the worker has ended
+while jobs[0].active:
+    time.sleep(0.1)
+"""
+
+
+def _wait_for(condition: object, timeout: float = 180) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():  # type: ignore[operator]
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def _generations_done(path: Path) -> int:
+    try:
+        with RunReader(path) as run:
+            return run.generations_done
+    except Exception:  # not there yet
+        return -1
+
+
+@pytest.mark.slow
+def test_a_killed_dashboards_training_job_leaves_no_worker_and_resumes(tmp_path: Path) -> None:
+    config = tmp_path / "config.json"
+    config.write_text(tiny_config(population=16, steps=1000, generations=12, shard_size=8)
+                      .model_dump_json())  # fmt: skip
+    out = tmp_path / "run.h5"
+    process = python("-c", TRAINING_JOB, config, out)
+    _wait_for(lambda: process.poll() is not None or _generations_done(out) >= 1)
+    assert process.poll() is None, finish(process)
+    assert children_of(process) >= 2
+    assert kill_alone(process) == []
+    status, err = finish(gnp_lab("train", "--resume", out, "--workers", "1", "--quiet"))
+    assert status == 0, err
+    with RunReader(out) as run:
+        assert run.finished
+
+
+@pytest.mark.slow
+def test_a_killed_dashboards_implementation_job_leaves_no_worker(
+    tmp_path: Path, runs_dir: Path
+) -> None:
+    run = tmp_path / "run.h5"
+    shutil.copy(runs_dir / "bs.h5", run)
+    process = python("-c", IMPLEMENTATION_JOB, run)
+    _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
+    time.sleep(1.0)  # the starting thread has ended, the worker is at its trials
+    assert process.poll() is None, finish(process)
+    assert kill_alone(process) == []
