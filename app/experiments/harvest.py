@@ -5,7 +5,7 @@ missing), as the `ExperimentResults` the summary, the report and the dashboard r
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -14,8 +14,11 @@ from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResu
 from app.experiments.spec import ExperimentSpec
 from app.store import RunReader
 
-if TYPE_CHECKING:
-    from app.experiments.ledger import Ledger
+
+class Ledger(Protocol):
+    """What `collect` needs of `app.experiments.ledger.Ledger` (which builds on `collect`)."""
+
+    def fill(self, results: ExperimentResults) -> ExperimentResults: ...
 
 
 def convergence_generation(best_fitness: np.ndarray) -> float:
@@ -117,6 +120,4 @@ def collect(
         scalars=scalars,
         curves=curves,
     )
-    from app.experiments.ledger import fill
-
-    return fill(results, ledger)
+    return results if ledger is None else ledger.fill(results)

@@ -57,6 +57,20 @@ class Ledger:
         """The tasks the ledger does not hold."""
         return [t for t in tasks if t.name not in self.runs]
 
+    def fill(self, results: ExperimentResults) -> ExperimentResults:
+        """`results` with the ledger's values where a ledger run has no run file's (NaN)."""
+        rows = {seed: i for i, seed in enumerate(self.values.seeds)}
+        scalars = {k: v.copy() for k, v in results.scalars.items()}
+        for (metric, arm, condition), values in scalars.items():
+            theirs = self.values.scalars.get((metric, arm, condition))
+            if theirs is None:
+                continue
+            for i, seed in enumerate(results.seeds):
+                held = f"{arm}-seed{seed}" in self.runs and seed in rows
+                if held and math.isnan(values[i]):
+                    values[i] = theirs[rows[seed]]
+        return dataclasses.replace(results, scalars=scalars)
+
 
 def default_folder(spec: ExperimentSpec, scale: str) -> Path | None:
     """This checkout's committed report folder of the experiment, if it has a ledger."""
@@ -132,20 +146,3 @@ def load(spec: ExperimentSpec, scale: str, folder: str | Path) -> Ledger:
         template = harvest.collect(spec, scale, empty, count)
     values = read_values_csv(folder / "values.csv", spec, template)
     return Ledger(folder, frozenset(runs), values)
-
-
-def fill(results: ExperimentResults, ledger: Ledger | None) -> ExperimentResults:
-    """`results` with the ledger's values where a ledger run has no run file's (NaN)."""
-    if ledger is None:
-        return results
-    rows = {seed: i for i, seed in enumerate(ledger.values.seeds)}
-    scalars = {k: v.copy() for k, v in results.scalars.items()}
-    for (metric, arm, condition), values in scalars.items():
-        theirs = ledger.values.scalars.get((metric, arm, condition))
-        if theirs is None:
-            continue
-        for i, seed in enumerate(results.seeds):
-            held = f"{arm}-seed{seed}" in ledger.runs and seed in rows
-            if held and math.isnan(values[i]):
-                values[i] = theirs[rows[seed]]
-    return dataclasses.replace(results, scalars=scalars)
