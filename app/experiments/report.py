@@ -517,11 +517,6 @@ def interval_text(claim: ClaimStats) -> str:
     return f"[{format_number(iv.low)}, {format_number(iv.high)}]"
 
 
-def verdict_label(claim: ClaimStats) -> str:
-    """The verdict as the page shows it: post hoc ones say so."""
-    return f"{claim.verdict} (post hoc)" if claim.post_hoc else claim.verdict
-
-
 def provenance_text(claim: ClaimStats) -> str:
     """When the claim and its margin were declared, against its data, in words."""
     d = claim.provenance
