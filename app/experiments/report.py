@@ -8,6 +8,7 @@ figures and files are `app.experiments.report_page.write_report`'s.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -265,6 +266,7 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
         values.append((results.scalars.get(key_a, missing), results.scalars.get(key_b, missing)))
     design, made = looks_made(results)
     margins: list[list[Margin]] = [[] for _ in results.comparisons]
+    declared_margins: list[list[float | None]] = [[] for _ in results.comparisons]
     looks = []
     for n in made:
         claims = []
@@ -275,6 +277,7 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
             thesis_a, thesis_b = _thesis_value(results, key_a), _thesis_value(results, key_b)
             margin = margin_of(c, METRICS[c.metric], thesis_a, thesis_b, mean_b)
             margins[i].append(margin)
+            declared_margins[i].append(c.margin_for(mean_b))
             claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin.value))
         looks.append(claims)
     judged = _judge_families(results.comparisons, looks, design, alpha)
@@ -294,13 +297,11 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
         undecided = j.verdict == "undecided"
         need = _need(c, j, margin.value, results.steps_per_run) if undecided else None
         origin = declared(results.name, results.scale, c.name)
-        b_look = values[i][1][: made[j.look]]
-        mean_b = float(np.nanmean(b_look)) if np.isfinite(b_look).any() else math.nan
-        late = post_hoc(c, j, origin, c.margin_for(mean_b))
+        late = post_hoc(c, j, origin, declared_margins[i][j.look])
         other = None
         if not c.within_arm and j.verdict != "exploratory":
-            a_look = values[i][0][: made[j.look]]
-            data = ClaimData(a_look, b_look, c.direction, not c.paired, margin.value)
+            # The deciding look's data, analysed the other way at the same level.
+            data = dataclasses.replace(looks[j.look][i], paired=not c.paired)
             iv = interval(data, j.level)
             other = (iv, decide(iv, c.direction, margin.value))
         claims_out.append(
