@@ -162,12 +162,14 @@ class WallFollowVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         observed, table = judge(self.world, commands, self.c_from)
         self._steps += 1
         self._autoreset = self._steps >= self.max_episode_steps
+        terms = table.T.copy()  # one contiguous row per term, fresh every step
+        every = np.ones(n, dtype=bool)  # Gymnasium's mask of the robots an info key holds
         info: dict[str, Any] = {}
-        for column, name in enumerate(TERM_NAMES):
-            info[name] = np.ascontiguousarray(table[:, column])
-            info[f"_{name}"] = np.ones(n, dtype=bool)
+        for name, column in zip(TERM_NAMES, terms, strict=True):
+            info[name] = column
+            info[f"_{name}"] = every
         truncated = np.full(n, self._autoreset)
-        return observed, info["reward"].copy(), np.zeros(n, bool), truncated, info
+        return observed, terms[0].copy(), np.zeros(n, bool), truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """A top-down frame of each robot (``render_mode="rgb_array"``), else None."""
