@@ -329,3 +329,23 @@ def test_rgb_array_frames_show_the_walls_and_the_robot() -> None:
     frames = envs.render()
     assert frames is not None and len(frames) == 2 and frames[0].shape == frame.shape
     assert WallFollowEnv().render() is None
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**32), noise=st.sampled_from([0.0, 50.0]), hold=st.integers(1, 12))
+def test_every_step_is_in_the_spaces_and_the_reward_is_its_terms(
+    seed: int, noise: float, hold: int
+) -> None:
+    envs = WallFollowVectorEnv(6, noise=noise, max_episode_steps=40)
+    obs, _ = envs.reset(seed=seed)
+    envs.action_space.seed(seed)
+    for t in range(40):
+        if t % hold == 0:
+            actions = envs.action_space.sample()
+        obs, reward, terminated, truncated, info = envs.step(actions)
+        assert obs in envs.observation_space
+        assert np.all(np.abs(reward) <= 1) and not terminated.any()
+        assert np.array_equal(
+            reward, info["reward/speed"] * info["reward/straightness"] * info["reward/near_wall"]
+        )
+        assert truncated.all() == (t == 39)
