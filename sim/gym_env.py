@@ -32,7 +32,7 @@ pose and the robot's noise stream, so the same seed and actions give the same ep
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, SupportsFloat, cast
 
@@ -132,6 +132,8 @@ def parse_faults(spec: object, where: str, robots_allowed: bool) -> list[Fault]:
         if "sensors" not in item:
             raise WorldError(f"{where}: a fault needs 'sensors' (indices in 0..{N_SENSORS - 1})")
         sensors = item["sensors"]
+        if isinstance(sensors, str | bytes) or not isinstance(sensors, int | np.integer | Iterable):
+            raise WorldError(f"{where}: 'sensors' must be indices in 0..7, got {sensors!r}")
         sensors = [sensors] if isinstance(sensors, int | np.integer) else list(sensors)
         robots = item.get("robots")
         robots = None if robots is None else tuple(np.atleast_1d(robots).tolist())
@@ -142,17 +144,15 @@ def parse_faults(spec: object, where: str, robots_allowed: bool) -> list[Fault]:
     return faults
 
 
-def check_options(options: Mapping[str, Any] | None, extra: tuple[str, ...] = ()) -> dict:
+def check_options(options: Mapping[str, Any] | None) -> dict:
     """The reset options as a dict, an unknown key refused."""
     if options is None:
         return {}
     if not isinstance(options, Mapping):
         raise WorldError(f"reset options must be a dict, got {options!r}")
-    unknown = sorted(str(k) for k in set(options) - set(OPTION_KEYS + extra))
+    unknown = sorted(str(k) for k in set(options) - set(OPTION_KEYS))
     if unknown:
-        raise WorldError(
-            f"unknown reset option {unknown[0]!r}: expected {', '.join(OPTION_KEYS + extra)}"
-        )
+        raise WorldError(f"unknown reset option {unknown[0]!r}: expected {', '.join(OPTION_KEYS)}")
     return dict(options)
 
 

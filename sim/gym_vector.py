@@ -120,7 +120,6 @@ class WallFollowVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         return self._start(check_options(options)), {}
 
     def _start(self, options: dict[str, Any]) -> np.ndarray:
-        n = self.num_envs
         faults = parse_faults(options["fault"], "fault", True) if "fault" in options else None
         starts = self._starts(options.get("start"))
         drawn = np.array([draw_episode(rng) for rng in self._rngs], dtype=np.int64)
@@ -131,7 +130,6 @@ class WallFollowVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         world.schedule_faults(self.faults if faults is None else faults)
         self._steps = 0
         self._autoreset = False
-        assert world.n == n
         return world.observe()
 
     def _starts(self, option: object) -> np.ndarray:

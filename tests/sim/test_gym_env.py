@@ -259,6 +259,7 @@ def test_a_vector_fault_may_name_robots() -> None:
             "sensor index 8 is not in 0..7",
         ),
         (lambda: WallFollowEnv(fault={"sensor": [1]}), sim.WorldError, "unknown key 'sensor'"),
+        (lambda: WallFollowEnv(fault={"sensors": 1.5}), sim.WorldError, "'sensors' must be"),
         (
             lambda: WallFollowEnv(fault={"sensors": [1], "robots": [0]}),
             sim.WorldError,
