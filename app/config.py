@@ -34,6 +34,7 @@ from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, Physics
 from sim.arena import ArenaSpec
+from sim.reward import CFrom
 
 ScheduleKind = Literal["fixed", "changing"]
 
@@ -317,10 +318,6 @@ def _schedules(settings: TrainingSettings | ImplementationSettings) -> tuple[Sch
         Schedule(max=settings.epsilon_max, min=settings.epsilon_min, n=settings.schedule_n),
         Schedule(max=settings.alpha_max, min=settings.alpha_min, n=settings.schedule_n),
     )
-
-
-CFrom = Literal["true", "observed"]
-"""What C of Eq. 2.7 is judged from: the true readings, or what the controller sees."""
 
 
 class RewardSettings(_Frozen):

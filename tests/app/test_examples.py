@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium
 import numpy as np
 import pytest
 
@@ -73,3 +75,24 @@ def _check_wall_following(text: str, plot: Path) -> None:
         near_wall = _number(line, r"\(C = 1\)")
         assert 0.0 <= reward <= near_wall <= 1.0, line
     assert plot.read_bytes().startswith(b"\x89PNG")
+
+
+def test_an_outside_agent_on_the_gymnasium_env_as_the_example_does() -> None:
+    """The example's agent knows only Gymnasium: its printed returns are what the env gives
+    it, before and after add up, and losing its right-hand sensors costs it reward."""
+    text = _run("wall_follow_agent.py", "--steps", "200", "--episodes", "2")
+    lines = [row for row in text.splitlines() if row.startswith("episode")]
+    assert len(lines) == 2
+    for line in lines:
+        total, before = _number(line, "return"), _number(line, "before the fault")
+        after = _number(line, "after the fault")
+        assert total == pytest.approx(before + after, abs=2e-3)
+        assert after < _number(line, r"\(healthy control") and total <= 200
+    spec = importlib.util.spec_from_file_location("agent", EXAMPLES / "wall_follow_agent.py")
+    assert spec is not None and spec.loader is not None
+    agent = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(agent)
+    env = gymnasium.make(agent.ENV, noise=50.0, max_episode_steps=200)
+    rewards = agent.episode(env, 0, None)
+    assert sum(rewards[100:]) == pytest.approx(_number(lines[0], r"\(healthy control"), abs=1e-3)
+    assert _number(text, "mean cost of the fault") > 0

@@ -164,3 +164,23 @@ def test_the_checks_catch_what_they_are_for() -> None:
     assert cycles(bad) == [frozenset({"app.views.scene", "app.dashboard.stage"})]
     assert folder("app.store.reader") == folder("app.config") == CORE
     assert folder("app.views.graph_view") == "app.views"
+
+
+def test_gymnasium_stays_in_the_envs_modules() -> None:
+    """The task's Gymnasium face (`sim.gym_env`, `sim.gym_vector`) imports the world; nothing
+    else in the packages imports Gymnasium, so the world, the brains and the lab run without
+    it."""
+    users = set()
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+                names = (
+                    [alias.name for alias in node.names]
+                    if isinstance(node, ast.Import)
+                    else [node.module or ""]
+                    if isinstance(node, ast.ImportFrom)
+                    else []
+                )
+                if any(name.split(".")[0] == "gymnasium" for name in names):
+                    users.add(module_name(path))
+    assert users == {"sim.gym_env", "sim.gym_vector"}
