@@ -22,7 +22,7 @@ from typing import NoReturn, TypeAlias
 
 import numpy as np
 
-from gnp.config import N_SENSORS, N_WHEELS, GnpConfig, GnpError
+from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
 from gnp.methods import FIRST_STAGE_ONLY, TRAITS
 from gnp.population import Population, record_dtype
@@ -126,7 +126,7 @@ def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineS
         raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
     walk = np.full((n, WALK_WIDTH), -1, np.int32)
     walk[:, 0] = 0
-    return EngineState(walk=walk, wheels=np.zeros((n, N_WHEELS), np.float64), rng=states)
+    return EngineState(walk=walk, wheels=np.zeros((n, cfg.n_outputs), np.float64), rng=states)
 
 
 def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = None) -> None:
@@ -235,7 +235,8 @@ def step(
         cfg: the configuration `pop` was built for.
         pop: N individuals; their Q tables are updated in place when `learn`.
         state: engine state of the N controllers, updated in place.
-        observations: (N, 8) sensor readings the controllers see, 0..1023.
+        observations: (N, cfg.n_inputs) sensor readings the controllers see, 0..1023 (the
+            robot's 8 by default).
         reward: (N,) reward of the previous world step, credited to that step's last visit.
         epsilon: ε of ε-greedy, scalar or (N,).
         alpha: learning rate α, scalar or (N,).
@@ -248,11 +249,12 @@ def step(
 
     Returns:
         (commands, trace): wheel commands (N, 2) as (left, right) in −10..10, and the
-        StepTrace if `trace`, else None.
+        StepTrace if `trace`, else None. With `cfg.n_outputs` = k the commands are (N, k),
+        output j (processing function j) in column k − 1 − j: the robot's order, reversed.
     """
     n = state.walk.shape[0]
     check_population(cfg, pop, state)
-    obs = _floats(observations, (n, N_SENSORS), "observations")
+    obs = _floats(observations, (n, cfg.n_inputs), "observations")
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
     if not second_stage and cfg.traits.two_stage:
