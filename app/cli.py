@@ -46,6 +46,8 @@ from app.fields import nested
 from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
+from app.tasks import cli as task_cli
+from app.tasks.store import is_task_run
 from app.workers import handling, raise_interrupt
 
 if TYPE_CHECKING:
@@ -110,6 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=BRAINS,
         help="gnp (default), or a neural net evolved by CMA-ES (Elman) or NEAT",
     )
+    train.add_argument(
+        "--task",
+        metavar="ID",
+        help="a Gymnasium task (e.g. CartPole-v1) instead of the robot; bounds with --set "
+        "task.obs_low=[...] (see docs/tasks.md)",
+    )
     add_setting_options(train, train_settings(), show_default=True)
     train.add_argument(
         "--set",
@@ -173,6 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     experiment_cli.add_parser(commands)
     add_export_parser(commands)
+    task_cli.add_replay_parser(commands)
     return parser
 
 
@@ -276,6 +285,8 @@ def cmd_train(args: argparse.Namespace) -> int:
                 f"--resume continues a run with its stored settings; drop {', '.join(given)}"
             )
         path = Path(args.resume)
+        if is_task_run(path):
+            return task_cli.resume(path, args.quiet)
         with RunReader(path) as run:
             config, start = run.config, run.generations_done
             if run.finished:
@@ -288,6 +299,9 @@ def cmd_train(args: argparse.Namespace) -> int:
             return _interrupted(stop, path)
         finally:
             bar.close()
+    elif args.task:
+        task = task_cli.task_settings(args.task, args.assignments)
+        return task_cli.train(args, task, config_from_args(args))
     else:
         config = config_from_args(args)
         if args.print_config:
@@ -478,6 +492,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "serve": cmd_serve,
         "experiment": experiment_cli.main,
         "export": cmd_export,
+        "replay": task_cli.cmd_replay,
     }
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
@@ -504,6 +519,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sim.WorldError,
         experiment_cli.ExperimentError,
         gnp.GnpError,
+        *task_cli.ERRORS,
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_ERROR

@@ -1,0 +1,148 @@
+"""The command line of task runs: `gnp-lab train --task ID`, `--resume` of a task run,
+`gnp-lab replay`, and `gnp-lab export` of a task run's controller (hooked in app/cli.py)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from app.cli_options import add_run_name, add_runs_dir
+from app.config import ConfigError, RunConfig
+from app.controller_file import GnpController, save_controller
+from app.store import RunFileError, resolve_run
+from app.tasks.config import TaskRunConfig, TaskSettings
+from app.tasks.faults import ObservationFault
+from app.tasks.spaces import TaskError
+from app.tasks.store import read_task_run
+from app.tasks.training import TaskGeneration, replay_task, resume_task, train_task
+from sim import FAULT_MODES
+
+_TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
+
+
+def task_settings(task: str, assignments: list[tuple[list[str], Any]]) -> TaskSettings:
+    """--task and the `--set task.KEY=VALUE` assignments (removed from `assignments`): NaN in a
+    bound list means the space's bound (TOML has no null)."""
+    given: dict[str, Any] = {"id": task}
+    for path, value in list(assignments):
+        if path[0] != "task":
+            continue
+        assignments.remove((path, value))
+        key = ".".join(path[1:])
+        if key not in _TASK_KEYS:
+            raise ConfigError(f"--set task.{key}: unknown; task settings are {_TASK_KEYS}")
+        if not isinstance(value, list):
+            raise ConfigError(f"--set task.{key}: give a list, e.g. [-3.0, nan]")
+        given[key] = tuple(None if v != v else v for v in value)  # NaN: the space's
+    return TaskSettings(**given)
+
+
+def _progress(quiet: bool) -> Any:
+    def show(g: TaskGeneration) -> None:
+        if not quiet:
+            sys.stderr.write(
+                f"generation {g.generation + 1}/{g.generations}: best return "
+                f"{g.best_return:.1f}, mean {g.mean_return:.1f}, "
+                f"{g.env_steps / max(g.seconds, 1e-9):,.0f} env-steps/s\n"
+            )
+
+    return show
+
+
+def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -> int:
+    """`gnp-lab train --task ...`: a task run file from the lab's settings."""
+    task_config = TaskRunConfig.from_run_config(config, settings)
+    task_config.gnp_config()  # an unusable task: one line, before any file
+    if args.out:
+        path = Path(args.out)
+    else:
+        stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
+        path = Path(args.runs_dir) / f"{settings.id}-{config.controller.method}-{stamp}.h5"
+    train_task(task_config, path, _progress(args.quiet))
+    run = read_task_run(path)
+    print(f"{path}: finished, best return {run.fitness.max():.1f} on {settings.id}")
+    return 0
+
+
+def resume(path: Path, quiet: bool) -> int:
+    """`gnp-lab train --resume` of a task run."""
+    resume_task(path, _progress(quiet))
+    run = read_task_run(path)
+    print(f"{path}: finished, best return {run.fitness.max():.1f} on {run.config.task.id}")
+    return 0
+
+
+def add_replay_parser(commands: Any) -> argparse.ArgumentParser:
+    """`gnp-lab replay`: live a task run's best individual again."""
+    replay = commands.add_parser(
+        "replay",
+        help="live a task run's best individual one episode again and print its return",
+        description="Live the best individual of a generation (default: the last) of a task "
+        "run for one episode from --seed, learning online as in training, with observation "
+        "faults if asked.",
+    )
+    add_run_name(replay)
+    add_runs_dir(replay)
+    replay.add_argument("--seed", type=int, default=0, help="episode and controller seed")
+    replay.add_argument("--generation", type=int, metavar="G", help="the best of this one")
+    replay.add_argument("--greedy", action="store_true", help="ε = 0 (no exploration)")
+    replay.add_argument("--fault-step", type=int, default=0, metavar="T", help="faults from T")
+    replay.add_argument(
+        "--fault-features", default="", metavar="J,K", help="observation features that break"
+    )
+    replay.add_argument("--fault-mode", choices=FAULT_MODES, default="dead")
+    return replay
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    path = resolve_run(args.runs_dir, args.run)
+    try:
+        features = tuple(int(f) for f in args.fault_features.split(",") if f.strip())
+    except ValueError:
+        raise ConfigError(
+            f"--fault-features: expected J,K,... got {args.fault_features!r}"
+        ) from None
+    faults = (ObservationFault(args.fault_step, features, args.fault_mode),) if features else ()
+    result = replay_task(
+        path, args.seed, args.generation, faults, epsilon=0.0 if args.greedy else None
+    )
+    print(f"return {result.episode_return:.1f} in {result.length} steps (seed {args.seed})")
+    return 0
+
+
+def export(path: Path, out: Path, generation: int | None) -> int:
+    """`gnp-lab export` of a task run: controller.json (the task in its settings), fitness.csv."""
+    run = read_task_run(path)
+    g = run.generation_done - 1 if generation is None else generation
+    cfg, individual = run.best_genome(g)
+    if out.exists() and any(out.iterdir()):
+        raise RunFileError(f"{out} is not empty")
+    out.mkdir(parents=True, exist_ok=True)
+    about = {
+        "run": path.stem,
+        "generation": g,
+        "task": run.config.task.model_dump(),
+        "method": cfg.method,
+        "fuzzy": cfg.fuzzy,
+        "seed": run.config.seed,
+        "epsilon": float(run.epsilon[g]),
+        "alpha": float(run.alpha[g]),
+        "fitness": float(run.fitness[g].max()),
+        "gnp_lab_version": run.package_version,
+    }
+    save_controller(out / "controller.json", GnpController(cfg, individual, about))
+    with (out / "fitness.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["generation", "best_return", "mean_return"])
+        for i, row in enumerate(run.fitness):
+            writer.writerow([i, f"{row.max():.6g}", f"{row.mean():.6g}"])
+    print(f"{out}: controller.json, fitness.csv")
+    return 0
+
+
+ERRORS = (TaskError,)
+"""What a task command reports on one line, besides the lab's own errors."""
