@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 import gnp
 from app.cli import main
+from app.config import ControllerSettings
 from app.tasks import (
     BatchEnv,
     ObservationFault,
@@ -28,6 +29,7 @@ from app.tasks import (
     train_task,
 )
 from app.tasks.training import first_population
+from gnp import Schedule
 
 BOX4 = spaces.Box(-1.0, 1.0, (4,), np.float32)
 
@@ -176,7 +178,12 @@ def _one_by_one(
 
 @pytest.mark.parametrize(
     ("task", "mode", "max_steps"),
-    [("CartPole-v1", "vector_entry_point", 500), ("MountainCar-v0", "sync", 60)],
+    [
+        ("CartPole-v1", "vector_entry_point", 500),
+        ("MountainCar-v0", "sync", 60),
+        ("Acrobot-v1", "sync", 40),
+        ("Pendulum-v1", "sync", 40),
+    ],
 )
 def test_a_batch_lives_as_each_individual_alone_with_the_single_env(
     task: str, mode: str, max_steps: int
@@ -238,12 +245,18 @@ def test_same_config_and_seed_give_the_same_run_and_a_resumed_run_matches(
 
 @pytest.mark.slow
 def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) -> None:
-    run = read_task_run(
-        train_task(_config(generations=15, population=100, seed=1), tmp_path / "r.h5")
+    # GNP-RL, crisp, ε = 0.01 (examples/gnp_cartpole.py): on seed 1 the best balances the
+    # pole for 500 steps, the most an episode gives, from generation 6 on.
+    config = TaskRunConfig(
+        seed=1,
+        task=TaskSettings(id="CartPole-v1"),
+        controller=ControllerSettings(method="RL", fuzzy=False),
+        training=TaskTraining(population=100, generations=10, epsilon=Schedule.fixed(0.01)),
     )
+    run = read_task_run(train_task(config, tmp_path / "r.h5"))
     best, mean = run.fitness.max(axis=1), run.fitness.mean(axis=1)
-    assert best[-5:].max() > 1.5 * best[0]
-    assert mean[-5:].mean() > 1.3 * mean[0]
+    assert best[-3:].min() > 3 * best[0]
+    assert mean[-3:].mean() > 5 * mean[0]
 
 
 # --- command line -----------------------------------------------------------------------------
