@@ -282,6 +282,8 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     controller = load_controller(tmp_path / "x" / "controller.json")
     assert controller.settings["task"]["id"] == "CartPole-v1"
     assert controller.cfg.n_inputs == 4  # type: ignore[union-attr]
+    assert main(["runs", "--runs-dir", str(tmp_path)]) == 0
+    assert "a run on the task CartPole-v1" in capsys.readouterr().out
     assert main(["train", "--resume", str(out)]) == 1  # finished
     assert "finished; nothing to resume" in capsys.readouterr().err
 
