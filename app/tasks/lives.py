@@ -11,7 +11,8 @@ the lab knows how to start each of its environments from its own seed (`START_ST
 CartPole, whose vector env draws every start state from one stream otherwise), else through
 `SyncVectorEnv` reset with one seed per environment. An individual whose episode ended stops
 acting (the vector env's autoreset of its environment is ignored); the batch ends when every
-episode has.
+episode has. An episode that terminates (not one truncated by a time limit or the cap) ends
+with the terminal Sarsa update (`gnp.end_episode`).
 """
 
 from __future__ import annotations
@@ -83,11 +84,13 @@ class BatchEnv:
         obs, _ = self._sync.reset(seed=[int(s) for s in seeds])
         return np.asarray(obs)
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(observations, rewards, done) after one step of every environment."""
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(observations, rewards, terminated, done: terminated or truncated) after one step of
+        every environment."""
         obs, reward, terminated, truncated, _ = self.env.step(actions)
         done = np.logical_or(terminated, truncated)
-        return np.asarray(obs), np.asarray(reward, dtype=np.float64), done
+        rewards = np.asarray(reward, dtype=np.float64)
+        return np.asarray(obs), rewards, np.asarray(terminated, dtype=bool), done
 
     def close(self) -> None:
         self.env.close()
@@ -152,10 +155,12 @@ def live(
         readings = adapter.observe(obs[alive])
         commands, _ = gnp.step(cfg, part, part_state, readings, reward, epsilon, alpha, learn)
         actions[alive] = adapter.act(commands)
-        obs, rewards, done = env.step(actions)
+        obs, rewards, terminated, done = env.step(actions)
         returns[alive] += rewards[alive]
         lengths[alive] += 1
         ended = done[alive]
+        if learn and terminated[alive].any():  # a terminal state: Sarsa without a successor
+            gnp.end_episode(cfg, part, part_state, rewards[alive], alpha, terminated[alive])
         reward = rewards[alive][~ended]
         if ended.any():
             if part is not learned:

@@ -92,3 +92,49 @@ def test_default_io_keeps_the_controller_document_and_others_record_theirs() -> 
     cfg, back = controller_from_body(entry, nodes)
     assert cfg == task
     np.testing.assert_array_equal(back.function, pop.function)
+
+
+@pytest.mark.parametrize("method", ["RL", "BS", "CS"])
+def test_end_episode_credits_the_last_visit_without_a_successor(method: str) -> None:
+    # With γ = 0 the next step's first visit would make exactly the terminal update: compare
+    # with the kernel on every Q entry the next step does not touch again.
+    cfg = gnp.GnpConfig(method=method, gamma=0.0, n_inputs=3, n_outputs=2)
+    n = 16
+    rng = np.random.default_rng(5)
+    pop = gnp.init_population(cfg, n, rng)
+    state = gnp.init_state(cfg, n, np.arange(n))
+    for _ in range(6):
+        obs = rng.uniform(0, SENSOR_MAX, (n, 3))
+        gnp.step(cfg, pop, state, obs, rng.uniform(-1, 1, n), 0.3, 0.5)
+    reward = rng.uniform(-2, 2, n)
+    which = np.arange(n) % 4 != 0
+    ended = gnp.take(pop, np.arange(n))
+    ended_state = gnp.EngineState(state.walk.copy(), state.wheels.copy(), state.rng.copy())
+    pending = state.walk[:, 1:6].copy()
+    pending_bs = state.walk[:, 6:10].copy()
+    gnp.end_episode(cfg, ended, ended_state, reward, 0.5, which)
+    stepped = gnp.take(pop, np.arange(n))
+    _, trace = gnp.step(cfg, stepped, state, np.zeros((n, 3)), reward, 0.3, 0.5, trace=True)
+    assert trace is not None
+    checked_bs = 0
+    for c in range(n):
+        pn, pp, _, _, pc = pending[c]
+        if not which[c]:
+            np.testing.assert_array_equal(ended.q_ss[c], pop.q_ss[c])
+            assert ended_state.walk[c, 1] == pn
+            continue
+        assert ended_state.walk[c, 1] == -1
+        visited = {(int(v), int(s)) for v, s in zip(trace.node[c], trace.sub[c], strict=True)}
+        if (pn, pp) not in visited:
+            assert ended.q_ss[c, pn, pp] == stepped.q_ss[c, pn, pp]
+            if method == "CS":
+                assert ended.q_cs[c, pn, pp, pc] == stepped.q_cs[c, pn, pp, pc]
+        before = tuple(int(v) for v in pending_bs[c])
+        if method == "BS" and before[0] >= 0 and before[:2] not in visited | {(pn, pp)}:
+            checked_bs += 1
+            assert ended.q_bs[c][before] == stepped.q_bs[c][before]
+            assert ended.q_bs[c][before] != pop.q_bs[c][before] or reward[c] == 0
+        r = 0.0 if pc == 1 else reward[c]
+        q = np.float64(pop.q_ss[c, pn, pp])
+        assert ended.q_ss[c, pn, pp] == np.float32(q + 0.5 * (r - q))
+    assert checked_bs > 0 or method != "BS"
