@@ -187,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 # --- train ----------------------------------------------------------------------------------
 
-_CONFIG_OPTIONS = ("preset", "config", "brain")
+_CONFIG_OPTIONS = ("preset", "config", "brain", "task")
 """What else than setting options (and --set, --out) sets a new run's configuration."""
 
 

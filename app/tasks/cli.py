@@ -57,11 +57,15 @@ def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -
     """`gnp-lab train --task ...`: a task run file from the lab's settings."""
     task_config = TaskRunConfig.from_run_config(config, settings)
     task_config.gnp_config()  # an unusable task: one line, before any file
+    if args.print_config:
+        sys.stdout.write(task_config.model_dump_json(indent=2) + "\n")
+        return 0
     if args.out:
         path = Path(args.out)
     else:
         stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
-        path = Path(args.runs_dir) / f"{settings.id}-{config.controller.method}-{stamp}.h5"
+        name = settings.id.replace("/", "_")  # "ALE/Pong-v5": a file name, not a folder
+        path = Path(args.runs_dir) / f"{name}-{config.controller.method}-{stamp}.h5"
     train_task(task_config, path, _progress(args.quiet))
     run = read_task_run(path)
     print(f"{path}: finished, best return {run.fitness.max():.1f} on {settings.id}")

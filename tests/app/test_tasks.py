@@ -284,6 +284,10 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     controller = load_controller(tmp_path / "x" / "controller.json")
     assert controller.settings["task"]["id"] == "CartPole-v1"
     assert controller.cfg.n_inputs == 4  # type: ignore[union-attr]
+    assert main([*argv, "--print-config"]) == 0
+    assert '"id": "CartPole-v1"' in capsys.readouterr().out
+    assert main(["train", "--resume", str(out), "--task", "Acrobot-v1"]) == 2
+    assert "drop --task" in capsys.readouterr().err
     assert main(["runs", "--runs-dir", str(tmp_path)]) == 0
     assert "a run on the task CartPole-v1" in capsys.readouterr().out
     assert main(["train", "--resume", str(out)]) == 1  # finished
