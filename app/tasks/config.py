@@ -95,7 +95,7 @@ class TaskRunConfig(_Frozen):
 
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
     task: TaskSettings
-    controller: ControllerSettings = ControllerSettings(method="RL")
+    controller: ControllerSettings = ControllerSettings()
     evolution: EvolutionConfig = EvolutionConfig()
     training: TaskTraining = TaskTraining()
 

@@ -140,6 +140,16 @@ def test_observation_faults_break_features_from_their_step(mode: str) -> None:
     np.testing.assert_array_equal(later[-1], rows[-1][1])  # seeded: the same draws
 
 
+def test_a_replay_is_seeded_and_faults_reach_the_brain(tmp_path: Path) -> None:
+    run = train_task(_config(generations=2), tmp_path / "f.h5")
+    healthy = [replay_task(run, seed) for seed in range(6)]
+    assert healthy == [replay_task(run, seed) for seed in range(6)]
+    dead = (ObservationFault(step=0, features=(0, 1, 2, 3), mode="saturated"),)
+    broken = [replay_task(run, seed, faults=dead) for seed in range(6)]
+    assert broken == [replay_task(run, seed, faults=dead) for seed in range(6)]
+    assert broken != healthy
+
+
 def test_fault_settings_are_checked() -> None:
     low, high = -np.ones(4), np.ones(4)
     with pytest.raises(TaskError, match=r"fault features \[4\] outside 0..3"):
