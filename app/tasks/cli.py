@@ -22,6 +22,7 @@ from app.tasks.training import TaskGeneration, replay_task, resume_task, train_t
 from sim import FAULT_MODES
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
+EXIT_INTERRUPTED = 130
 
 
 def task_settings(task: str, assignments: list[tuple[list[str], Any]]) -> TaskSettings:
@@ -66,15 +67,33 @@ def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -
         stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
         name = settings.id.replace("/", "_")  # "ALE/Pong-v5": a file name, not a folder
         path = Path(args.runs_dir) / f"{name}-{config.controller.method}-{stamp}.h5"
-    train_task(task_config, path, _progress(args.quiet))
+    try:
+        train_task(task_config, path, _progress(args.quiet))
+    except KeyboardInterrupt:
+        return _interrupted(path)
     run = read_task_run(path)
     print(f"{path}: finished, best return {run.fitness.max():.1f} on {settings.id}")
     return 0
 
 
+def _interrupted(path: Path) -> int:
+    """Ctrl-C or SIGTERM: the file holds every complete generation (or does not exist)."""
+    if not path.exists():
+        raise KeyboardInterrupt  # nothing was written: the lab's own message
+    done = read_task_run(path).generation_done
+    sys.stderr.write(
+        f"gnp-lab: interrupted: stopped after {done} complete generation(s); "
+        f"continue with: gnp-lab train --resume {path}\n"
+    )
+    return EXIT_INTERRUPTED
+
+
 def resume(path: Path, quiet: bool) -> int:
     """`gnp-lab train --resume` of a task run."""
-    resume_task(path, _progress(quiet))
+    try:
+        resume_task(path, _progress(quiet))
+    except KeyboardInterrupt:
+        return _interrupted(path)
     run = read_task_run(path)
     print(f"{path}: finished, best return {run.fitness.max():.1f} on {run.config.task.id}")
     return 0

@@ -128,8 +128,13 @@ def train_task(
     config.gnp_config()  # a bad task fails before any file is made
     pop = first_population(config)
     writer = TaskRunWriter.create(out, config)
-    writer.write_checkpoint(0, gnp.population_to_arrays(pop))
-    writer.mark_done(0)
+    try:
+        writer.write_checkpoint(0, gnp.population_to_arrays(pop))
+        writer.mark_done(0)
+    except BaseException:  # Ctrl-C, a full disk: no file without its first checkpoint
+        writer.close()
+        Path(out).unlink(missing_ok=True)
+        raise
     return _run(writer, pop, 0, progress)
 
 

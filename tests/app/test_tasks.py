@@ -274,6 +274,10 @@ def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) ->
 # --- command line -----------------------------------------------------------------------------
 
 
+def _stop(summary: object) -> None:
+    raise KeyboardInterrupt
+
+
 def test_cli_trains_resumes_replays_and_exports_a_task_run(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -298,6 +302,14 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     assert '"id": "CartPole-v1"' in capsys.readouterr().out
     assert main(["train", "--resume", str(out), "--task", "Acrobot-v1"]) == 2
     assert "drop --task" in capsys.readouterr().err
+    cut = tmp_path / "cut.h5"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("app.tasks.cli._progress", lambda quiet: _stop)
+        assert main([*argv, "--seed", "3", "--out", str(cut), "--quiet"]) == 130
+    assert f"continue with: gnp-lab train --resume {cut}" in capsys.readouterr().err
+    assert read_task_run(cut).generation_done == 1
+    assert main(["train", "--resume", str(cut), "--quiet"]) == 0
+    assert read_task_run(cut).generation_done == 2
     assert main(["runs", "--runs-dir", str(tmp_path)]) == 0
     assert "a run on the task CartPole-v1" in capsys.readouterr().out
     assert main(["train", "--resume", str(out)]) == 1  # finished
