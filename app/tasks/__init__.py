@@ -10,7 +10,7 @@ from app.tasks.faults import ObservationFault, ObservationFaults
 from app.tasks.lives import BatchEnv, TaskLives, live
 from app.tasks.spaces import KNOWN_BOUNDS, TaskAdapter, TaskError, task_adapter
 from app.tasks.store import is_task_run, read_task_run
-from app.tasks.training import replay_task, resume_task, train_task
+from app.tasks.training import replay_episodes, replay_task, resume_task, train_task
 
 __all__ = [
     "KNOWN_BOUNDS",
@@ -27,6 +27,7 @@ __all__ = [
     "live",
     "make_env",
     "read_task_run",
+    "replay_episodes",
     "replay_task",
     "resume_task",
     "task_adapter",

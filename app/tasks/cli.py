@@ -18,7 +18,7 @@ from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
 from app.tasks.spaces import TaskError
 from app.tasks.store import read_task_run
-from app.tasks.training import TaskGeneration, replay_task, resume_task, train_task
+from app.tasks.training import TaskGeneration, replay_episodes, resume_task, train_task
 from sim import FAULT_MODES
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
@@ -111,6 +111,9 @@ def add_replay_parser(commands: Any) -> argparse.ArgumentParser:
     add_run_name(replay)
     add_runs_dir(replay)
     replay.add_argument("--seed", type=int, default=0, help="episode and controller seed")
+    replay.add_argument(
+        "--episodes", type=int, default=1, metavar="K", help="K episodes, seeds SEED..SEED+K-1"
+    )
     replay.add_argument("--generation", type=int, metavar="G", help="the best of this one")
     replay.add_argument("--greedy", action="store_true", help="ε = 0 (no exploration)")
     replay.add_argument("--fault-step", type=int, default=0, metavar="T", help="faults from T")
@@ -130,10 +133,19 @@ def cmd_replay(args: argparse.Namespace) -> int:
             f"--fault-features: expected J,K,... got {args.fault_features!r}"
         ) from None
     faults = (ObservationFault(args.fault_step, features, args.fault_mode),) if features else ()
-    result = replay_task(
-        path, args.seed, args.generation, faults, epsilon=0.0 if args.greedy else None
-    )
-    print(f"return {result.episode_return:.1f} in {result.length} steps (seed {args.seed})")
+    if args.episodes < 1:
+        raise ConfigError(f"--episodes must be at least 1, got {args.episodes}")
+    seeds = list(range(args.seed, args.seed + args.episodes))
+    epsilon = 0.0 if args.greedy else None
+    lives = replay_episodes(path, seeds, args.generation, faults, epsilon=epsilon)
+    if args.episodes == 1:
+        print(f"return {lives.returns[0]:.1f} in {lives.lengths[0]} steps (seed {args.seed})")
+    else:
+        print(
+            f"mean return {lives.returns.mean():.1f} ± {lives.returns.std(ddof=1):.1f} (sd) over "
+            f"{args.episodes} episodes, seeds {seeds[0]}..{seeds[-1]}; "
+            f"min {lives.returns.min():.1f}, max {lives.returns.max():.1f}"
+        )
     return 0
 
 

@@ -10,7 +10,7 @@ and seed, and a resumed run matches one never interrupted.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -147,10 +147,41 @@ def resume_task(path: str | Path, progress: TaskProgress | None = None) -> Path:
 
 @dataclass(frozen=True)
 class Replay:
-    """One replayed episode: its return, length, and the observations GNP judged."""
+    """One replayed episode: its return and length."""
 
     episode_return: float
     length: int
+
+
+def replay_episodes(
+    path: str | Path,
+    seeds: Sequence[int],
+    generation: int | None = None,
+    faults: tuple[ObservationFault, ...] = (),
+    learn: bool = True,
+    epsilon: float | None = None,
+) -> TaskLives:
+    """Live a generation's best individual (default: the last) again, one episode per seed, all
+    at once (a clone per seed): episode i starts from `seeds[i]`, which also seeds its
+    controller's stream and its faults' `random` draws. ε and α are the generation's unless
+    `epsilon` is given (0: greedy). Each episode is the one `replay_task` lives from its seed."""
+    run = read_task_run(path)
+    cfg, individual = run.best_genome(generation)
+    g = run.generation_done - 1 if generation is None else generation
+    config = run.config
+    adapter = config.adapter
+    n = len(seeds)
+    plan = FaultPlan(faults, tuple(int(s) for s in seeds)) if faults else None
+    env = BatchEnv(config.task.id, n, adapter, plan)
+    eps = float(run.epsilon[g]) if epsilon is None else epsilon
+    clones = gnp.take(individual, np.zeros(n, np.intp))
+    try:
+        return live(
+            cfg, adapter, env, clones, seeds, seeds, eps, float(run.alpha[g]),
+            config.training.steps, learn,
+        )  # fmt: skip
+    finally:
+        env.close()
 
 
 def replay_task(
@@ -161,22 +192,6 @@ def replay_task(
     learn: bool = True,
     epsilon: float | None = None,
 ) -> Replay:
-    """Live a generation's best individual (default: the last) again, one episode of the task
-    started from `seed` (also its controller's stream), with observation faults if given.
-    ε and α are the generation's unless `epsilon` is given (0: greedy)."""
-    run = read_task_run(path)
-    cfg, individual = run.best_genome(generation)
-    g = run.generation_done - 1 if generation is None else generation
-    config = run.config
-    adapter = config.adapter
-    plan = FaultPlan(faults, (seed,)) if faults else None
-    env = BatchEnv(config.task.id, 1, adapter, plan)
-    eps = float(run.epsilon[g]) if epsilon is None else epsilon
-    try:
-        lives = live(
-            cfg, adapter, env, individual, [seed], [seed], eps, float(run.alpha[g]),
-            config.training.steps, learn,
-        )  # fmt: skip
-    finally:
-        env.close()
+    """One episode of `replay_episodes`, from `seed`."""
+    lives = replay_episodes(path, [seed], generation, faults, learn, epsilon)
     return Replay(float(lives.returns[0]), int(lives.lengths[0]))

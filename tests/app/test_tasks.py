@@ -23,6 +23,7 @@ from app.tasks import (
     TaskTraining,
     live,
     read_task_run,
+    replay_episodes,
     replay_task,
     resume_task,
     task_adapter,
@@ -148,6 +149,9 @@ def test_a_replay_is_seeded_and_faults_reach_the_brain(tmp_path: Path) -> None:
     broken = [replay_task(run, seed, faults=dead) for seed in range(6)]
     assert broken == [replay_task(run, seed, faults=dead) for seed in range(6)]
     assert broken != healthy
+    batch = replay_episodes(run, list(range(6)), faults=dead)
+    assert batch.returns.tolist() == [r.episode_return for r in broken]
+    assert batch.lengths.tolist() == [r.length for r in broken]
 
 
 def test_fault_settings_are_checked() -> None:
@@ -291,7 +295,12 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     expected = replay_task(out, 9)
     assert said.startswith(f"return {expected.episode_return:.1f} in {expected.length} steps")
     faulty = ["--fault-features", "0,2", "--fault-mode", "saturated", "--greedy"]
-    assert main(["replay", "cp", "--runs-dir", str(tmp_path), *faulty]) == 0
+    assert main(["replay", "cp", "--runs-dir", str(tmp_path), *faulty, "--episodes", "5"]) == 0
+    saturated = (ObservationFault(0, (0, 2), "saturated"),)
+    lives = replay_episodes(out, [0, 1, 2, 3, 4], faults=saturated, epsilon=0.0)
+    said = capsys.readouterr().out
+    assert said.startswith(f"mean return {lives.returns.mean():.1f} ± ")
+    assert "over 5 episodes, seeds 0..4" in said
     assert main(["export", "cp", "--runs-dir", str(tmp_path), "--out", str(tmp_path / "x")]) == 0
     from app.controller_file import load_controller
 
