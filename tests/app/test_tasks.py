@@ -343,3 +343,21 @@ def test_cli_bad_tasks_are_one_line(
     assert err.startswith("gnp-lab: error: ") and says in err
     assert err.count("\n") == 1
     assert not out.exists()
+
+
+def test_cli_trains_a_box_action_task_with_bounds_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "pendulum.h5"
+    argv = ["train", "--task", "Pendulum-v1", "--generations", "2", "--population", "6"]
+    bounds = ["--set", "task.obs_high=[0.5, nan, 4.0]", "--steps", "20"]
+    assert main([*argv, *bounds, "--out", str(out), "--quiet"]) == 0
+    run = read_task_run(out)
+    assert run.config.task.obs_high == (0.5, None, 4.0)
+    adapter = run.config.adapter
+    np.testing.assert_allclose(adapter.obs_high, [0.5, 1.0, 4.0])
+    np.testing.assert_allclose(adapter.act_low, [-2.0])
+    assert run.config.gnp_config().n_outputs == 1
+    assert run.fitness.shape == (2, 6) and np.all(run.fitness < 0)
+    assert main(["replay", "pendulum", "--runs-dir", str(tmp_path), "--seed", "2"]) == 0
+    assert "in 20 steps (seed 2)" in capsys.readouterr().out
