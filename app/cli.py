@@ -374,7 +374,8 @@ def cmd_implement(args: argparse.Namespace) -> int:
 
 def cmd_runs(args: argparse.Namespace) -> int:
     if args.name:
-        return _inspect(resolve_run(args.runs_dir, args.name))
+        path = resolve_run(args.runs_dir, args.name)
+        return task_cli.inspect(path) if is_task_run(path) else _inspect(path)
     summaries = list_runs(args.runs_dir)
     if not summaries:
         print(f"no runs in {args.runs_dir}")

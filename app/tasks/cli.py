@@ -99,6 +99,24 @@ def resume(path: Path, quiet: bool) -> int:
     return 0
 
 
+def inspect(path: Path) -> int:
+    """`gnp-lab runs NAME` of a task run: its task, progress, a few generations, its config."""
+    run = read_task_run(path)
+    done, total = run.generation_done, run.config.training.generations
+    print(f"task run {path.name}: {run.config.task.id}, seed {run.config.seed}, "
+          f"gnp-lab {run.package_version}")  # fmt: skip
+    print(f"generations {done}/{total}, {'finished' if done == total else 'interrupted'}")
+    for g in sorted({0, done // 2, done - 1} if done else set()):
+        returns = run.fitness[g]
+        print(
+            f"  generation {g:5d}: best return {returns.max():.1f}  mean {returns.mean():.1f}"
+            f" ± {returns.std():.1f}  ε {run.epsilon[g]:.3f}  α {run.alpha[g]:.3f}"
+        )
+    print("\n# config")
+    print(run.config.model_dump_json(indent=2))
+    return 0
+
+
 def add_replay_parser(commands: Any) -> argparse.ArgumentParser:
     """`gnp-lab replay`: live a task run's best individual again."""
     replay = commands.add_parser(

@@ -321,6 +321,10 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     assert read_task_run(cut).generation_done == 2
     assert main(["runs", "--runs-dir", str(tmp_path)]) == 0
     assert "a run on the task CartPole-v1" in capsys.readouterr().out
+    assert main(["runs", "cp", "--runs-dir", str(tmp_path)]) == 0
+    said = capsys.readouterr().out
+    assert said.startswith("task run cp.h5: CartPole-v1, seed 3")
+    assert f"best return {read_task_run(out).fitness[1].max():.1f}" in said
     assert main(["train", "--resume", str(out)]) == 1  # finished
     assert "finished; nothing to resume" in capsys.readouterr().err
 
