@@ -77,7 +77,8 @@ def test_discrete_actions_are_equal_bins_of_the_output() -> None:
 
 
 def test_box_actions_map_each_output_to_its_bounds_in_function_order() -> None:
-    action = spaces.Box(np.array([-2.0, 0.0]), np.array([2.0, 1.0]), dtype=np.float32)
+    low, high = np.array([-2.0, 0.0], np.float32), np.array([2.0, 1.0], np.float32)
+    action = spaces.Box(low, high, dtype=np.float32)
     adapter = task_adapter("T", BOX4, action)
     assert adapter.n_outputs == 2
     # gnp.step's column k − 1 − j holds output j: [[output 1, output 0]].
