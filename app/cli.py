@@ -46,8 +46,7 @@ from app.fields import nested
 from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
-from app.tasks import cli as task_cli
-from app.tasks.store import is_task_run
+from app.tasks.common import TaskError, add_replay_parser, is_task_run
 from app.workers import handling, raise_interrupt
 
 if TYPE_CHECKING:
@@ -181,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     experiment_cli.add_parser(commands)
     add_export_parser(commands)
-    task_cli.add_replay_parser(commands)
+    add_replay_parser(commands)
     return parser
 
 
@@ -286,6 +285,8 @@ def cmd_train(args: argparse.Namespace) -> int:
             )
         path = Path(args.resume)
         if is_task_run(path):
+            from app.tasks import cli as task_cli
+
             return task_cli.resume(path, args.quiet)
         with RunReader(path) as run:
             config, start = run.config, run.generations_done
@@ -300,6 +301,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         finally:
             bar.close()
     elif args.task:
+        from app.tasks import cli as task_cli
+
         task = task_cli.task_settings(args.task, args.assignments)
         return task_cli.train(args, task, config_from_args(args))
     else:
@@ -375,7 +378,11 @@ def cmd_implement(args: argparse.Namespace) -> int:
 def cmd_runs(args: argparse.Namespace) -> int:
     if args.name:
         path = resolve_run(args.runs_dir, args.name)
-        return task_cli.inspect(path) if is_task_run(path) else _inspect(path)
+        if is_task_run(path):
+            from app.tasks.cli import inspect
+
+            return inspect(path)
+        return _inspect(path)
     summaries = list_runs(args.runs_dir)
     if not summaries:
         print(f"no runs in {args.runs_dir}")
@@ -473,6 +480,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    from app.tasks.cli import replay
+
+    return replay(args)
+
+
 # --- entry point ----------------------------------------------------------------------------
 
 
@@ -493,7 +506,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "serve": cmd_serve,
         "experiment": experiment_cli.main,
         "export": cmd_export,
-        "replay": task_cli.cmd_replay,
+        "replay": cmd_replay,
     }
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
@@ -520,7 +533,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sim.WorldError,
         experiment_cli.ExperimentError,
         gnp.GnpError,
-        *task_cli.ERRORS,
+        TaskError,
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_ERROR

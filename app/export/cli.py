@@ -9,7 +9,7 @@ from typing import Any
 
 from app.cli_options import add_run_name, add_runs_dir
 from app.store import resolve_run
-from app.tasks.store import is_task_run
+from app.tasks.common import is_task_run
 
 EXIT_ERROR = 1
 

@@ -10,16 +10,13 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from app.cli_options import add_run_name, add_runs_dir
 from app.config import ConfigError, RunConfig
 from app.controller_file import GnpController, save_controller
 from app.store import RunFileError, resolve_run
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
-from app.tasks.spaces import TaskError
 from app.tasks.store import read_task_run
 from app.tasks.training import TaskGeneration, replay_episodes, resume_task, train_task
-from sim import FAULT_MODES
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
 EXIT_INTERRUPTED = 130
@@ -117,32 +114,8 @@ def inspect(path: Path) -> int:
     return 0
 
 
-def add_replay_parser(commands: Any) -> argparse.ArgumentParser:
-    """`gnp-lab replay`: live a task run's best individual again."""
-    replay = commands.add_parser(
-        "replay",
-        help="live a task run's best individual one episode again and print its return",
-        description="Live the best individual of a generation (default: the last) of a task "
-        "run for one episode from --seed, learning online as in training, with observation "
-        "faults if asked.",
-    )
-    add_run_name(replay)
-    add_runs_dir(replay)
-    replay.add_argument("--seed", type=int, default=0, help="episode and controller seed")
-    replay.add_argument(
-        "--episodes", type=int, default=1, metavar="K", help="K episodes, seeds SEED..SEED+K-1"
-    )
-    replay.add_argument("--generation", type=int, metavar="G", help="the best of this one")
-    replay.add_argument("--greedy", action="store_true", help="ε = 0 (no exploration)")
-    replay.add_argument("--fault-step", type=int, default=0, metavar="T", help="faults from T")
-    replay.add_argument(
-        "--fault-features", default="", metavar="J,K", help="observation features that break"
-    )
-    replay.add_argument("--fault-mode", choices=FAULT_MODES, default="dead")
-    return replay
-
-
-def cmd_replay(args: argparse.Namespace) -> int:
+def replay(args: argparse.Namespace) -> int:
+    """`gnp-lab replay` (its options: `app.tasks.common.add_replay_parser`)."""
     path = resolve_run(args.runs_dir, args.run)
     try:
         features = tuple(int(f) for f in args.fault_features.split(",") if f.strip())
@@ -195,7 +168,3 @@ def export(path: Path, out: Path, generation: int | None) -> int:
             writer.writerow([i, f"{row.max():.6g}", f"{row.mean():.6g}"])
     print(f"{out}: controller.json, fitness.csv")
     return 0
-
-
-ERRORS = (TaskError,)
-"""What a task command reports on one line, besides the lab's own errors."""

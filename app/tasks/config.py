@@ -14,7 +14,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 import gnp
 from app.config import ControllerSettings, RunConfig
-from app.tasks.spaces import TaskAdapter, TaskError, task_adapter
+from app.tasks.common import TaskError
+from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import EvolutionConfig, Schedule
 from gnp.config import GenerationProgress
 

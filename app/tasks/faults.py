@@ -16,7 +16,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from app.tasks.spaces import TaskError
+from app.tasks.common import TaskError
 from sim import FAULT_MODES, FaultMode
 
 

@@ -21,6 +21,7 @@ from typing import Literal
 import numpy as np
 from gymnasium import spaces
 
+from app.tasks.common import TaskError
 from gnp.config import SENSOR_MAX, SPEED_MAX
 
 #: Bounds for the features a shipped task leaves unbounded: {task id: {feature: (low, high)}}.
@@ -35,10 +36,6 @@ KNOWN_BOUNDS: dict[str, dict[int, tuple[float, float]]] = {
 MAX_FEATURES = 127
 
 ActionKind = Literal["discrete", "box"]
-
-
-class TaskError(ValueError):
-    """A task GNP cannot run (unknown id, a space it cannot judge or emit, bad bounds)."""
 
 
 @dataclass(frozen=True)

@@ -21,19 +21,10 @@ import numpy as np
 import gnp
 from app.store.files import LIBVER, RunFileError
 from app.store.schema import package_version
+from app.tasks.common import FORMAT
 from app.tasks.config import TaskRunConfig
 
-FORMAT = "gnp-lab-task-run"
 SCHEMA_VERSION = 1
-
-
-def is_task_run(path: str | Path) -> bool:
-    """Whether `path` is a task run file (False for anything else, a robot run included)."""
-    try:
-        with h5py.File(path, "r", locking=False) as handle:
-            return bool(handle.attrs.get("format") == FORMAT)
-    except (OSError, ValueError):
-        return False
 
 
 class TaskRunWriter:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -366,3 +368,14 @@ def test_cli_trains_a_box_action_task_with_bounds_given(
     assert run.fitness.shape == (2, 6) and np.all(run.fitness < 0)
     assert main(["replay", "pendulum", "--runs-dir", str(tmp_path), "--seed", "2"]) == 0
     assert "in 20 steps (seed 2)" in capsys.readouterr().out
+
+
+def test_the_lab_imports_gymnasium_only_for_a_task() -> None:
+    code = (
+        "import sys, app.cli, app.export.cli\n"
+        "assert 'gymnasium' not in sys.modules, 'gnp-lab imported gymnasium'\n"
+        "from app.tasks import train_task\n"
+        "assert 'gymnasium' in sys.modules\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
