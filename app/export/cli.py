@@ -9,6 +9,7 @@ from typing import Any
 
 from app.cli_options import add_run_name, add_runs_dir
 from app.store import resolve_run
+from app.tasks.common import is_task_run
 
 EXIT_ERROR = 1
 
@@ -41,6 +42,10 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     path = resolve_run(args.runs_dir, args.run)
     out = Path(args.out)
+    if is_task_run(path):  # a Gymnasium task's run: its controller and fitness
+        from app.tasks.cli import export
+
+        return export(path, out, args.generation)
     try:
         if args.replay:
             export_replay(path, out, args.generation)
