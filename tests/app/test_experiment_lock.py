@@ -25,9 +25,12 @@ def test_the_holder_writes_its_pid_and_leaves_no_file(tmp_path: Path) -> None:
 
 
 def test_a_second_holder_is_refused_with_the_first_ones_pid(tmp_path: Path) -> None:
-    with experiment_lock(tmp_path), pytest.raises(ExperimentError) as refused:
-        with experiment_lock(tmp_path):
-            pass
+    with (
+        experiment_lock(tmp_path),
+        pytest.raises(ExperimentError) as refused,
+        experiment_lock(tmp_path),
+    ):
+        pass
     assert str(refused.value) == (
         f"experiment {tmp_path.name!r} is already running (pid {os.getpid()}); wait for it "
         "to finish or stop it, then run the same command to go on"
@@ -35,17 +38,17 @@ def test_a_second_holder_is_refused_with_the_first_ones_pid(tmp_path: Path) -> N
 
 
 def test_another_process_is_refused_and_a_killed_holder_frees_it(tmp_path: Path) -> None:
-    holder = subprocess.Popen(
-        [sys.executable, "-c",
-         "import sys, time; from app.experiments.lock import experiment_lock\n"
-         f"with experiment_lock({str(tmp_path)!r}):\n    print('held', flush=True); time.sleep(60)"],
-        stdout=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    script = (
+        "import time; from app.experiments.lock import experiment_lock\n"
+        f"with experiment_lock({str(tmp_path)!r}):\n"
+        "    print('held', flush=True); time.sleep(60)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout is not None and holder.stdout.readline() == "held\n"
-        with pytest.raises(ExperimentError, match=rf"already running \(pid {holder.pid}\)"):
-            with experiment_lock(tmp_path):
-                pass
+        refused = rf"already running \(pid {holder.pid}\)"
+        with pytest.raises(ExperimentError, match=refused), experiment_lock(tmp_path):
+            pass
     finally:
         holder.kill()
         holder.wait()
@@ -64,6 +67,8 @@ def test_temporaries_of_killed_runs_are_cleared(tmp_path: Path) -> None:
 
 def test_a_folder_that_cannot_be_made_is_refused(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("")
-    with pytest.raises(ExperimentError, match="cannot write in"):
-        with experiment_lock(tmp_path / "file" / "tiny"):
-            pass
+    with (
+        pytest.raises(ExperimentError, match="cannot write in"),
+        experiment_lock(tmp_path / "file" / "tiny"),
+    ):
+        pass
