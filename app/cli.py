@@ -40,6 +40,7 @@ from app.config import (
     to_toml,
     train_settings,
 )
+from app.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
 from app.fields import nested
@@ -52,8 +53,6 @@ if TYPE_CHECKING:
     from app.training import GenerationSummary
 
 PROG = "gnp-lab"
-EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a command a closed pipe stopped
 
 
 class UsageError(Exception):
