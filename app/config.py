@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pydantic import (
     BaseModel,
@@ -48,6 +48,19 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
+def preset_layer(name: str) -> dict[str, Any]:
+    """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
+    if name not in PRESET_NAMES:
+        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
+    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+METHOD_PRESET = "thesis-ch5"
+"""The preset whose method is the lab's default: the thesis's last, GNP-TSRL with credit (CS),
+where gnp's own default is its first (RL)."""
+
+
 def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
     """A `ControllerSettings` field with the default and description `gnp.GnpConfig` gives it
     (written there once), and its bounds unless the lab allows `narrower` ones."""
@@ -66,7 +79,8 @@ class ControllerSettings(_Frozen):
     (`GnpConfig`); the lab keeps narrower bounds on the sizes."""
 
     method: Method = Field(
-        default="CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
+        default=preset_layer(METHOD_PRESET)["controller"]["method"],
+        description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)",
     )
     fuzzy: bool = _of_gnp("fuzzy")
     n_judgment: int = _of_gnp("n_judgment", "count", ge=8, le=400)
@@ -337,7 +351,7 @@ class RewardSettings(_Frozen):
 Optimiser = Literal["cmaes", "neat"]
 #: What drives the robots: GNP (the thesis), or a neural net evolved by CMA-ES or NEAT.
 Brain = Literal["gnp", "cmaes", "neat"]
-BRAINS: tuple[Brain, ...] = ("gnp", "cmaes", "neat")
+BRAINS: tuple[Brain, ...] = get_args(Brain)
 
 
 class NeuroSettings(_Frozen):
@@ -469,14 +483,6 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"config file {path} is not valid TOML: {error}") from None
     except UnicodeDecodeError:
         raise ConfigError(f"config file {path} is not UTF-8 text") from None
-
-
-def preset_layer(name: str) -> dict[str, Any]:
-    """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
-    if name not in PRESET_NAMES:
-        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
-    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
-    return tomllib.loads(text)
 
 
 def load_preset(name: str) -> RunConfig:

@@ -1,0 +1,112 @@
+"""Each fact is written once (issue #33): lints over app/'s source that keep it so.
+
+Every module of app/ is parsed with `ast`; a fact written a second time (an exit code, a
+`sim.World(...)` built outside its factory, a private name of another package) fails here.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+APP = ROOT / "app"
+
+
+def _modules() -> dict[str, ast.Module]:
+    return {
+        str(path.relative_to(ROOT)): ast.parse(path.read_text(encoding="utf-8"), str(path))
+        for path in sorted(APP.rglob("*.py"))
+    }
+
+
+MODULES = _modules()
+
+
+def test_exit_codes_are_assigned_in_app_exit_codes_only() -> None:
+    found = []
+    for name, tree in MODULES.items():
+        for node in ast.walk(tree):
+            targets = node.targets if isinstance(node, ast.Assign) else []
+            if isinstance(node, ast.AnnAssign):
+                targets = [node.target]
+            for target in targets:
+                for leaf in ast.walk(target):
+                    if isinstance(leaf, ast.Name) and leaf.id.startswith("EXIT_"):
+                        found.append(f"{name}: {leaf.id}")
+    assert found and all(f.startswith("app/exit_codes.py: ") for f in found), found
+
+
+def test_no_private_module_of_another_package_is_imported() -> None:
+    found = []
+    for name, tree in MODULES.items():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                modules = [node.module]
+            elif isinstance(node, ast.Import):
+                modules = [alias.name for alias in node.names]
+            else:
+                continue
+            for module in modules:
+                top, *rest = module.split(".")
+                ours = top in {"app", "gnp", "sim", "neuro"}
+                if not ours and any(part.startswith("_") for part in rest):
+                    found.append(f"{name}: {module}")
+    assert found == []
+
+
+def _literal_aliases(tree: ast.Module) -> dict[str, set[object]]:
+    """Each `Name = Literal[...]` of a module → its values."""
+    return {
+        node.targets[0].id: set(ast.literal_eval(node.value.slice))
+        if isinstance(node.value.slice, ast.Tuple)
+        else {ast.literal_eval(node.value.slice)}
+        for node in tree.body
+        if isinstance(node, ast.Assign)
+        and isinstance(node.targets[0], ast.Name)
+        and isinstance(node.value, ast.Subscript)
+        and isinstance(node.value.value, ast.Name)
+        and node.value.value.id == "Literal"
+    }
+
+
+def test_a_tuple_of_a_literals_values_is_get_args_of_it() -> None:
+    """`NAMES: tuple[L, ...] = get_args(L)`, never all the literal's values written again (a
+    subset, such as the verdicts without "exploratory", is a fact of its own)."""
+    checked, found = [], []
+    for name, tree in MODULES.items():
+        aliases = _literal_aliases(tree)
+        for node in tree.body:
+            if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)):
+                continue
+            annotation = node.annotation
+            if not (
+                isinstance(annotation, ast.Subscript)
+                and isinstance(annotation.value, ast.Name)
+                and annotation.value.id == "tuple"
+                and isinstance(annotation.slice, ast.Tuple)
+                and isinstance(annotation.slice.elts[0], ast.Name)
+                and annotation.slice.elts[0].id in aliases
+            ):
+                continue
+            alias = annotation.slice.elts[0].id
+            value = node.value
+            checked.append(node.target.id)
+            if (
+                isinstance(value, ast.Call)
+                and isinstance(value.func, ast.Name)
+                and value.func.id == "get_args"
+                and isinstance(value.args[0], ast.Name)
+                and value.args[0].id == alias
+            ):
+                continue
+            if isinstance(value, ast.Tuple) and set(ast.literal_eval(value)) == aliases[alias]:
+                found.append(f"{name}: {node.target.id}")
+    assert {"BRAINS", "SCALES"} <= set(checked)
+    assert found == []
+
+
+def test_the_labs_method_default_is_its_presets() -> None:
+    from app.config import METHOD_PRESET, ControllerSettings, load_preset
+
+    assert ControllerSettings().method == load_preset(METHOD_PRESET).controller.method == "CS"
