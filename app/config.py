@@ -74,6 +74,12 @@ def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
     return setting(fact.default, fact.description, unit, **bounds)
 
 
+def _noise_sigma() -> Any:
+    """The sensor noise σ field of both phases (Eq. 2.6), its range written here once: the
+    live noise of the dashboard is checked against it too (`app.live.checked_noise`)."""
+    return setting(0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX)
+
+
 class ControllerSettings(_Frozen):
     """The GNP individual (Tables 2.4, 3.1, 5.1). Defaults and descriptions are gnp's
     (`GnpConfig`); the lab keeps narrower bounds on the sizes."""
@@ -134,9 +140,7 @@ class TrainingSettings(_Frozen):
     redraw_every: int = setting(
         0, "new start pose every R steps, 0 = never", "steps", ge=0, le=1_000_000
     )
-    noise_sigma: float = setting(
-        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
-    )
+    noise_sigma: float = _noise_sigma()
     control_period: float = setting(CONTROL_PERIOD_S, "control step", "s", gt=0.0, le=1.0)
     physics: Physics = Field(
         default="pymunk",
@@ -193,9 +197,7 @@ class ImplementationSettings(_Frozen):
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
     steps: int = setting(3000, "life time T", "control steps", ge=1, le=1_000_000)
     repeats: int = setting(300, "trials per start pose", "count", ge=1, le=100_000)
-    noise_sigma: float = setting(
-        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
-    )
+    noise_sigma: float = _noise_sigma()
     broken_sensors: tuple[int, ...] = Field(
         default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
     )
