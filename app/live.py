@@ -19,6 +19,7 @@ import numpy as np
 import gnp
 import neuro
 import sim
+from app.arenas import new_world
 from app.config import ImplementationSettings, LearningSettings
 from app.fields import SettingError, check_field
 from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
@@ -294,7 +295,7 @@ class LiveSession:
         self._pending_fault: tuple[int, tuple[int, ...], FaultMode] | None = None
         for spec in robots:
             # Same seed for every robot: compared robots meet the same noise and random faults.
-            world = sim.World(
+            world = new_world(
                 arena, n=1, seed=seed, noise_sigma=noise_sigma, control_period=control_period
             )
             world.reset(arena.start_poses[start : start + 1])
