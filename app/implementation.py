@@ -16,12 +16,13 @@ import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 import sim
-from app.arenas import arena_of
+from app.arenas import arena_of, new_world
 from app.config import CFrom, ImplementationSettings
 from app.neural import BrainConfig, Individual, best_individual, copies, recorded_trace
 from app.recording import Trajectory, TrajectoryRecorder
@@ -133,7 +134,7 @@ def _live_trials(
     trials = np.arange(part.start, part.stop)
     start_index = trials % len(arena.start_poses)
     world_seeds, engine_seeds = trial_seeds(seed, trials)
-    world = sim.World(
+    world = new_world(
         arena,
         n=len(trials),
         seed=seed,
@@ -260,23 +261,31 @@ def implement(
         generation = (
             settings.generation if settings.generation is not None else run.generations_done - 1
         )
-        cfg, individual = best_individual(run, generation)
         seed = settings.seed if settings.seed is not None else run.seed
-        control_period = run.config.training.control_period
-        c_from = run.config.reward.c_from
-        physics = run.config.training.physics
-    result = run_implementation(
+        phase = implementation_of(run, settings, generation, seed=seed, name=name)
+    result = phase(workers=workers, progress=progress)
+    add_implementation(run_path, result)
+    return result
+
+
+def implementation_of(
+    run: RunReader, settings: ImplementationSettings, generation: int, *, seed: int, name: str
+) -> partial[Implementation]:
+    """`run_implementation` of `run`'s best of `generation` in the run's own worlds: its
+    control period, physics and reward's C, read from the run's config here only (for
+    `implement` and the dashboard alike). Call it once the file is closed (`workers`,
+    `progress` may be given then)."""
+    cfg, individual = best_individual(run, generation)
+    config = run.config
+    return partial(
+        run_implementation,
         cfg,
         individual,
         settings,
         seed=seed,
-        control_period=control_period,
-        physics=physics,
+        control_period=config.training.control_period,
+        physics=config.training.physics,
+        c_from=config.reward.c_from,
         name=name,
         generation=generation,
-        workers=workers,
-        progress=progress,
-        c_from=c_from,
     )
-    add_implementation(run_path, result)
-    return result

@@ -110,3 +110,16 @@ def test_the_labs_method_default_is_its_presets() -> None:
     from app.config import METHOD_PRESET, ControllerSettings, load_preset
 
     assert ControllerSettings().method == load_preset(METHOD_PRESET).controller.method == "CS"
+
+
+def test_the_lab_builds_its_worlds_in_one_factory() -> None:
+    """`sim.World(...)` is called in `app.arenas.new_world` only."""
+    found = []
+    for name, tree in MODULES.items():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call):
+                func = node.func
+                called = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+                if called == "World":
+                    found.append(f"{name}:{node.lineno}")
+    assert len(found) == 1 and found[0].startswith("app/arenas.py:"), found
