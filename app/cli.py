@@ -379,6 +379,8 @@ def cmd_runs(args: argparse.Namespace) -> int:
 
 
 def _inspect(path: Path) -> int:
+    from app.implementation import describe_fault
+
     with RunReader(path) as run:
         history = run.history()
         done = run.generations_done
@@ -406,17 +408,6 @@ def _inspect(path: Path) -> int:
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
     return 0
-
-
-def describe_fault(settings: ImplementationSettings) -> str:
-    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
-    if not settings.has_fault:
-        return "no fault"
-    if settings.broken_sensors:
-        which = f"sensors {','.join(map(str, settings.broken_sensors))}"
-    else:
-        which = f"{settings.break_count} random sensor(s) per trial"
-    return f"{which} {settings.fault_mode} at step {settings.fault_step}"
 
 
 # --- serve ----------------------------------------------------------------------------------

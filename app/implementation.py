@@ -14,7 +14,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -69,6 +69,26 @@ def default_name(settings: ImplementationSettings) -> str:
         fault = "no-fault"
     noise = f"-noise{settings.noise_sigma:g}" if settings.noise_sigma else ""
     return f"{fault}-{settings.schedule}{noise}"
+
+
+def fault_text(sensors: Sequence[int] | int, mode: str, step: int | None) -> str:
+    """How the lab words a fault, on the command line, in a replay and on the page:
+    `sensors 2,3 broken (dead) since step 500`; k random sensors (an int): `2 random
+    sensor(s) per trial broken (dead) since step 500`; no step: no `since`."""
+    if isinstance(sensors, int):
+        which = f"{sensors} random sensor(s) per trial"
+    else:
+        which = "sensors " + ",".join(str(s) for s in sensors)
+    since = f" since step {step}" if step is not None else ""
+    return f"{which} broken ({mode}){since}"
+
+
+def describe_fault(settings: ImplementationSettings) -> str:
+    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
+    if not settings.has_fault:
+        return "no fault"
+    sensors = settings.broken_sensors or settings.break_count
+    return fault_text(sensors, settings.fault_mode, settings.fault_step)
 
 
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:

@@ -123,3 +123,50 @@ def test_the_lab_builds_its_worlds_in_one_factory() -> None:
                 if called == "World":
                     found.append(f"{name}:{node.lineno}")
     assert len(found) == 1 and found[0].startswith("app/arenas.py:"), found
+
+
+def test_a_fault_is_worded_by_one_function() -> None:
+    from app.config import ImplementationSettings
+    from app.implementation import describe_fault, fault_text
+
+    assert fault_text((2, 3), "dead", 500) == "sensors 2,3 broken (dead) since step 500"
+    assert fault_text([5], "stuck", None) == "sensors 5 broken (stuck)"
+    fixed = ImplementationSettings(broken_sensors=(3, 2), fault_mode="saturated")
+    assert describe_fault(fixed) == "sensors 2,3 broken (saturated) since step 500"
+    drawn = ImplementationSettings(break_count=2, fault_step=40)
+    assert describe_fault(drawn) == "2 random sensor(s) per trial broken (dead) since step 40"
+    assert describe_fault(ImplementationSettings()) == "no fault"
+    worded = {
+        name
+        for name, tree in MODULES.items()
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, str)
+        and " broken (" in node.value
+    }
+    assert worded == {"app/implementation.py"}
+
+
+def test_both_phases_take_their_rates_from_one_place() -> None:
+    """The ε/α fields of both phases come from `app.config._rate`: the same names in the same
+    order (the stored configs' layout), types and bounds; only defaults and wording differ."""
+    from app.config import RATE_FIELDS, ImplementationSettings, TrainingSettings
+
+    for model in (TrainingSettings, ImplementationSettings):
+        names = list(model.model_fields)
+        start = names.index(RATE_FIELDS[0])
+        assert tuple(names[start : start + len(RATE_FIELDS)]) == RATE_FIELDS
+    for name in RATE_FIELDS:
+        ours = TrainingSettings.model_fields[name]
+        theirs = ImplementationSettings.model_fields[name]
+        assert (ours.annotation, ours.metadata) == (theirs.annotation, theirs.metadata), name
+    made = [
+        (node.target.id, node.value.func.id)
+        for node in ast.walk(MODULES["app/config.py"])
+        if isinstance(node, ast.AnnAssign)
+        and isinstance(node.target, ast.Name)
+        and node.target.id in RATE_FIELDS
+        and isinstance(node.value, ast.Call)
+        and isinstance(node.value.func, ast.Name)
+    ]
+    assert sorted(made) == sorted((name, "_rate") for name in RATE_FIELDS * 2)
