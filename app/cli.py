@@ -40,6 +40,7 @@ from app.config import (
     to_toml,
     train_settings,
 )
+from app.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
 from app.fields import nested
@@ -53,8 +54,6 @@ if TYPE_CHECKING:
     from app.training import GenerationSummary
 
 PROG = "gnp-lab"
-EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a command a closed pipe stopped
 
 
 class UsageError(Exception):
@@ -402,6 +401,8 @@ def cmd_runs(args: argparse.Namespace) -> int:
 
 
 def _inspect(path: Path) -> int:
+    from app.implementation import describe_fault
+
     with RunReader(path) as run:
         history = run.history()
         done = run.generations_done
@@ -429,17 +430,6 @@ def _inspect(path: Path) -> int:
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
     return 0
-
-
-def describe_fault(settings: ImplementationSettings) -> str:
-    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
-    if not settings.has_fault:
-        return "no fault"
-    if settings.broken_sensors:
-        which = f"sensors {','.join(map(str, settings.broken_sensors))}"
-    else:
-        which = f"{settings.break_count} random sensor(s) per trial"
-    return f"{which} {settings.fault_mode} at step {settings.fault_step}"
 
 
 # --- serve ----------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from app.cli_options import add_quiet, add_runs_dir
+from app.exit_codes import EXIT_INTERRUPTED
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
 from app.experiments.results import ExperimentResults
@@ -30,7 +31,6 @@ from app.experiments.spec import (
 )
 
 DEFAULT_SCALE = "small"
-EXIT_INTERRUPTED = 130
 
 
 def _positive(text: str) -> int:

@@ -8,10 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from app.cli_options import add_run_name, add_runs_dir
+from app.exit_codes import EXIT_ERROR
 from app.store import resolve_run
 from app.tasks.common import is_task_run
-
-EXIT_ERROR = 1
 
 
 def add_export_parser(commands: Any) -> argparse.ArgumentParser:
