@@ -12,6 +12,7 @@ from typing import Any
 
 from app.config import ConfigError, RunConfig
 from app.controller_file import GnpController, save_controller
+from app.exit_codes import EXIT_INTERRUPTED
 from app.store import RunFileError, resolve_run
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
@@ -19,7 +20,6 @@ from app.tasks.store import read_task_run
 from app.tasks.training import TaskGeneration, replay_episodes, resume_task, train_task
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
-EXIT_INTERRUPTED = 130
 
 
 def task_settings(task: str, assignments: list[tuple[list[str], Any]]) -> TaskSettings:
