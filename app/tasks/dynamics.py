@@ -28,7 +28,7 @@ from numba import njit
 import gnp
 from app.tasks.spaces import TaskAdapter
 from gnp.config import SENSOR_MAX
-from gnp.engine import _rates, check_population, kernel_arguments, method_code
+from gnp.engine import check_population, kernel_arguments, method_code
 from gnp.kernel import read_observed, records_part, walk_kernel
 from gnp.methods import BRANCH_SELECTION as _BS
 from gnp.methods import CREDIT as _CS
@@ -350,7 +350,10 @@ def lives(
     returns = np.zeros(n)
     lengths = np.zeros(n, np.int64)
     check_population(cfg, pop, state)
-    rates = _rates(epsilon, alpha, n)
+    for name, value in (("epsilon", epsilon), ("alpha", alpha)):
+        if not 0.0 <= value <= 1.0:
+            raise gnp.GnpError(f"{name} must lie in [0, 1], got {value}")
+    rates = np.array([[epsilon, alpha]], np.float64)  # one (ε, α) for all, as `gnp.step`'s
     low = np.ascontiguousarray(adapter.obs_low, np.float64)
     scale = SENSOR_MAX / (adapter.obs_high - adapter.obs_low)
     brain = kernel_arguments(method_code(cfg), cfg, pop, state)
