@@ -7,17 +7,17 @@ life is the same whatever else is in the batch: a batch equals one-by-one lives 
 environment (`gymnasium.make(task)` reset with the same seed; tested).
 
 CartPole-v1, MountainCar-v0 and Acrobot-v1 (`app.tasks.dynamics.FAST_TASKS`) live without
-Gymnasium: the lab's compiled twins of their envs (bit for bit Gymnasium's, tested step for
-step) and GNP's kernel run every individual's whole episode in one compiled call, the same
-lives as through Gymnasium, about 20-60 times faster (bench/tasks.py). Any other task, and a
-batch with observation faults, goes through Gymnasium: the batch steps through the task's own
-vector env (`make_vec(..., "vector_entry_point")`) where
-the lab knows how to start each of its environments from its own seed (`START_STATES`:
-CartPole, whose vector env draws every start state from one stream otherwise), else through
-`SyncVectorEnv` reset with one seed per environment. An individual whose episode ended stops
-acting (the vector env's autoreset of its environment is ignored); the batch ends when every
-episode has. An episode that terminates (not one truncated by a time limit or the cap) ends
-with the terminal Sarsa update (`gnp.end_episode`).
+Gymnasium's envs: the lab's compiled twins of their envs (bit for bit Gymnasium's, tested step
+for step) and GNP's kernel run every individual's whole episode in one compiled call, the same
+lives as through Gymnasium, 4-60 times faster (bench/tasks.py). Any other task, and a batch with
+observation faults, goes through Gymnasium: the batch steps through the task's own vector env
+(`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
+environments from its own seed (`START_STATES`: CartPole, whose vector env draws every start
+state from one stream otherwise), else through `SyncVectorEnv` reset with one seed per
+environment. An individual whose episode ended stops acting (the vector env's autoreset of its
+environment is ignored); the batch ends when every episode has. An episode that terminates (not
+one truncated by a time limit or the cap) ends with the terminal Sarsa update
+(`gnp.end_episode`).
 """
 
 from __future__ import annotations

@@ -59,6 +59,8 @@ def test_the_batched_dynamics_are_gymnasiums_env_bit_for_bit(task: str, greedy: 
             break
     assert not live.any()
     assert sum(ended.values()) == len(seeds)
+    for env in envs:
+        env.close()
 
 
 def _training(task: str, method: Literal["RL", "BS", "CS"]) -> TaskRunConfig:
