@@ -134,7 +134,9 @@ def fracnetics_run(population: int, generations: int, seed: int) -> tuple[int, f
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--tasks", nargs="+", default=list(dynamics.FAST_TASKS))
+    parser.add_argument(
+        "--tasks", nargs="+", default=["CartPole-v1", "MountainCar-v0", "Acrobot-v1"]
+    )
     parser.add_argument("--generations", nargs="+", type=int, default=[60, 10, 5])
     parser.add_argument("--populations", nargs="+", type=int, default=[100, 300])
     parser.add_argument("--rounds", type=int, default=2)

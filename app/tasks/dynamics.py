@@ -203,6 +203,7 @@ class FastTask:
 
 #: Task id → the lab's compiled twin of its Gymnasium env.
 FAST_TASKS: dict[str, FastTask] = {
+    "CartPole-v0": FastTask(CARTPOLE, 4, 4, 200),
     "CartPole-v1": FastTask(CARTPOLE, 4, 4, 500),
     "MountainCar-v0": FastTask(MOUNTAIN_CAR, 2, 2, 200),
     "Acrobot-v1": FastTask(ACROBOT, 4, 6, 500),
