@@ -6,13 +6,18 @@ Its environment starts from its own seed, and its controller draws from its own 
 life is the same whatever else is in the batch: a batch equals one-by-one lives with the single
 environment (`gymnasium.make(task)` reset with the same seed; tested).
 
-The batch steps through the task's own vector env (`make_vec(..., "vector_entry_point")`) where
-the lab knows how to start each of its environments from its own seed (`START_STATES`:
-CartPole, whose vector env draws every start state from one stream otherwise), else through
-`SyncVectorEnv` reset with one seed per environment. An individual whose episode ended stops
-acting (the vector env's autoreset of its environment is ignored); the batch ends when every
-episode has. An episode that terminates (not one truncated by a time limit or the cap) ends
-with the terminal Sarsa update (`gnp.end_episode`).
+CartPole-v1, MountainCar-v0 and Acrobot-v1 (`app.tasks.dynamics.FAST_TASKS`) live without
+Gymnasium's envs: the lab's compiled twins of their envs (bit for bit Gymnasium's, tested step
+for step) and GNP's kernel run every individual's whole episode in one compiled call, the same
+lives as through Gymnasium, 4-60 times faster (bench/tasks.py). Any other task, and a batch with
+observation faults, goes through Gymnasium: the batch steps through the task's own vector env
+(`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
+environments from its own seed (`START_STATES`: CartPole, whose vector env draws every start
+state from one stream otherwise), else through `SyncVectorEnv` reset with one seed per
+environment. An individual whose episode ended stops acting (the vector env's autoreset of its
+environment is ignored); the batch ends when every episode has. An episode that terminates (not
+one truncated by a time limit or the cap) ends with the terminal Sarsa update
+(`gnp.end_episode`).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 import gnp
+from app.tasks import dynamics
 from app.tasks.faults import ObservationFault, ObservationFaults
 from app.tasks.spaces import TaskAdapter
 
@@ -56,27 +62,34 @@ class FaultPlan:
 
 
 class BatchEnv:
-    """n environments of `task` stepping together (see the module docstring)."""
+    """n environments of `task` stepping together (see the module docstring): `mode` "fast"
+    (the lab's compiled twin of the env: `fast`; no Gymnasium env is made), else
+    "vector_entry_point" or "sync" (`env`)."""
 
     def __init__(
         self, task: str, n: int, adapter: TaskAdapter, faults: FaultPlan | None = None
     ) -> None:
         spec = gym.spec(task)
         self.n = n
+        self.fast = dynamics.FAST_TASKS.get(task) if faults is None else None
         self._start = START_STATES.get(task) if faults is None else None
-        self.env: gym.vector.VectorEnv
+        self.env: gym.vector.VectorEnv | None = None
         self._sync: gym.vector.SyncVectorEnv | None = None
-        if self._start is not None and spec.vector_entry_point is not None:
+        if self.fast is not None and adapter.kind == "discrete":
+            self.mode = "fast"
+        elif self._start is not None and spec.vector_entry_point is not None:
+            self.fast = None
             self.env = gym.make_vec(task, num_envs=n, vectorization_mode="vector_entry_point")
             self.mode = "vector_entry_point"
         else:
-            self._start = None
+            self.fast = self._start = None
             makers = [_maker(task, adapter, faults, i) for i in range(n)]
             self.env = self._sync = gym.vector.SyncVectorEnv(makers)
             self.mode = "sync"
 
     def reset(self, seeds: np.ndarray) -> np.ndarray:
         """Start environment i as the single env's `reset(seed=seeds[i])`; (n, d) observations."""
+        assert self.env is not None, "a fast batch has no Gymnasium env"
         if self._start is not None:
             self.env.reset(seed=0)
             return self._start(self.env, seeds)
@@ -87,13 +100,15 @@ class BatchEnv:
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(observations, rewards, terminated, done: terminated or truncated) after one step of
         every environment."""
+        assert self.env is not None, "a fast batch has no Gymnasium env"
         obs, reward, terminated, truncated, _ = self.env.step(actions)
         done = np.logical_or(terminated, truncated)
         rewards = np.asarray(reward, dtype=np.float64)
         return np.asarray(obs), rewards, np.asarray(terminated, dtype=bool), done
 
     def close(self) -> None:
-        self.env.close()
+        if self.env is not None:
+            self.env.close()
 
 
 def _maker(
@@ -144,6 +159,12 @@ def live(
         raise ValueError(f"the batch has {env.n} environments for {n} individuals")
     learned = gnp.take(pop, np.arange(n))  # learns in place; `pop` stays as it was
     state = gnp.init_state(cfg, n, np.asarray(engine_seeds, dtype=np.uint64))
+    if env.fast is not None:
+        returns, lengths = dynamics.lives(
+            env.fast, cfg, adapter, learned, state, np.asarray(env_seeds), epsilon, alpha,
+            max_steps, learn,
+        )  # fmt: skip
+        return TaskLives(returns=returns, lengths=lengths, learned=learned)
     obs = env.reset(np.asarray(env_seeds))
     returns = np.zeros(n)
     lengths = np.zeros(n, np.int64)

@@ -198,6 +198,9 @@ def _one_by_one(
 @pytest.mark.parametrize(
     ("task", "mode", "max_steps"),
     [
+        ("CartPole-v1", "fast", 500),
+        ("MountainCar-v0", "fast", 200),
+        ("Acrobot-v1", "fast", 500),
         ("CartPole-v1", "vector_entry_point", 500),
         ("MountainCar-v0", "sync", 60),
         ("Acrobot-v1", "sync", 40),
@@ -205,8 +208,10 @@ def _one_by_one(
     ],
 )
 def test_a_batch_lives_as_each_individual_alone_with_the_single_env(
-    task: str, mode: str, max_steps: int
+    task: str, mode: str, max_steps: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    if mode != "fast":  # the Gymnasium path
+        monkeypatch.setattr("app.tasks.dynamics.FAST_TASKS", {})
     config = TaskRunConfig(
         seed=4, task=TaskSettings(id=task), training=TaskTraining(population=12, steps=max_steps)
     )
