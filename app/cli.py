@@ -391,12 +391,11 @@ def cmd_runs(args: argparse.Namespace) -> int:
         if s.error:
             print(f"{s.name:32} {'?':10} {'':>12} {'':>7}  unreadable: {s.error}")
             continue
-        kind = f"{s.method} {gnp.judgment_name(s.fuzzy)}" if s.brain == "gnp" else s.brain
         status = "finished" if s.finished else "running or interrupted"
         if s.implementations:
             status += f"; implementations: {', '.join(s.implementations)}"
         gens = f"{s.generations_done}/{s.generations}"
-        print(f"{s.name:32} {kind:10} {gens:>12} {s.best_fitness:7.4f}  {status}")
+        print(f"{s.name:32} {s.kind:10} {gens:>12} {s.best_fitness:7.4f}  {status}")
     return 0
 
 

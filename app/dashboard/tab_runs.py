@@ -327,6 +327,5 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
-        kind = f"{r.method} {gnp.judgment_name(r.fuzzy)}" if r.brain == "gnp" else r.brain
-        rows.append(f"| {r.name} | {kind} | {done} | {r.best_fitness:.4f} |")
+        rows.append(f"| {r.name} | {r.kind} | {done} | {r.best_fitness:.4f} |")
     return "\n".join(rows)
