@@ -38,10 +38,14 @@ class PlotsTab:
     def draw(self, robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> None:
         """The robots' reward curves and the readout."""
         plots.set_rewards(self.reward, robots)
-        self.show_line = show_line(robots, noise_sigma)
+        self.set_show_line(show_line(robots, noise_sigma))
+
+    def set_show_line(self, line: str) -> None:
+        """The readout with another line about what is on show (a task replay's)."""
+        self.show_line = line
         self.readout.content = "  \n".join(
             [
-                self.show_line,
+                line,
                 self.training_line,
                 f"fitness plot: {self.fitness_points} generations",
                 self.implementation_line,
