@@ -102,7 +102,10 @@ class Dashboard:
         self.runs.leave_task = self._leave_task
         faults_buttons = (self.faults.buttons,) if self.faults.buttons is not None else ()
         self.task.robot_controls = (
-            *self.runs.robot_only, self.faults.sensors, self.faults.mode, *faults_buttons
+            *self.runs.robot_only,
+            self.faults.sensors,
+            self.faults.mode,
+            *faults_buttons,
         )
         with compare:
             self.compare = populate_compare_tab(gui, self.stage, self.status, self.runs_dir)

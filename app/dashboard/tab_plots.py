@@ -57,6 +57,14 @@ class PlotsTab:
         plots.set_fitness(self.fitness, best, mean)
         self.fitness_points = len(best)
 
+    def task_staged(self, task: str, best: np.ndarray, mean: np.ndarray) -> None:
+        """A task run on show: its returns per generation; the robot's charts emptied."""
+        plots.set_fitness(self.fitness, best, mean, returns=True)
+        self.fitness_points = len(best)
+        plots.set_reward_series(self.reward, [])
+        self.implementation.data = tuple(np.zeros(1) for _ in self.implementation.data)
+        self.implementation_line = f"implementation: the robot's (none for {task})"
+
     def show_implementation(self, name: str, result: store.Implementation) -> None:
         settings = result.settings
         plots.set_implementation(self.implementation, result.reward_per_step, settings.fault_step)

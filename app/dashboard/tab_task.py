@@ -86,8 +86,8 @@ class TaskPanel:
             raise DashboardInputError(f"task run {name} has no generation done yet")
         self.path, self.name = path, name
         fitness = run.fitness
-        self.plots.set_fitness(fitness.max(axis=1), fitness.mean(axis=1))
         config = run.config
+        self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1))
         self.summary.content = (
             f"**{name}**: task **{config.task.id}**, {config.controller.method} "
             f"{'fuzzy' if config.controller.fuzzy else 'crisp'}, population "
@@ -176,7 +176,7 @@ class TaskPanel:
         status = replay.status()
         with self.server.atomic():
             if self._last_frame is None or not np.array_equal(frame, self._last_frame):
-                self.image.image = frame
+                self.image.image = np.ascontiguousarray(frame[::-1])  # viser: row 0 at the bottom
                 self._last_frame = frame
                 self.frames += 1
             self.graph.update(replay.snapshot())
@@ -271,7 +271,7 @@ def populate_task_panel(
         speed = gui.add_slider("Task steps / s", min=1, max=200, step=1, initial_value=30)
         playing = gui.add_checkbox("Task playing", initial_value=True)
         features = gui.add_text("Break features", "")
-        mode = gui.add_dropdown("Feature fault", FAULT_MODES, initial_value="dead")
+        mode = gui.add_dropdown("Feature fault", tuple[str, ...](FAULT_MODES), initial_value="dead")
         fault_step = gui.add_number("Feature fault step", 50, min=0, step=1)
         buttons = gui.add_button_group("Task", ("Replay on task", "Export task run"))
     arena_bottom = frame.graph_origin[1] + frame.graph_height + 0.12 * frame.width
@@ -293,6 +293,10 @@ def populate_task_panel(
         server, status, plots, graph, network, arena, folder, summary, generation, seed,
         greedy, speed, playing, features, mode, fault_step, image, caption,
     )  # fmt: skip
-    actions = {"Replay on task": panel.start, "Export task run": panel.export}
+
+    def export() -> None:
+        panel.export()
+
+    actions = {"Replay on task": panel.start, "Export task run": export}
     buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
     return panel

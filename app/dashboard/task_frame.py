@@ -65,7 +65,10 @@ def task_frame(env: Any) -> np.ndarray:
         frame = env.render()
     except Exception as error:  # a renderer's missing extra (DependencyNotInstalled), any failure
         unwrapped = env.unwrapped
-        if type(unwrapped).__name__ == "CartPoleEnv" and getattr(unwrapped, "state", None) is not None:
+        if (
+            type(unwrapped).__name__ == "CartPoleEnv"
+            and getattr(unwrapped, "state", None) is not None
+        ):
             return cartpole_sketch(
                 np.asarray(unwrapped.state), unwrapped.x_threshold, unwrapped.length
             )

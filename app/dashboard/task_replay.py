@@ -20,7 +20,7 @@ import numpy as np
 
 import gnp
 from app.dashboard.task_frame import task_frame
-from app.live import RobotSnapshot, Ring
+from app.live import Ring, RobotSnapshot
 from app.tasks.common import TaskError
 from app.tasks.faults import ObservationFault, ObservationFaults
 from app.tasks.store import read_task_run
@@ -89,7 +89,9 @@ class TaskStatus:
     broken: tuple[int, ...]  # features broken now
 
 
-def _render_env(task: str, faults: Sequence[ObservationFault], adapter: object, seed: int) -> gym.Env:
+def _render_env(
+    task: str, faults: Sequence[ObservationFault], adapter: object, seed: int
+) -> gym.Env:
     try:
         env = gym.make(task, render_mode="rgb_array")
     except gym.error.Error as error:
@@ -224,7 +226,8 @@ class TaskReplay:
         )
 
     def node_words(self, node: int) -> str:
-        """`node 12 · J f2 pole θ` / `node 47 · P action 1.5`: what a node reads or sets."""
+        """`node 12 · J f2 pole θ/f0 cart x` / `node 47 · P action −5/action +9`: what a node's
+        sub nodes judge or set."""
         kind = int(self.cfg.node_type[node])
         functions = self.population.function[0, node]
         if kind == JUDGMENT:
@@ -232,7 +235,7 @@ class TaskReplay:
             return f"node {node} · J " + "/".join(names[int(f)] for f in functions)
         if kind == START:
             return f"node {node} · start"
-        outputs = action_captions(self.task, self.adapter.n_outputs, self.adapter.kind == "discrete")
+        outputs = action_captions("", self.adapter.n_outputs, self.adapter.kind == "discrete")
         speeds = self.population.speed[0, node]
         sets = (f"{outputs[int(f)]} {int(v):+d}" for f, v in zip(functions, speeds, strict=True))
         return f"node {node} · P " + "/".join(sets)
@@ -266,4 +269,3 @@ class TaskReplay:
 
     def close(self) -> None:
         self.env.close()
-

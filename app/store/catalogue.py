@@ -81,7 +81,9 @@ class RunSummary:
         """`CS fuzzy`, a neural optimiser (`cmaes`), or `task CartPole-v1`."""
         if self.task:
             return f"task {self.task}"
-        return f"{self.method} {gnp.judgment_name(self.fuzzy)}" if self.brain == "gnp" else self.brain
+        return (
+            f"{self.method} {gnp.judgment_name(self.fuzzy)}" if self.brain == "gnp" else self.brain
+        )
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:

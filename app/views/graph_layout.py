@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gnp.config import JUDGMENT, N_SENSORS, N_WHEELS, PROCESSING, START, WHEEL_NAMES
+from gnp.config import JUDGMENT, N_SENSORS, PROCESSING, START, WHEEL_NAMES
 
 
 class GraphLayoutError(ValueError):

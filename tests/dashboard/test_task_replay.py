@@ -18,8 +18,15 @@ from app.dashboard.task_replay import (
     feature_captions,
 )
 from app.store import RunFileError, list_runs
-from app.tasks import ObservationFault, TaskError, TaskRunConfig, TaskSettings, TaskTraining
-from app.tasks import replay_task, train_task
+from app.tasks import (
+    ObservationFault,
+    TaskError,
+    TaskRunConfig,
+    TaskSettings,
+    TaskTraining,
+    replay_task,
+    train_task,
+)
 from app.views.genome import genome_view
 from gnp import Schedule
 
@@ -30,9 +37,7 @@ def tiny_task_config(seed: int = 1) -> TaskRunConfig:
         seed=seed,
         task=TaskSettings(id="CartPole-v1"),
         controller=ControllerSettings(method="CS", fuzzy=False),
-        training=TaskTraining(
-            population=8, generations=3, steps=200, epsilon=Schedule.fixed(0.01)
-        ),
+        training=TaskTraining(population=8, generations=3, steps=200, epsilon=Schedule.fixed(0.01)),
     )
 
 
@@ -88,7 +93,7 @@ def test_the_graphs_current_node_follows_the_brain(task_run: Path) -> None:
     judgment = int(np.flatnonzero(kinds == gnp.config.JUDGMENT)[0])
     assert " · J f" in replay.node_words(judgment)
     processing = int(np.flatnonzero(kinds == gnp.config.PROCESSING)[0])
-    assert " · P action (push ← | →) " in replay.node_words(processing)
+    assert " · P action " in replay.node_words(processing)
     replay.close()
 
 
@@ -104,7 +109,12 @@ def test_observation_faults_break_features(task_run: Path) -> None:
 
 
 def test_captions_name_features_and_actions() -> None:
-    assert feature_captions("CartPole-v1", 4) == ("f0 cart x", "f1 cart v", "f2 pole θ", "f3 pole ω")
+    assert feature_captions("CartPole-v1", 4) == (
+        "f0 cart x",
+        "f1 cart v",
+        "f2 pole θ",
+        "f3 pole ω",
+    )
     assert feature_captions("Other-v0", 2) == ("f0", "f1")
     assert action_captions("CartPole-v1", 1, True) == ("action (push ← | →)",)
     assert action_captions("Other-v0", 2, False) == ("a0", "a1")
@@ -126,7 +136,7 @@ def test_a_corrupt_or_foreign_file_is_one_line(task_run: Path, tmp_path: Path) -
     bad.write_bytes(b"not hdf5")
     with pytest.raises(RunFileError, match="cannot read"):
         TaskReplay(TaskReplayRequest(bad))
-    with pytest.raises(RunFileError, match="generations 0..2, not 5"):
+    with pytest.raises(RunFileError, match=r"generations 0\.\.2, not 5"):
         TaskReplay(TaskReplayRequest(task_run, generation=5))
 
 
