@@ -14,15 +14,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import gnp
 from app.dashboard.task_frame import task_frame
 from app.live import Ring, RobotSnapshot
 from app.tasks.common import TaskError
+from app.tasks.config import make_env
 from app.tasks.faults import ObservationFault, ObservationFaults
+from app.tasks.spaces import TaskAdapter
 from app.tasks.store import read_task_run
 from gnp.config import JUDGMENT, START
 
@@ -90,17 +92,12 @@ class TaskStatus:
 
 
 def _render_env(
-    task: str, faults: Sequence[ObservationFault], adapter: object, seed: int
-) -> gym.Env:
-    try:
-        env = gym.make(task, render_mode="rgb_array")
-    except gym.error.Error as error:
-        raise TaskError(f"task {task!r} cannot be made: {str(error).splitlines()[0]}") from None
-    except ImportError as error:  # a task whose package (an extra) is missing
-        raise TaskError(f"task {task!r} cannot be made: {error}") from None
+    task: str, faults: Sequence[ObservationFault], adapter: TaskAdapter, seed: int
+) -> Any:
+    """The task's env drawing rgb_array frames, with the observation faults if any."""
+    env = make_env(task, render_mode="rgb_array")
     if faults:
-        low, high = adapter.obs_low, adapter.obs_high  # type: ignore[attr-defined]
-        env = ObservationFaults(env, faults, low, high, seed)
+        env = ObservationFaults(env, faults, adapter.obs_low, adapter.obs_high, seed)
     return env
 
 
