@@ -81,7 +81,11 @@ class TaskPanel:
         """Load a task run: its summary and fitness plot, then replay its best on the task."""
         from app.tasks.store import read_task_run
 
-        run = read_task_run(path)
+        try:
+            run = read_task_run(path)
+        except (KeyError, ValueError, OSError) as error:  # a damaged file: one line, no trace
+            first = str(error).splitlines()[0] if str(error) else type(error).__name__
+            raise DashboardInputError(f"cannot read task run {name}: {first}") from None
         if run.generation_done == 0:
             raise DashboardInputError(f"task run {name} has no generation done yet")
         self.path, self.name = path, name
