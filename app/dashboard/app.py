@@ -138,7 +138,16 @@ class Dashboard:
             hit = origin - direction * (origin[2] / direction[2])
             node = self.graph_view.node_at(hit[:2])
             if node is not None:
-                self.status.guarded(event.client, lambda: self.show.inspect(node))
+                self.status.guarded(event.client, lambda: self._inspect(node))
+
+    def _inspect(self, node: int) -> None:
+        """A node clicked: the robot's in the inspector, a task brain's in the status line."""
+        replay = self.task.replay
+        if replay is None:
+            self.show.inspect(node)
+            return
+        self.graph_view.select(node)
+        self.status.set(f"{replay.task} brain: {replay.node_words(node)}")
 
     def _staged(self, show: Show, session: LiveSession) -> None:
         """A new show on the stage: its arena, graph, Show tab and reward chart (a task replay
@@ -185,8 +194,10 @@ class Dashboard:
                     raise
                 self.status.set(f"⚠ could not load {choice}: {error}")
         self.stage.present(random_show())
+        tasks = any(s.task for s in runs)
+        none = "no robot runs (task runs: load one in the Runs tab)" if tasks else "no runs"
         self.status.set(
-            f"no runs in {self.runs_dir} — showing an untrained random individual; "
+            f"{none} in {self.runs_dir} — showing an untrained random individual; "
             "train one in the Train tab"
         )
 

@@ -9,12 +9,14 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 import pytest
 from page_helpers import dashboard_in_process, until
 from test_task_replay import tiny_task_config
 
 from app.cli import main
 from app.tasks import train_task
+from gnp.config import JUDGMENT
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +60,13 @@ def test_the_page_lists_loads_and_replays_a_task_run(board: Any) -> None:
     until(lambda: board.task.replay.t + 100 * board.task.replay.episode > steps + 5)
     until(lambda: board.task.frames > 2)
     assert board.plots.show_line.startswith("on show: task CartPole-v1 · generation 2")
+    # A node clicked in the graph is the task brain's, named in the status line.
+    with board.lock:
+        kinds = board.task.replay.cfg.node_type
+        judgment = int(np.flatnonzero(kinds == JUDGMENT)[0])
+        board._inspect(judgment)
+    assert board.status.text.startswith(f"CartPole-v1 brain: node {judgment} · J f")
+    assert board.graph_view.selected == judgment
 
 
 def test_a_damaged_file_or_a_missing_extra_is_one_line(board: Any) -> None:
