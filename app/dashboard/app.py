@@ -213,7 +213,7 @@ class Dashboard:
                         next_plot = frame_start + PLOT_SECONDS
                     if self.task.active:  # a task run on show: its replay, the robot waits
                         self.task.advance(frame_start - last)
-                        self.task.draw()
+                        self.task.draw(with_plots)
                     else:
                         self.stage.advance(frame_start - last)
                         if self.stage.session is not None:

@@ -166,8 +166,9 @@ class TaskPanel:
             self.replay.playing = bool(self.playing.value)
             self.replay.advance(seconds)
 
-    def draw(self) -> None:
-        """One frame: the task's picture, the graph, the readout (under the dashboard's lock)."""
+    def draw(self, with_text: bool = True) -> None:
+        """One frame: the task's picture, the graph and (`with_text`, twice a second in the
+        loop) the readout; under the dashboard's lock."""
         replay = self.replay
         if replay is None:
             return
@@ -188,9 +189,9 @@ class TaskPanel:
                 f"{status.task} · episode {status.episode} (seed {status.seed}) · step {status.t}"
                 f" · return {status.episode_return:g}"
             )
-        self.plots.set_show_line(task_line(status, replay.node_words(status.current_node)))
-        if self.frame_line:
-            self.plots.set_show_line(self.plots.show_line + "  \n⚠ " + self.frame_line)
+        if with_text:
+            line = task_line(status, replay.node_words(status.current_node))
+            self.plots.set_show_line(line + ("  \n⚠ " + self.frame_line if self.frame_line else ""))
 
     def stop(self) -> None:
         """End the replay (the task's env closed)."""
