@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 import gnp
+from app.dashboard.stage import MAX_STEPS_PER_ADVANCE
 from app.dashboard.task_frame import task_frame
 from app.live import Ring, RobotSnapshot
 from app.tasks.common import TaskError
@@ -28,7 +29,6 @@ from app.tasks.spaces import TaskAdapter
 from app.tasks.store import read_task_run
 from gnp.config import JUDGMENT, START
 
-MAX_STEPS_PER_ADVANCE = 50
 VISITS = 256
 
 #: Short names of the observation features and actions of tasks the lab knows (captions of
