@@ -32,7 +32,7 @@ from app.fields import Setting, read_setting, sections, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, Physics
+from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, Physics
 from sim.arena import ArenaSpec
 from sim.reward import CFrom
 
@@ -187,7 +187,7 @@ class TrainingSettings(_Frozen):
     population: int = setting(300, "individuals", "count", ge=2, le=100_000)
     generations: int = setting(1000, "generations G", "count", ge=1, le=1_000_000)
     steps: int = setting(
-        1000, "life time T", "control steps", label="Life T (steps)", ge=1, le=1_000_000
+        LIFE_STEPS, "life time T", "control steps", label="Life T (steps)", ge=1, le=1_000_000
     )
     redraw_every: int = setting(
         0, "new start pose every R steps, 0 = never", "steps", ge=0, le=1_000_000

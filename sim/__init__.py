@@ -11,6 +11,7 @@ from sim.khepera import (
     CONTROL_PERIOD_S,
     IR_MAX,
     IR_RANGE_MM,
+    LIFE_STEPS,
     MAX_COMMAND,
     N_SENSORS,
 )
@@ -25,6 +26,7 @@ __all__ = [
     "FAULT_MODES",
     "IR_MAX",
     "IR_RANGE_MM",
+    "LIFE_STEPS",
     "MAX_COMMAND",
     "N_SENSORS",
     "N_START_POSES",

@@ -19,7 +19,7 @@ from app.cli_options import add_quiet, add_runs_dir
 from app.exit_codes import EXIT_INTERRUPTED
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
-from app.experiments.results import ExperimentResults
+from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
 from app.experiments.spec import (
     SCALES,
     ExperimentError,
@@ -459,6 +459,14 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     return 0
 
 
+def _core_time(seconds: float) -> str:
+    """Core time in words, to two significant figures: "40 core-seconds", "9.8 core-hours"."""
+    for unit, size in (("core-hours", 3600.0), ("core-minutes", 60.0)):
+        if seconds >= size:
+            return f"{float(f'{seconds / size:.2g}'):g} {unit}"
+    return f"{float(f'{seconds:.2g}'):g} core-seconds"
+
+
 def cmd_list(args: argparse.Namespace) -> int:
     from app.experiments import planning
     from app.experiments.reproduced import short_count
@@ -472,10 +480,13 @@ def cmd_list(args: argparse.Namespace) -> int:
         for scale, sizes in spec.scales.items():
             cost = planning.work(spec, scale)
             t = spec.run_config(spec.arms[0].name, scale, 0).training
+            seconds = (cost.robot_steps + cost.trial_steps) / CORE_STEPS_PER_SECOND
             print(
                 f"  {scale:6} {cost.runs} runs × {t.generations} generations × {t.population} "
                 f"individuals × {t.steps} steps = {short_count(cost.robot_steps)} robot-steps; "
                 f"{len(spec.conditions)} conditions per run: {short_count(cost.trial_steps)} "
-                "trial-steps" + (f"; measured: {sizes.measured}" if sizes.measured else "")
+                f"trial-steps; about {_core_time(seconds)} at "
+                f"{CORE_STEPS_PER_SECOND / 1e6:.2g} M steps per core-second"
+                + (f"; measured: {sizes.measured}" if sizes.measured else "")
             )
     return 0

@@ -29,15 +29,19 @@ class ObservationFault:
     mode: FaultMode = "dead"
 
 
-class ObservationFaults(gym.ObservationWrapper[np.ndarray, Any, np.ndarray]):
+class ObservationFaults(
+    gym.ObservationWrapper[np.ndarray, Any, np.ndarray], gym.utils.RecordConstructorArgs
+):
     """Breaks observation features on schedule (see the module docstring).
 
     Args:
         env: a task with a 1-D Box observation.
         faults: the schedule.
         low, high: (n,) finite bounds of each feature.
-        seed: seed of the stream `random` draws from (restarted at every reset with the
-            episode's number, so an episode's draws do not depend on the ones before).
+        seed: seed of the stream `random` draws from, restarted at every reset: from the
+            last reset seed and the episodes since it (the Gymnasium way: the same seed, the
+            same episodes after it), else from the episode's number, so an episode's draws
+            never depend on the draws before.
     """
 
     def __init__(
@@ -48,6 +52,9 @@ class ObservationFaults(gym.ObservationWrapper[np.ndarray, Any, np.ndarray]):
         high: np.ndarray,
         seed: int = 0,
     ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, faults=tuple(faults), low=low, high=high, seed=seed
+        )
         super().__init__(env)
         n = int(np.prod(env.observation_space.shape or (0,)))
         self._low = np.asarray(low, dtype=np.float64)
@@ -67,6 +74,8 @@ class ObservationFaults(gym.ObservationWrapper[np.ndarray, Any, np.ndarray]):
         self._faults = tuple(faults)
         self._seed = seed
         self._episode = -1
+        self._base: int | None = None  # the last reset's seed, and the episodes since it
+        self._since = 0
         self._t = 0
         self._stuck: dict[int, float] = {}
         self._rng = np.random.default_rng(seed)
@@ -75,7 +84,13 @@ class ObservationFaults(gym.ObservationWrapper[np.ndarray, Any, np.ndarray]):
         self._episode += 1
         self._t = 0
         self._stuck = {}
-        self._rng = np.random.default_rng([self._seed, self._episode])
+        if kwargs.get("seed") is not None:  # episodes from here on follow the reset's seed
+            self._base, self._since = int(kwargs["seed"]), 0
+        self._since += 1
+        words = [self._seed, self._episode]
+        if self._base is not None:
+            words = [self._seed, self._base, self._since]
+        self._rng = np.random.default_rng(words)
         return super().reset(**kwargs)
 
     def step(self, action: Any) -> tuple[np.ndarray, Any, bool, bool, dict[str, Any]]:

@@ -170,3 +170,14 @@ def test_both_phases_take_their_rates_from_one_place() -> None:
         and isinstance(node.value.func, ast.Name)
     ]
     assert sorted(made) == sorted((name, "_rate") for name in RATE_FIELDS * 2)
+
+
+def test_the_training_life_is_the_envs_episode() -> None:
+    import gymnasium
+
+    import sim.gym_env  # noqa: F401  (registers the env)
+    from app.config import TrainingSettings
+    from sim import LIFE_STEPS
+
+    spec = gymnasium.spec("GnpLab/WallFollow-v0")
+    assert TrainingSettings().steps == LIFE_STEPS == spec.max_episode_steps == 1000
