@@ -76,3 +76,12 @@ def test_a_damaged_file_or_a_missing_extra_is_one_line(board: Any) -> None:
     board.status.guarded(None, lambda: board.runs.load("damaged"))
     assert board.status.text.startswith("⚠ ")
     assert "\n" not in board.status.text
+
+
+def test_the_panel_exports_the_task_run(board: Any, runs: Path) -> None:
+    board.status.guarded(None, lambda: board.runs.load("cartpole"))
+    with board.lock:
+        out = board.task.export()
+    assert out == runs / "exports" / "cartpole-g2"
+    assert sorted(p.name for p in out.iterdir()) == ["controller.json", "fitness.csv"]
+    assert board.status.text == f"exported task run cartpole to {out}"
