@@ -386,17 +386,17 @@ def cmd_runs(args: argparse.Namespace) -> int:
     if not summaries:
         print(f"no runs in {args.runs_dir}")
         return 0
-    print(f"{'name':32} {'method':10} {'generations':>12} {'best':>7}  status")
+    w = max(10, *(len(s.kind) for s in summaries if not s.error))  # `task CartPole-v1`
+    print(f"{'name':32} {'method':{w}} {'generations':>12} {'best':>7}  status")
     for s in summaries:
         if s.error:
-            print(f"{s.name:32} {'?':10} {'':>12} {'':>7}  unreadable: {s.error}")
+            print(f"{s.name:32} {'?':{w}} {'':>12} {'':>7}  unreadable: {s.error}")
             continue
-        kind = f"{s.method} {gnp.judgment_name(s.fuzzy)}" if s.brain == "gnp" else s.brain
         status = "finished" if s.finished else "running or interrupted"
         if s.implementations:
             status += f"; implementations: {', '.join(s.implementations)}"
         gens = f"{s.generations_done}/{s.generations}"
-        print(f"{s.name:32} {kind:10} {gens:>12} {s.best_fitness:7.4f}  {status}")
+        print(f"{s.name:32} {s.kind:{w}} {gens:>12} {s.best_fitness:7.4f}  {status}")
     return 0
 
 

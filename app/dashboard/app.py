@@ -33,6 +33,7 @@ from app.dashboard.tab_faults import populate_faults_tab
 from app.dashboard.tab_plots import populate_plots_tab
 from app.dashboard.tab_runs import populate_runs_tab
 from app.dashboard.tab_show import populate_show_tab
+from app.dashboard.tab_task import populate_task_panel
 from app.dashboard.tab_train import populate_train_tab
 from app.live import LiveSession
 from app.views.arena_view import ArenaView
@@ -93,6 +94,19 @@ class Dashboard:
             self.runs = populate_runs_tab(
                 gui, self.stage, self.status, self.plots, self.runs_dir, self.refresh_runs
             )
+            views = (self.graph_view, self.network_view, self.arena_view)
+            self.task = populate_task_panel(
+                gui, server, self.status, self.plots, views, self.scene_frame
+            )
+        self.runs.load_task = self.task.load
+        self.runs.leave_task = self._leave_task
+        faults_buttons = (self.faults.buttons,) if self.faults.buttons is not None else ()
+        self.task.robot_controls = (
+            *self.runs.robot_only,
+            self.faults.sensors,
+            self.faults.mode,
+            *faults_buttons,
+        )
         with compare:
             self.compare = populate_compare_tab(gui, self.stage, self.status, self.runs_dir)
         with experiments:
@@ -108,7 +122,7 @@ class Dashboard:
 
     def _build_scene(self) -> None:
         """Arena on top, graph below it (they share the width), camera looking straight down."""
-        frame = scene_frame(list(self.stage.arenas.values()))
+        frame = self.scene_frame = scene_frame(list(self.stage.arenas.values()))
         self.arena_view = ArenaView(self.server, self.stage.arenas["training"])
         graph_box = (frame.graph_origin, frame.width, frame.graph_height)
         self.graph_view = GraphView(self.server, *graph_box)
@@ -124,13 +138,29 @@ class Dashboard:
             hit = origin - direction * (origin[2] / direction[2])
             node = self.graph_view.node_at(hit[:2])
             if node is not None:
-                self.status.guarded(event.client, lambda: self.show.inspect(node))
+                self.status.guarded(event.client, lambda: self._inspect(node))
+
+    def _inspect(self, node: int) -> None:
+        """A node clicked: the robot's in the inspector, a task brain's in the status line."""
+        replay = self.task.replay
+        if replay is None:
+            self.show.inspect(node)
+            return
+        self.graph_view.select(node)
+        self.status.set(f"{replay.task} brain: {replay.node_words(node)}")
 
     def _staged(self, show: Show, session: LiveSession) -> None:
-        """A new show on the stage: its arena, graph, Show tab and reward chart."""
+        """A new show on the stage: its arena, graph, Show tab and reward chart (a task replay
+        on show gives way to it)."""
+        self.task.leave()
         self.arena_view.set_arena(session.arena)
         self.show.staged(show)
         self.plots.staged(show)
+
+    def _leave_task(self) -> None:
+        """A robot run loaded while a task replay is on show: the robot's show again."""
+        if self.task.active:
+            self.stage.restage()  # its `_staged` puts the arena and the robot's graph back
 
     def _show_run_file(self, path: Path) -> None:
         """Load a run file inside the runs dir (an experiment's run) and replay its best."""
@@ -141,11 +171,16 @@ class Dashboard:
         """Re-read the runs dir into every list of runs on the page."""
         runs = store.list_runs(self.runs_dir)
         self.runs.list_runs(runs)
-        self.compare.list_runs([r.name for r in runs if r.error is None])
+        self.compare.list_runs([r.name for r in runs if r.error is None and not r.task])
 
     def _show_first(self, run: str | None) -> None:
         """Show `run`, else `demo`, else the newest run, else an untrained random individual."""
-        names = [s.name for s in store.list_runs(self.runs_dir) if s.error is None]
+        runs = store.list_runs(self.runs_dir)
+        names = [s.name for s in runs if s.error is None and not s.task]
+        if run is not None and run in {s.name for s in runs if s.task}:
+            self.stage.present(random_show())  # what a robot show starts from later
+            self.runs.load(run)  # a task run: its replay on show
+            return
         choice = run if run is not None else ("demo" if "demo" in names else None)
         if choice is None and names:
             choice = names[-1]
@@ -159,8 +194,10 @@ class Dashboard:
                     raise
                 self.status.set(f"⚠ could not load {choice}: {error}")
         self.stage.present(random_show())
+        tasks = any(s.task for s in runs)
+        none = "no robot runs (task runs: load one in the Runs tab)" if tasks else "no runs"
         self.status.set(
-            f"no runs in {self.runs_dir} — showing an untrained random individual; "
+            f"{none} in {self.runs_dir} — showing an untrained random individual; "
             "train one in the Train tab"
         )
 
@@ -171,13 +208,17 @@ class Dashboard:
             frame_start = time.monotonic()
             try:
                 with self.lock:
-                    self.stage.advance(frame_start - last)
-                    last = frame_start
                     with_plots = frame_start >= next_plot
                     if with_plots:
                         next_plot = frame_start + PLOT_SECONDS
-                    if self.stage.session is not None:
-                        self._draw(self.stage.session, with_plots)
+                    if self.task.active:  # a task run on show: its replay, the robot waits
+                        self.task.advance(frame_start - last)
+                        self.task.draw(with_plots)
+                    else:
+                        self.stage.advance(frame_start - last)
+                        if self.stage.session is not None:
+                            self._draw(self.stage.session, with_plots)
+                    last = frame_start
                     if frame_start >= next_follow:
                         next_follow = frame_start + FOLLOW_SECONDS
                         self.train.follow()
@@ -211,6 +252,7 @@ class Dashboard:
         with self.lock:
             self.train.close()
             self.runs.close()
+            self.task.close()
             self.experiments.close()
 
 

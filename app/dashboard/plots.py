@@ -138,14 +138,35 @@ def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
             {"label": "best", "stroke": "#1f6fd0", "width": 2.0},
             {"label": "mean", "stroke": "#5aa05a", "width": 2.0},
         ),
-        title="Fitness per generation",
+        title=FITNESS_TITLE,
         scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}},
         axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}),
         aspect=2.3,
     )
 
 
-def set_fitness(plot: viser.GuiUplotHandle, best: np.ndarray, mean: np.ndarray) -> None:
+FITNESS_TITLE = "Fitness per generation"
+RETURN_TITLE = "Episode return per generation (task)"
+
+
+def set_fitness(
+    plot: viser.GuiUplotHandle, best: np.ndarray, mean: np.ndarray, returns: bool = False
+) -> None:
+    """Best and mean per generation: a robot run's fitness on 0..1, or (`returns`) a task
+    run's episode returns on a scale of their own."""
+    title = RETURN_TITLE if returns else FITNESS_TITLE
+    if returns and len(best):
+        low = min(0.0, float(np.min(mean)))
+        high = max(1.0, float(np.max(best))) * 1.08
+        # The x range too: a chart re-made for new scales may keep the last run's otherwise.
+        x: dict[str, Any] = {"time": False, "range": (0.0, float(max(1, len(best) - 1)))}
+        plot.scales = {"x": x, "y": {"range": (low, high)}}  # type: ignore[assignment]
+        plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y"})
+    elif plot.title != title:  # back from a task run: the robot's scale
+        plot.scales = {**X_NOT_TIME, "y": {"range": REWARD_RANGE}}
+        plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS})
+    if plot.title != title:
+        plot.title = title
     generations = np.arange(len(best), dtype=np.float64)
     if len(best) == 0:
         plot.data = _empty(3)

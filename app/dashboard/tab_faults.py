@@ -54,6 +54,7 @@ class FaultsTab:
     schedule: viser.GuiDropdownHandle[str]
     rates: SettingControls  # ε, α and their schedule, by ImplementationSettings' field
     horizon: viser.GuiNumberHandle[int]
+    buttons: viser.GuiButtonGroupHandle | None = None  # Break now, Repair all
 
     def set_noise(self) -> None:
         self.stage.set_noise(self.noise.value)  # the live session's check of the model's bounds
@@ -165,6 +166,7 @@ def populate_faults_tab(
         schedule=schedule,
         rates=rates,
         horizon=horizon,
+        buttons=buttons,
     )
 
     tab.noise.on_update(status.guard(tab.set_noise))

@@ -38,10 +38,14 @@ class PlotsTab:
     def draw(self, robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> None:
         """The robots' reward curves and the readout."""
         plots.set_rewards(self.reward, robots)
-        self.show_line = show_line(robots, noise_sigma)
+        self.set_show_line(show_line(robots, noise_sigma))
+
+    def set_show_line(self, line: str) -> None:
+        """The readout with another line about what is on show (a task replay's)."""
+        self.show_line = line
         self.readout.content = "  \n".join(
             [
-                self.show_line,
+                line,
                 self.training_line,
                 f"fitness plot: {self.fitness_points} generations",
                 self.implementation_line,
@@ -52,6 +56,14 @@ class PlotsTab:
         """Best and mean fitness per generation."""
         plots.set_fitness(self.fitness, best, mean)
         self.fitness_points = len(best)
+
+    def task_staged(self, task: str, best: np.ndarray, mean: np.ndarray) -> None:
+        """A task run on show: its returns per generation; the robot's charts emptied."""
+        plots.set_fitness(self.fitness, best, mean, returns=True)
+        self.fitness_points = len(best)
+        plots.set_reward_series(self.reward, [])
+        self.implementation.data = tuple(np.zeros(1) for _ in self.implementation.data)
+        self.implementation_line = f"implementation: the robot's (none for {task})"
 
     def show_implementation(self, name: str, result: store.Implementation) -> None:
         settings = result.settings

@@ -7,6 +7,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import viser
 
@@ -29,6 +30,7 @@ from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
 from app.fields import read_setting
+from app.tasks.common import is_task_run
 
 NET_NOTE = (
     "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
@@ -77,6 +79,9 @@ class RunsTab:
     repeats: viser.GuiNumberHandle[int]
     schedule: viser.GuiDropdownHandle[str]
     loaded: store.RunReader | None = None
+    load_task: Callable[[Path, str], None] | None = None  # a task run goes to the task panel
+    robot_only: tuple[Any, ...] = ()  # the controls of a robot run (off for a task run)
+    leave_task: Callable[[], None] | None = None  # a robot run loaded: the robot back on show
     implementation: ImplementationJob | None = None
     last_export: Path | None = None
     exporting: Future[Path] | None = None  # a replay being exported (a second or so)
@@ -92,6 +97,14 @@ class RunsTab:
     def load(self, name: str) -> None:
         """Load a run of the runs dir: its summary, fitness history, stored implementation,
         fault settings."""
+        if name != NO_RUNS and self.load_task is not None:
+            path = store.resolve_run(self.runs_dir, name)
+            if is_task_run(path):
+                self.load_task(path, name)
+                if self.run.value != name and name in self.run.options:
+                    set_value(self.run, name)
+                self.summary.content = f"**{name}** is a task run: see *Task run* below."
+                return
         self._load(open_run(self.runs_dir, name), name)
 
     def load_file(self, path: Path) -> None:
@@ -99,6 +112,8 @@ class RunsTab:
         self._load(store.RunReader(path), str(path.relative_to(self.runs_dir).with_suffix("")))
 
     def _load(self, reader: store.RunReader, name: str) -> None:
+        if self.leave_task is not None:
+            self.leave_task()
         if self.loaded is not None:
             self.loaded.close()
         self.loaded = reader
@@ -292,6 +307,10 @@ def populate_runs_tab(
         schedule=add_choice(gui, fields["schedule"], fields["schedule"].default, "ε, α "),
     )
     run_implementation = gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY)
+    tab.robot_only = (
+        arena, generation, replay, exports, tab.sensors, tab.mode, tab.fault_step, tab.steps,
+        tab.repeats, tab.schedule, run_implementation,
+    )  # fmt: skip
 
     actions = {"Refresh list": refresh, "Load": lambda: tab.load(tab.run.value)}
     buttons.on_click(lambda event: status.guarded(event.client, actions[buttons.value]))
@@ -327,6 +346,5 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
-        kind = f"{r.method} {gnp.judgment_name(r.fuzzy)}" if r.brain == "gnp" else r.brain
-        rows.append(f"| {r.name} | {kind} | {done} | {r.best_fitness:.4f} |")
+        rows.append(f"| {r.name} | {r.kind} | {done} | {r.best_fitness:.4f} |")
     return "\n".join(rows)

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 import gnp
 from app.config import RunConfig
-from app.store.files import RunFileError
+from app.store.files import TASK_RUN_FORMAT, RunFileError
 from app.store.reader import RunReader
 
 SUFFIX = ".h5"
@@ -72,6 +74,16 @@ class RunSummary:
     implementations: tuple[str, ...] = ()
     error: str | None = None
     brain: str = "gnp"  # or the neural optimiser (then `method` and `fuzzy` do not apply)
+    task: str = ""  # a task run's Gymnasium id (app.tasks); "" for the robot's runs
+
+    @property
+    def kind(self) -> str:
+        """`CS fuzzy`, a neural optimiser (`cmaes`), or `task CartPole-v1`."""
+        if self.task:
+            return f"task {self.task}"
+        return (
+            f"{self.method} {gnp.judgment_name(self.fuzzy)}" if self.brain == "gnp" else self.brain
+        )
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:
@@ -84,6 +96,9 @@ def list_runs(runs_dir: str | Path) -> list[RunSummary]:
 
 def _summary(path: Path) -> RunSummary:
     name = path.name[: -len(SUFFIX)]
+    task = _task_summary(path, name)
+    if task is not None:
+        return task
     try:
         with RunReader(path) as run:
             history = run.history()
@@ -102,3 +117,35 @@ def _summary(path: Path) -> RunSummary:
             )
     except RunFileError as error:
         return RunSummary(name=name, path=path, error=str(error))
+
+
+def _task_summary(path: Path, name: str) -> RunSummary | None:
+    """The line of a task run file (`app.tasks.store`'s format, read here with h5py alone so
+    that listing runs needs no Gymnasium), or None for any other file."""
+    try:
+        handle = h5py.File(path, "r", locking=False)
+    except (OSError, ValueError):
+        return None
+    with handle:
+        if handle.attrs.get("format") != TASK_RUN_FORMAT:
+            return None
+        task = str(handle.attrs.get("task", "?"))
+        try:
+            config = json.loads(str(handle.attrs["config"]))
+            done = int(handle.attrs["generations_done"])
+            fitness = handle["history/fitness"][:done]
+            controller = config.get("controller", {})
+            generations = int(config["training"]["generations"])
+        except (KeyError, ValueError, TypeError, OSError) as error:
+            return RunSummary(name=name, path=path, task=task, error=f"task run: {error}")
+        return RunSummary(
+            name=name,
+            path=path,
+            method=str(controller.get("method", "CS")),
+            fuzzy=bool(controller.get("fuzzy", True)),
+            generations_done=done,
+            generations=generations,
+            finished=done >= generations,
+            best_fitness=float(fitness.max()) if fitness.size else float("nan"),
+            task=task,
+        )

@@ -11,9 +11,10 @@ from typing import Any
 import h5py
 
 from app.cli_options import add_run_name, add_runs_dir
+from app.store.files import TASK_RUN_FORMAT
 from sim import FAULT_MODES
 
-FORMAT = "gnp-lab-task-run"
+FORMAT = TASK_RUN_FORMAT
 """The `format` attribute of a task run file (app.tasks.store)."""
 
 

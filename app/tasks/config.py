@@ -58,10 +58,11 @@ class TaskSettings(_Frozen):
             env.close()
 
 
-def make_env(task: str) -> gym.Env:
-    """`gymnasium.make(task)`, an unknown or unusable id as one TaskError line."""
+def make_env(task: str, render_mode: str | None = None) -> gym.Env:
+    """`gymnasium.make(task)` (with `render_mode` if given: the dashboard's "rgb_array"), an
+    unknown or unusable id as one TaskError line."""
     try:
-        return gym.make(task)
+        return gym.make(task) if render_mode is None else gym.make(task, render_mode=render_mode)
     except gym.error.DependencyNotInstalled as error:
         raise TaskError(f"task {task!r} cannot be made: {error}") from None
     except gym.error.Error as error:

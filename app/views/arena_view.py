@@ -89,6 +89,13 @@ class ArenaView:
             label.position = (float(x) * geo.MM, float(y) * geo.MM, 0.0)
         self.arena = arena
 
+    def set_visible(self, visible: bool) -> None:
+        """Show or hide the whole arena (a task run on show draws its task's frame here)."""
+        robots = [h for handles in self._robots for h in handles.values()]
+        for handle in (self._walls, self._starts, *self._start_labels, *robots):
+            if handle.visible != visible:
+                handle.visible = visible
+
     def update(self, robots: tuple[RobotSnapshot, ...]) -> None:
         """Draw the robots of a snapshot; hide the unused slots."""
         for i, handles in enumerate(self._robots):

@@ -25,10 +25,18 @@ class GenomeView:
     kinds: np.ndarray
     column_function: np.ndarray
     edges: np.ndarray
+    inputs: tuple[str, ...] | None = None  # a task's feature captions (None: the robot's)
+    outputs: tuple[str, ...] | None = None  # a task's action captions (None: the wheels)
 
 
-def genome_view(cfg: gnp.GnpConfig, population: gnp.Population) -> GenomeView:
-    """The graph of individual 0 of `population`."""
+def genome_view(
+    cfg: gnp.GnpConfig,
+    population: gnp.Population,
+    inputs: tuple[str, ...] | None = None,
+    outputs: tuple[str, ...] | None = None,
+) -> GenomeView:
+    """The graph of individual 0 of `population` (`inputs`, `outputs`: a task's captions of
+    its judgment and processing columns; default the robot's sensors and wheels)."""
     kinds = np.asarray(cfg.node_type, np.int64)
     function = population.function[0]
     conn = population.conn[0]  # (V, m, 2, U)
@@ -44,7 +52,7 @@ def genome_view(cfg: gnp.GnpConfig, population: gnp.Population) -> GenomeView:
             targets = np.concatenate([targets, population.credit[0, node]])
         pairs.extend((node, int(t)) for t in targets)
     edges = np.unique(np.array(pairs, np.int64).reshape(-1, 2), axis=0)
-    return GenomeView(kinds, function[:, 0].astype(np.int64), edges)
+    return GenomeView(kinds, function[:, 0].astype(np.int64), edges, inputs, outputs)
 
 
 def node_label(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> str:

@@ -200,7 +200,14 @@ class GraphView:
     def set_genome(self, genome: GenomeView) -> None:
         """Lay out and draw the static graph of an individual."""
         self.genome = genome
-        layout = graph_layout(genome.kinds, genome.column_function, self._width, self._height)
+        layout = graph_layout(
+            genome.kinds,
+            genome.column_function,
+            self._width,
+            self._height,
+            genome.inputs,
+            genome.outputs,
+        )
         self.layout = layout
         positions = self._origin + layout.positions
         edges = genome.edges
@@ -219,19 +226,27 @@ class GraphView:
             self._show_nodes(np.arange(len(positions)) if self.mode == FULL else np.zeros(1))
             if self.mode == SIMPLIFIED:
                 self._draw_taken(np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
-        if not self._captions:
-            self._captions = [
+        # One caption per column; a task's brain has its own number of columns (the spare
+        # captions of a wider graph are hidden, not removed).
+        for i in range(len(self._captions), len(layout.column_names)):
+            self._captions.append(
                 self._server.scene.add_label(
                     f"/graph/caption_{i}",
-                    name,
+                    "",
                     position=(0.0, 0.0, 0.0),
                     anchor="top-center",
                     font_screen_scale=0.8,
                 )
-                for i, name in enumerate(layout.column_names)
-            ]
-        for caption, x in zip(self._captions, layout.column_x, strict=True):
-            caption.position = (float(self._origin[0] + x), float(self._origin[1] - 0.02), 0.0)
+            )
+        for i, caption in enumerate(self._captions):
+            used = i < len(layout.column_names)
+            if used:
+                if caption.text != layout.column_names[i]:
+                    caption.text = layout.column_names[i]
+                x = float(self._origin[0] + layout.column_x[i])
+                caption.position = (x, float(self._origin[1] - 0.02), 0.0)
+            if caption.visible != used:
+                caption.visible = used
         self.select(self.selected)
 
     def select(self, node: int | None) -> None:

@@ -1,0 +1,87 @@
+"""A task run in a dashboard on a server of its own (no browser): listed as a task run, loaded,
+replayed; a damaged file or a task whose extra is missing is one line on the page."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pytest
+from page_helpers import dashboard_in_process, until
+from test_task_replay import tiny_task_config
+
+from app.cli import main
+from app.tasks import train_task
+from gnp.config import JUDGMENT
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny CartPole run, a copy with a damaged config, and one whose task needs Box2D."""
+    directory = tmp_path_factory.mktemp("task-panel-runs")
+    good = directory / "cartpole.h5"
+    train_task(tiny_task_config(), good)
+    shutil.copyfile(good, directory / "damaged.h5")
+    with h5py.File(directory / "damaged.h5", "r+") as handle:
+        handle.attrs["config"] = "{not json"
+    shutil.copyfile(good, directory / "lander.h5")
+    with h5py.File(directory / "lander.h5", "r+") as handle:
+        config = str(handle.attrs["config"]).replace("CartPole-v1", "LunarLander-v3")
+        handle.attrs["config"] = config
+        handle.attrs["task"] = "LunarLander-v3"
+    return directory
+
+
+@pytest.fixture(scope="module")
+def board(runs: Path) -> Iterator[Any]:
+    with dashboard_in_process(runs) as dashboard:
+        yield dashboard
+
+
+def test_gnp_lab_runs_lists_a_task_run(runs: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["runs", "--runs-dir", str(runs)]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
+    assert "task CartPole-v1" in lines["cartpole"] and "3/3" in lines["cartpole"]
+    assert "finished" in lines["cartpole"] and "unreadable" not in lines["cartpole"]
+    assert "unreadable: task run:" in lines["damaged"]
+
+
+def test_the_page_lists_loads_and_replays_a_task_run(board: Any) -> None:
+    assert "| cartpole | task CartPole-v1 | 3/3 |" in board.runs.table.content
+    assert "cartpole" in board.runs.run.options and "cartpole" not in board.compare.run_a.options
+    board.status.guarded(None, lambda: board.runs.load("cartpole"))
+    assert board.task.active and board.status.text.startswith("replaying the best of generation 2")
+    assert board.plots.fitness_points == 3
+    steps = board.task.replay.t + 100 * board.task.replay.episode
+    until(lambda: board.task.replay.t + 100 * board.task.replay.episode > steps + 5)
+    until(lambda: board.task.frames > 2)
+    assert board.plots.show_line.startswith("on show: task CartPole-v1 · generation 2")
+    # A node clicked in the graph is the task brain's, named in the status line.
+    with board.lock:
+        kinds = board.task.replay.cfg.node_type
+        judgment = int(np.flatnonzero(kinds == JUDGMENT)[0])
+        board._inspect(judgment)
+    assert board.status.text.startswith(f"CartPole-v1 brain: node {judgment} · J f")
+    assert board.graph_view.selected == judgment
+
+
+def test_a_damaged_file_or_a_missing_extra_is_one_line(board: Any) -> None:
+    board.status.guarded(None, lambda: board.runs.load("lander"))
+    assert board.status.text.startswith("⚠ task 'LunarLander-v3' cannot be made")
+    assert "\n" not in board.status.text and "Traceback" not in board.status.text
+    board.status.guarded(None, lambda: board.runs.load("damaged"))
+    assert board.status.text.startswith("⚠ ")
+    assert "\n" not in board.status.text
+
+
+def test_the_panel_exports_the_task_run(board: Any, runs: Path) -> None:
+    board.status.guarded(None, lambda: board.runs.load("cartpole"))
+    with board.lock:
+        out = board.task.export()
+    assert out == runs / "exports" / "cartpole-g2"
+    assert sorted(p.name for p in out.iterdir()) == ["controller.json", "fitness.csv"]
+    assert board.status.text == f"exported task run cartpole to {out}"
