@@ -14,6 +14,7 @@ from lab_fixtures import datasets, tiny_config
 import sim
 from app.cli import build_parser, config_from_args
 from app.config import ConfigError, RunConfig, build_config, stored_config
+from app.experiments.spec import load_shipped
 from app.implementation import implement
 from app.store import RunReader
 from app.training import train
@@ -34,6 +35,17 @@ def test_a_bad_stream_names_the_field() -> None:
 def test_the_cli_sets_it() -> None:
     args = build_parser().parse_args(["train", "--set", "training.noise_stream=ziggurat-v1"])
     assert config_from_args(args).training.noise_stream == "ziggurat-v1"
+
+
+def test_the_shipped_equivalence_experiment_names_both_streams() -> None:
+    spec = load_shipped("noise-stream-equivalence")
+    streams = {arm.name: spec.run_config(arm.name, "smoke", 0).training for arm in spec.arms}
+    assert {name: t.noise_stream for name, t in streams.items()} == {
+        "BS-box-muller": "box-muller-v1",
+        "BS-ziggurat": "ziggurat-v1",
+    }
+    assert {t.physics for t in streams.values()} == {"analytic"}
+    assert {t.noise_sigma for t in streams.values()} == {50.0}
 
 
 def test_both_phases_draw_the_chosen_stream_and_the_run_file_records_it(
