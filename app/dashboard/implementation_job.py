@@ -63,6 +63,7 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         seed = run.seed
         control_period = run.config.training.control_period
         c_from = run.config.reward.c_from
+        noise_stream = run.config.training.noise_stream  # the run's noise, as `implement` draws it
     return run_implementation(
         cfg,
         individual,
@@ -72,6 +73,7 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         name="dashboard",
         generation=generation,
         c_from=c_from,
+        noise_stream=noise_stream,
     )
 
 
