@@ -109,6 +109,29 @@ def arena_of(spec: ArenaSpec) -> sim.Arena:
     return _build(spec.model_dump_json())
 
 
+def new_world(
+    arena: sim.Arena,
+    *,
+    n: int,
+    seed: int,
+    noise_sigma: float,
+    control_period: float = sim.CONTROL_PERIOD_S,
+    physics: sim.Physics = "pymunk",
+    noise_stream: sim.NoiseStream = "box-muller-v1",
+) -> sim.World:
+    """A world of `n` robots in `arena`: the one place the lab builds a `sim.World` (training's
+    shards, the implementation phase's trials, the dashboard's live robots)."""
+    return sim.World(
+        arena,
+        n=n,
+        seed=seed,
+        noise_sigma=noise_sigma,
+        control_period=control_period,
+        physics=physics,
+        noise_stream=noise_stream,
+    )
+
+
 @lru_cache(maxsize=16)
 def _build(spec_json: str) -> sim.Arena:
     spec = ArenaSpec.model_validate_json(spec_json)

@@ -40,20 +40,20 @@ from app.config import (
     to_toml,
     train_settings,
 )
+from app.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
 from app.experiments import cli as experiment_cli
 from app.export.cli import add_export_parser, cmd_export
 from app.fields import nested
 from app.security import is_loopback
 from app.store import RunFileError, RunReader, list_runs, new_run_path, resolve_run
 from app.store.space import is_disk_full
+from app.tasks.common import TaskError, add_replay_parser, is_task_run
 from app.workers import handling, raise_interrupt
 
 if TYPE_CHECKING:
     from app.training import GenerationSummary
 
 PROG = "gnp-lab"
-EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a command a closed pipe stopped
 
 
 class UsageError(Exception):
@@ -109,6 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--brain",
         choices=BRAINS,
         help="gnp (default), or a neural net evolved by CMA-ES (Elman) or NEAT",
+    )
+    train.add_argument(
+        "--task",
+        metavar="ID",
+        help="a Gymnasium task (e.g. CartPole-v1) instead of the robot; bounds with --set "
+        "task.obs_low=[...] (see docs/tasks.md)",
     )
     add_setting_options(train, train_settings(), show_default=True)
     train.add_argument(
@@ -173,12 +179,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     experiment_cli.add_parser(commands)
     add_export_parser(commands)
+    add_replay_parser(commands)
     return parser
 
 
 # --- train ----------------------------------------------------------------------------------
 
-_CONFIG_OPTIONS = ("preset", "config", "brain")
+_CONFIG_OPTIONS = ("preset", "config", "brain", "task")
 """What else than setting options (and --set, --out) sets a new run's configuration."""
 
 
@@ -276,6 +283,10 @@ def cmd_train(args: argparse.Namespace) -> int:
                 f"--resume continues a run with its stored settings; drop {', '.join(given)}"
             )
         path = Path(args.resume)
+        if is_task_run(path):
+            from app.tasks import cli as task_cli
+
+            return task_cli.resume(path, args.quiet)
         with RunReader(path) as run:
             config, start = run.config, run.generations_done
             if run.finished:
@@ -288,6 +299,11 @@ def cmd_train(args: argparse.Namespace) -> int:
             return _interrupted(stop, path)
         finally:
             bar.close()
+    elif args.task:
+        from app.tasks import cli as task_cli
+
+        task = task_cli.task_settings(args.task, args.assignments)
+        return task_cli.train(args, task, config_from_args(args))
     else:
         config = config_from_args(args)
         if args.print_config:
@@ -360,7 +376,12 @@ def cmd_implement(args: argparse.Namespace) -> int:
 
 def cmd_runs(args: argparse.Namespace) -> int:
     if args.name:
-        return _inspect(resolve_run(args.runs_dir, args.name))
+        path = resolve_run(args.runs_dir, args.name)
+        if is_task_run(path):
+            from app.tasks.cli import inspect
+
+            return inspect(path)
+        return _inspect(path)
     summaries = list_runs(args.runs_dir)
     if not summaries:
         print(f"no runs in {args.runs_dir}")
@@ -380,6 +401,8 @@ def cmd_runs(args: argparse.Namespace) -> int:
 
 
 def _inspect(path: Path) -> int:
+    from app.implementation import describe_fault
+
     with RunReader(path) as run:
         history = run.history()
         done = run.generations_done
@@ -407,17 +430,6 @@ def _inspect(path: Path) -> int:
         print("\n# config")
         sys.stdout.write(to_toml(run.config))
     return 0
-
-
-def describe_fault(settings: ImplementationSettings) -> str:
-    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
-    if not settings.has_fault:
-        return "no fault"
-    if settings.broken_sensors:
-        which = f"sensors {','.join(map(str, settings.broken_sensors))}"
-    else:
-        which = f"{settings.break_count} random sensor(s) per trial"
-    return f"{which} {settings.fault_mode} at step {settings.fault_step}"
 
 
 # --- serve ----------------------------------------------------------------------------------
@@ -458,6 +470,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    from app.tasks.cli import replay
+
+    return replay(args)
+
+
 # --- entry point ----------------------------------------------------------------------------
 
 
@@ -478,6 +496,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "serve": cmd_serve,
         "experiment": experiment_cli.main,
         "export": cmd_export,
+        "replay": cmd_replay,
     }
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
@@ -504,6 +523,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sim.WorldError,
         experiment_cli.ExperimentError,
         gnp.GnpError,
+        TaskError,
     ) as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_ERROR

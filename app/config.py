@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pydantic import (
     BaseModel,
@@ -32,7 +32,7 @@ from app.fields import Setting, read_setting, sections, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import CONTROL_PERIOD_S, IR_MAX, N_SENSORS, FaultMode, NoiseStream, Physics
+from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
 from sim.reward import CFrom
 
@@ -49,6 +49,19 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
+def preset_layer(name: str) -> dict[str, Any]:
+    """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
+    if name not in PRESET_NAMES:
+        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
+    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+METHOD_PRESET = "thesis-ch5"
+"""The preset whose method is the lab's default: the thesis's last, GNP-TSRL with credit (CS),
+where gnp's own default is its first (RL)."""
+
+
 def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
     """A `ControllerSettings` field with the default and description `gnp.GnpConfig` gives it
     (written there once), and its bounds unless the lab allows `narrower` ones."""
@@ -62,12 +75,19 @@ def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
     return setting(fact.default, fact.description, unit, **bounds)
 
 
+def _noise_sigma() -> Any:
+    """The sensor noise σ field of both phases (Eq. 2.6), its range written here once: the
+    live noise of the dashboard is checked against it too (`app.live.checked_noise`)."""
+    return setting(0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX)
+
+
 class ControllerSettings(_Frozen):
     """The GNP individual (Tables 2.4, 3.1, 5.1). Defaults and descriptions are gnp's
     (`GnpConfig`); the lab keeps narrower bounds on the sizes."""
 
     method: Method = Field(
-        default="CS", description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)"
+        default=preset_layer(METHOD_PRESET)["controller"]["method"],
+        description="GNP-RL (RL), GNP-TSRL with branch selection (BS) or credit (CS)",
     )
     fuzzy: bool = _of_gnp("fuzzy")
     n_judgment: int = _of_gnp("n_judgment", "count", ge=8, le=400)
@@ -104,6 +124,57 @@ class ControllerSettings(_Frozen):
         )
 
 
+RATE_FIELDS = (
+    "schedule",
+    "epsilon",
+    "alpha",
+    "epsilon_max",
+    "epsilon_min",
+    "alpha_max",
+    "alpha_min",
+    "schedule_n",
+)
+"""The ε/α settings of both phases, in the order their models (and stored configs) list them."""
+
+
+@dataclass(frozen=True)
+class _PhaseRates:
+    """What one phase's ε/α settings have of their own: the equations of its changing schedule,
+    when that schedule starts and ends, and its defaults there (max, min)."""
+
+    equations: str
+    start: str
+    end: str
+    epsilon: tuple[float, float]
+    alpha: tuple[float, float]
+
+
+_TRAINING_RATES = _PhaseRates(
+    "Eq. 4.1-4.2", "g = 0", "the last generation", epsilon=(0.15, 0.01), alpha=(0.70, 0.10)
+)
+_IMPLEMENTATION_RATES = _PhaseRates(
+    "Eq. 4.3-4.4", "t = t'", "t = T", epsilon=(0.015, 0.0), alpha=(0.15, 0.0)
+)
+
+
+def _rate(phase: _PhaseRates, name: str) -> Any:
+    """The ε/α field `name` (one of RATE_FIELDS) with `phase`'s defaults and wording: the type,
+    bounds and text of each rate are written here once, for both phases."""
+    if name == "schedule":
+        return Field(default="fixed", description=f"ε/α fixed, or changing by {phase.equations}")
+    if name == "schedule_n":
+        return Field(default=1.0, gt=0.0, le=100.0, description=f"exponent n of {phase.equations}")
+    if name == "epsilon":
+        return setting(0.1, "fixed ε-greedy", "1", ge=0.0, le=1.0)
+    if name == "alpha":
+        return setting(0.1, "fixed learning rate α", "1", ge=0.0, le=1.0)
+    rate, end = name.split("_")  # e.g. epsilon_max
+    high, low = getattr(phase, rate)
+    default, when = (high, phase.start) if end == "max" else (low, phase.end)
+    symbol = {"epsilon": "ε", "alpha": "α"}[rate]
+    return setting(default, f"changing {symbol} at {when}", "1", ge=0.0, le=1.0)
+
+
 class TrainingSettings(_Frozen):
     """The training phase (thesis §2.5, 3.5, 4.5, 5.5)."""
 
@@ -116,14 +187,12 @@ class TrainingSettings(_Frozen):
     population: int = setting(300, "individuals", "count", ge=2, le=100_000)
     generations: int = setting(1000, "generations G", "count", ge=1, le=1_000_000)
     steps: int = setting(
-        1000, "life time T", "control steps", label="Life T (steps)", ge=1, le=1_000_000
+        LIFE_STEPS, "life time T", "control steps", label="Life T (steps)", ge=1, le=1_000_000
     )
     redraw_every: int = setting(
         0, "new start pose every R steps, 0 = never", "steps", ge=0, le=1_000_000
     )
-    noise_sigma: float = setting(
-        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
-    )
+    noise_sigma: float = _noise_sigma()
     control_period: float = setting(CONTROL_PERIOD_S, "control step", "s", gt=0.0, le=1.0)
     physics: Physics = Field(
         default="pymunk",
@@ -135,18 +204,15 @@ class TrainingSettings(_Frozen):
         description="how the sensor noise's normals are drawn in both phases: box-muller-v1 "
         "(every earlier run's bits) or ziggurat-v1 (faster, other draws of the same N(0, σ²))",
     )
-    schedule: ScheduleKind = Field(
-        default="fixed", description="ε/α fixed, or changing by Eq. 4.1-4.2"
-    )
-    epsilon: float = setting(0.1, "fixed ε-greedy", "1", ge=0.0, le=1.0)
-    alpha: float = setting(0.1, "fixed learning rate α", "1", ge=0.0, le=1.0)
-    epsilon_max: float = setting(0.15, "changing ε at g = 0", "1", ge=0.0, le=1.0)
-    epsilon_min: float = setting(0.01, "changing ε at the last generation", "1", ge=0.0, le=1.0)
-    alpha_max: float = setting(0.70, "changing α at g = 0", "1", ge=0.0, le=1.0)
-    alpha_min: float = setting(0.10, "changing α at the last generation", "1", ge=0.0, le=1.0)
-    schedule_n: float = Field(
-        default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.1-4.2"
-    )
+    # ε/α: the fields every phase has (RATE_FIELDS), written once in `_rate`
+    schedule: ScheduleKind = _rate(_TRAINING_RATES, "schedule")
+    epsilon: float = _rate(_TRAINING_RATES, "epsilon")
+    alpha: float = _rate(_TRAINING_RATES, "alpha")
+    epsilon_max: float = _rate(_TRAINING_RATES, "epsilon_max")
+    epsilon_min: float = _rate(_TRAINING_RATES, "epsilon_min")
+    alpha_max: float = _rate(_TRAINING_RATES, "alpha_max")
+    alpha_min: float = _rate(_TRAINING_RATES, "alpha_min")
+    schedule_n: float = _rate(_TRAINING_RATES, "schedule_n")
     schedule_progress: GenerationProgress = Field(
         default="last-generation-min",
         description="progress of Eq. 4.1-4.2 at generation g = 0..G-1: g/(G-1), so the last "
@@ -185,9 +251,7 @@ class ImplementationSettings(_Frozen):
     _inline_arena = field_validator("arena", mode="before")(inline_arena)
     steps: int = setting(3000, "life time T", "control steps", ge=1, le=1_000_000)
     repeats: int = setting(300, "trials per start pose", "count", ge=1, le=100_000)
-    noise_sigma: float = setting(
-        0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX
-    )
+    noise_sigma: float = _noise_sigma()
     broken_sensors: tuple[int, ...] = Field(
         default=(), max_length=N_SENSORS, description="sensors that break at the fault step, 0..7"
     )
@@ -201,18 +265,15 @@ class ImplementationSettings(_Frozen):
     )
     fault_mode: FaultMode = Field(default="dead", description="what a broken sensor reads")
     fault_step: int = setting(500, "fault step t'", "control steps", ge=0, le=1_000_000)
-    schedule: ScheduleKind = Field(
-        default="fixed", description="ε/α fixed, or changing by Eq. 4.3-4.4"
-    )
-    epsilon: float = setting(0.1, "fixed ε-greedy", "1", ge=0.0, le=1.0)
-    alpha: float = setting(0.1, "fixed learning rate α", "1", ge=0.0, le=1.0)
-    epsilon_max: float = setting(0.015, "changing ε at t = t'", "1", ge=0.0, le=1.0)
-    epsilon_min: float = setting(0.0, "changing ε at t = T", "1", ge=0.0, le=1.0)
-    alpha_max: float = setting(0.15, "changing α at t = t'", "1", ge=0.0, le=1.0)
-    alpha_min: float = setting(0.0, "changing α at t = T", "1", ge=0.0, le=1.0)
-    schedule_n: float = Field(
-        default=1.0, gt=0.0, le=100.0, description="exponent n of Eq. 4.3-4.4"
-    )
+    # ε/α: the fields every phase has (RATE_FIELDS), written once in `_rate`
+    schedule: ScheduleKind = _rate(_IMPLEMENTATION_RATES, "schedule")
+    epsilon: float = _rate(_IMPLEMENTATION_RATES, "epsilon")
+    alpha: float = _rate(_IMPLEMENTATION_RATES, "alpha")
+    epsilon_max: float = _rate(_IMPLEMENTATION_RATES, "epsilon_max")
+    epsilon_min: float = _rate(_IMPLEMENTATION_RATES, "epsilon_min")
+    alpha_max: float = _rate(_IMPLEMENTATION_RATES, "alpha_max")
+    alpha_min: float = _rate(_IMPLEMENTATION_RATES, "alpha_min")
+    schedule_n: float = _rate(_IMPLEMENTATION_RATES, "schedule_n")
     recorded_trials: int = setting(
         3, "trials whose trajectory and trace are stored", "count", ge=0, le=100
     )
@@ -339,7 +400,7 @@ class RewardSettings(_Frozen):
 Optimiser = Literal["cmaes", "neat"]
 #: What drives the robots: GNP (the thesis), or a neural net evolved by CMA-ES or NEAT.
 Brain = Literal["gnp", "cmaes", "neat"]
-BRAINS: tuple[Brain, ...] = ("gnp", "cmaes", "neat")
+BRAINS: tuple[Brain, ...] = get_args(Brain)
 
 
 class NeuroSettings(_Frozen):
@@ -471,14 +532,6 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"config file {path} is not valid TOML: {error}") from None
     except UnicodeDecodeError:
         raise ConfigError(f"config file {path} is not UTF-8 text") from None
-
-
-def preset_layer(name: str) -> dict[str, Any]:
-    """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
-    if name not in PRESET_NAMES:
-        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
-    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
-    return tomllib.loads(text)
 
 
 def load_preset(name: str) -> RunConfig:

@@ -14,14 +14,15 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 import sim
-from app.arenas import arena_of
+from app.arenas import arena_of, new_world
 from app.config import CFrom, ImplementationSettings
 from app.neural import BrainConfig, Individual, best_individual, copies, recorded_trace
 from app.recording import Trajectory, TrajectoryRecorder
@@ -68,6 +69,26 @@ def default_name(settings: ImplementationSettings) -> str:
         fault = "no-fault"
     noise = f"-noise{settings.noise_sigma:g}" if settings.noise_sigma else ""
     return f"{fault}-{settings.schedule}{noise}"
+
+
+def fault_text(sensors: Sequence[int] | int, mode: str, step: int | None) -> str:
+    """How the lab words a fault, on the command line, in a replay and on the page:
+    `sensors 2,3 broken (dead) since step 500`; k random sensors (an int): `2 random
+    sensor(s) per trial broken (dead) since step 500`; no step: no `since`."""
+    if isinstance(sensors, int):
+        which = f"{sensors} random sensor(s) per trial"
+    else:
+        which = "sensors " + ",".join(str(s) for s in sensors)
+    since = f" since step {step}" if step is not None else ""
+    return f"{which} broken ({mode}){since}"
+
+
+def describe_fault(settings: ImplementationSettings) -> str:
+    """What breaks in an implementation: a fixed set, k random sensors per trial, or nothing."""
+    if not settings.has_fault:
+        return "no fault"
+    sensors = settings.broken_sensors or settings.break_count
+    return fault_text(sensors, settings.fault_mode, settings.fault_step)
 
 
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +155,7 @@ def _live_trials(
     trials = np.arange(part.start, part.stop)
     start_index = trials % len(arena.start_poses)
     world_seeds, engine_seeds = trial_seeds(seed, trials)
-    world = sim.World(
+    world = new_world(
         arena,
         n=len(trials),
         seed=seed,
@@ -263,25 +284,32 @@ def implement(
         generation = (
             settings.generation if settings.generation is not None else run.generations_done - 1
         )
-        cfg, individual = best_individual(run, generation)
         seed = settings.seed if settings.seed is not None else run.seed
-        control_period = run.config.training.control_period
-        c_from = run.config.reward.c_from
-        physics = run.config.training.physics
-        noise_stream = run.config.training.noise_stream
-    result = run_implementation(
+        phase = implementation_of(run, settings, generation, seed=seed, name=name)
+    result = phase(workers=workers, progress=progress)
+    add_implementation(run_path, result)
+    return result
+
+
+def implementation_of(
+    run: RunReader, settings: ImplementationSettings, generation: int, *, seed: int, name: str
+) -> partial[Implementation]:
+    """`run_implementation` of `run`'s best of `generation` in the run's own worlds: its
+    control period, physics, noise stream and reward's C, read from the run's config here only (for
+    `implement` and the dashboard alike). Call it once the file is closed (`workers`,
+    `progress` may be given then)."""
+    cfg, individual = best_individual(run, generation)
+    config = run.config
+    return partial(
+        run_implementation,
         cfg,
         individual,
         settings,
         seed=seed,
-        control_period=control_period,
-        physics=physics,
-        noise_stream=noise_stream,
+        control_period=config.training.control_period,
+        physics=config.training.physics,
+        noise_stream=config.training.noise_stream,
+        c_from=config.reward.c_from,
         name=name,
         generation=generation,
-        workers=workers,
-        progress=progress,
-        c_from=c_from,
     )
-    add_implementation(run_path, result)
-    return result

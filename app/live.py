@@ -19,6 +19,7 @@ import numpy as np
 import gnp
 import neuro
 import sim
+from app.arenas import new_world
 from app.config import ImplementationSettings, LearningSettings
 from app.fields import SettingError, check_field
 from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
@@ -291,10 +292,10 @@ class LiveSession:
         self.learning = learning or LearningSettings()
         self._lock = threading.Lock()
         self._robots: list[LiveRobot] = []
-        self._pending_fault: tuple[int, tuple[int, ...], FaultMode] | None = None
+        self._pending_fault: sim.Fault | None = None
         for spec in robots:
             # Same seed for every robot: compared robots meet the same noise and random faults.
-            world = sim.World(
+            world = new_world(
                 arena, n=1, seed=seed, noise_sigma=noise_sigma, control_period=control_period
             )
             world.reset(arena.start_poses[start : start + 1])
@@ -325,9 +326,9 @@ class LiveSession:
 
     def _apply_pending_fault(self) -> None:
         pending = self._pending_fault
-        if pending is not None and self._robots[0].t >= pending[0]:
+        if pending is not None and self._robots[0].t >= pending.step:
             for robot in self._robots:
-                robot.break_sensors(pending[1], pending[2])
+                robot.break_sensors(pending.sensors, pending.mode)
             self._pending_fault = None
 
     def schedule_fault(self, step: int, sensors: Sequence[int], mode: str) -> None:
@@ -338,7 +339,7 @@ class LiveSession:
         """
         fault = sim.Fault(step=step, sensors=tuple(sensors), mode=cast(FaultMode, mode))
         with self._lock:
-            self._pending_fault = (fault.step, fault.sensors, fault.mode)
+            self._pending_fault = fault
 
     def snapshot(self) -> tuple[RobotSnapshot, ...]:
         with self._lock:

@@ -18,7 +18,7 @@ import numpy as np
 import gnp
 import neuro
 import sim
-from app.arenas import arena_of
+from app.arenas import arena_of, new_world
 from app.config import CFrom, RunConfig, TrainingSettings
 from app.neural import Individual, NeuralControllers, trace_layout
 from app.recording import Trajectory, TrajectoryRecorder
@@ -107,7 +107,7 @@ def live_nets(
 def make_world(config: RunConfig, n: int) -> sim.World:
     """A training world of `n` robots for `config`."""
     training = config.training
-    return sim.World(
+    return new_world(
         arena_of(training.arena),
         n=n,
         seed=config.seed,

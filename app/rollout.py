@@ -111,7 +111,7 @@ class GnpControllers:
 
 
 class Batch:
-    """N robots in one world, each driven by its own controller (row i of `population`).
+    """N robots in one world, each driven by its own controller (row i of the controllers).
 
     The reward of a step is fed to the controllers at the next one (Sarsa's r_t); a new episode
     resets it, with the controllers' walks, and keeps Q tables and random streams. Its C
@@ -160,16 +160,6 @@ class Batch:
         if not isinstance(self.controllers, GnpControllers):
             raise TypeError(f"the batch is driven by {type(self.controllers).__name__}, not GNP")
         return self.controllers
-
-    @property
-    def population(self) -> gnp.Population:
-        """The GNP controllers' population, Q tables learning in place."""
-        return self.gnp_controllers.population
-
-    @property
-    def state(self) -> gnp.EngineState:
-        """The GNP controllers' engine state."""
-        return self.gnp_controllers.state
 
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""

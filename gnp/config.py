@@ -64,6 +64,18 @@ class GnpConfig(BaseModel):
         default=2, ge=1, le=64, description="branch connections U per connection (BS)"
     )
     gamma: float = Field(default=0.9, ge=0.0, le=1.0, description="Sarsa discount rate γ")
+    n_inputs: int = Field(
+        default=N_SENSORS,
+        ge=1,
+        le=127,
+        description="inputs judgment nodes judge (the robot's 8 sensors), each read in 0..1023",
+    )
+    n_outputs: int = Field(
+        default=N_WHEELS,
+        ge=1,
+        le=127,
+        description="outputs processing nodes set (the robot's 2 wheels), each in −10..10",
+    )
 
     @cached_property
     def n_nodes(self) -> int:
@@ -101,6 +113,11 @@ class GnpConfig(BaseModel):
 
     def __hash__(self) -> int:
         return hash(tuple(self.model_dump().items()))
+
+    @property
+    def io_defaults(self) -> bool:
+        """Inputs and outputs are the robot's (8 sensors, 2 wheels)."""
+        return self.n_inputs == N_SENSORS and self.n_outputs == N_WHEELS
 
     @property
     def max_visits_per_step(self) -> int:

@@ -50,7 +50,10 @@ def controller_body(cfg: GnpConfig, individual: Population) -> tuple[dict[str, A
         }
         for node in range(cfg.n_nodes)
     ]
-    return cfg.model_dump(), nodes
+    entry = cfg.model_dump()
+    if cfg.io_defaults:  # the robot's 8 inputs and 2 outputs: documents as before the settings
+        del entry["n_inputs"], entry["n_outputs"]
+    return entry, nodes
 
 
 def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray]:

@@ -22,7 +22,7 @@ from typing import NoReturn, TypeAlias
 
 import numpy as np
 
-from gnp.config import N_SENSORS, N_WHEELS, GnpConfig, GnpError
+from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
 from gnp.methods import FIRST_STAGE_ONLY, TRAITS
 from gnp.population import Population, record_dtype
@@ -126,7 +126,7 @@ def init_state(cfg: GnpConfig, n: int, seeds: np.ndarray | list[int]) -> EngineS
         raise GnpError(f"init_state: need {n} seeds, got {states.shape[0]}")
     walk = np.full((n, WALK_WIDTH), -1, np.int32)
     walk[:, 0] = 0
-    return EngineState(walk=walk, wheels=np.zeros((n, N_WHEELS), np.float64), rng=states)
+    return EngineState(walk=walk, wheels=np.zeros((n, cfg.n_outputs), np.float64), rng=states)
 
 
 def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = None) -> None:
@@ -143,6 +143,53 @@ def reset_episode(state: EngineState, seeds: np.ndarray | list[int] | None = Non
     state.walk[:] = -1
     state.walk[:, 0] = 0
     state.wheels[:] = 0.0
+
+
+def end_episode(
+    cfg: GnpConfig,
+    pop: Population,
+    state: EngineState,
+    reward: np.ndarray,
+    alpha: float | np.ndarray,
+    which: np.ndarray | None = None,
+) -> None:
+    """The terminal Sarsa update of an episode that ended (the task says so) after the last
+    world step, for the controllers `which` ((N,) bool; all by default).
+
+    The last step's last visit is credited `reward` with no successor: Q_SS (and Q_CS) of its
+    sub node (and credit choice) move by α·(r − Q), r = 0 if the visit was a credit skip; for
+    BS the visit before it gets its pending Q_BS update, α·(r + γ·Q_BS(last) − Q_BS(before)),
+    as the next step's first visit would have made it. The last visit's own branch connection
+    leads nowhere and is left alone. The pending visits are then dropped (the controller is
+    at the end of its episode: `reset_episode` starts the next). Q values are computed in double
+    precision and stored in single, as the kernel does. `gnp.step` never calls this: the
+    robot's lives have no terminal state.
+    """
+    n = state.walk.shape[0]
+    check_population(cfg, pop, state)
+    rew = _floats(reward, (n,), "reward")
+    lr = _per_controller(alpha, n, "alpha")
+    mask = np.ones(n, bool) if which is None else np.asarray(which, dtype=bool)
+    if mask.shape != (n,):
+        raise GnpError(f"which must have shape ({n},), got {mask.shape}")
+    walk = state.walk
+    rows = np.flatnonzero(mask & (walk[:, 1] >= 0))
+    pn, pp, pb, pu, pc = (walk[rows, j] for j in range(1, 6))
+    r = np.where(pc == 1, 0.0, rew[rows])
+    a = lr[rows]
+    q = pop.q_ss[rows, pn, pp].astype(np.float64)
+    pop.q_ss[rows, pn, pp] = q + a * (r - q)
+    if cfg.traits.credit:
+        q = pop.q_cs[rows, pn, pp, pc].astype(np.float64)
+        pop.q_cs[rows, pn, pp, pc] = q + a * (r - q)
+    if cfg.traits.branch_selection:
+        has = walk[rows, 6] >= 0
+        c = rows[has]
+        bn, bp, bb, bu = (walk[c, j] for j in range(6, 10))
+        last = pop.q_bs[c, pn[has], pp[has], pb[has], pu[has]].astype(np.float64)
+        q = pop.q_bs[c, bn, bp, bb, bu].astype(np.float64)
+        pop.q_bs[c, bn, bp, bb, bu] = q + a[has] * (r[has] + cfg.gamma * last - q)
+    walk[rows, 1:] = -1
 
 
 def _per_controller(value: float | np.ndarray, n: int, name: str) -> np.ndarray:
@@ -235,7 +282,8 @@ def step(
         cfg: the configuration `pop` was built for.
         pop: N individuals; their Q tables are updated in place when `learn`.
         state: engine state of the N controllers, updated in place.
-        observations: (N, 8) sensor readings the controllers see, 0..1023.
+        observations: (N, cfg.n_inputs) sensor readings the controllers see, 0..1023 (the
+            robot's 8 by default).
         reward: (N,) reward of the previous world step, credited to that step's last visit.
         epsilon: ε of ε-greedy, scalar or (N,).
         alpha: learning rate α, scalar or (N,).
@@ -248,11 +296,12 @@ def step(
 
     Returns:
         (commands, trace): wheel commands (N, 2) as (left, right) in −10..10, and the
-        StepTrace if `trace`, else None.
+        StepTrace if `trace`, else None. With `cfg.n_outputs` = k the commands are (N, k),
+        output j (processing function j) in column k − 1 − j: the robot's order, reversed.
     """
     n = state.walk.shape[0]
     check_population(cfg, pop, state)
-    obs = _floats(observations, (n, N_SENSORS), "observations")
+    obs = _floats(observations, (n, cfg.n_inputs), "observations")
     rew = _floats(reward, (n,), "reward")
     rates = _rates(epsilon, alpha, n)
     if not second_stage and cfg.traits.two_stage:

@@ -10,7 +10,6 @@ import numpy as np
 
 from gnp.config import (
     JUDGMENT,
-    N_SENSORS,
     PROCESSING,
     SENSOR_MAX,
     SPEED_MAX,
@@ -147,11 +146,16 @@ def mutate(
         mask[:, nodes] = rng.random((fn.shape[0], nodes.size, fn.shape[2])) < p_mutation
         return mask
 
-    hit = chosen(judg)  # another sensor: uniform over the 7 others
-    r = rng.integers(0, N_SENSORS - 1, size=int(hit.sum()))
-    fn[hit] = np.where(r >= fn[hit], r + 1, r)
-    hit = chosen(proc)  # the other wheel
-    fn[hit] = 1 - fn[hit]
+    hit = chosen(judg)  # another sensor: uniform over the 7 others (n_inputs − 1)
+    if cfg.n_inputs > 1:
+        r = rng.integers(0, cfg.n_inputs - 1, size=int(hit.sum()))
+        fn[hit] = np.where(r >= fn[hit], r + 1, r)
+    hit = chosen(proc)  # the other wheel; of k > 2 outputs, uniform over the k − 1 others
+    if cfg.n_outputs == 2:
+        fn[hit] = 1 - fn[hit]
+    elif cfg.n_outputs > 2:
+        r = rng.integers(0, cfg.n_outputs - 1, size=int(hit.sum()))
+        fn[hit] = np.where(r >= fn[hit], r + 1, r)
     hit = chosen(proc)
     out["speed"][hit] = rng.integers(-SPEED_MAX, SPEED_MAX + 1, size=int(hit.sum()))
     alpha, beta = out["mu_alpha"], out["mu_beta"]

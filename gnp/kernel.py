@@ -219,8 +219,8 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
         else:
             used += _PROCESSING_COST
             # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
-            # (left, right).
-            wheels[i, _ix(1 - fn)] = float(words8[_ix(b + sp + p)])
+            # (left, right): output fn of k sits in column k − 1 − fn.
+            wheels[i, _ix(wheels.shape[1] - 1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
         if method & _BS:

@@ -12,8 +12,6 @@ import numpy as np
 
 from gnp.config import (
     JUDGMENT,
-    N_SENSORS,
-    N_WHEELS,
     PROCESSING,
     SENSOR_MAX,
     SPEED_MAX,
@@ -236,8 +234,8 @@ def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Populat
         return rng.permuted(base, axis=1).reshape(n, m, count).transpose(0, 2, 1)
 
     function = np.zeros((n, v, m), GENE_DTYPES["function"])
-    function[:, judg] = balanced(nj, N_SENSORS)
-    function[:, proc] = balanced(npr, N_WHEELS)
+    function[:, judg] = balanced(nj, cfg.n_inputs)
+    function[:, proc] = balanced(npr, cfg.n_outputs)
     mu_alpha = np.zeros((n, v, m), GENE_DTYPES["mu_alpha"])
     mu_beta = np.zeros((n, v, m), GENE_DTYPES["mu_beta"])
     mu_alpha[:, judg] = rng.integers(1, SENSOR_MAX + 1, size=(n, nj, m))
@@ -347,10 +345,10 @@ def check_population(cfg: GnpConfig, pop: Population) -> None:
     judg = types == JUDGMENT
     proc = types == PROCESSING
     fn = pop.function
-    if np.any((fn[:, judg] < 0) | (fn[:, judg] >= N_SENSORS)):
-        raise GnpError("judgment function outside sensors 0..7")
-    if np.any((fn[:, proc] < 0) | (fn[:, proc] >= N_WHEELS)):
-        raise GnpError("processing function outside wheels 0..1")
+    if np.any((fn[:, judg] < 0) | (fn[:, judg] >= cfg.n_inputs)):
+        raise GnpError(f"judgment function outside sensors 0..{cfg.n_inputs - 1}")
+    if np.any((fn[:, proc] < 0) | (fn[:, proc] >= cfg.n_outputs)):
+        raise GnpError(f"processing function outside wheels 0..{cfg.n_outputs - 1}")
     beta, alpha = pop.mu_beta[:, judg], pop.mu_alpha[:, judg]
     if np.any(beta < 0) or np.any(alpha > SENSOR_MAX):
         raise GnpError("judgment parameters outside 0..1023")

@@ -12,6 +12,7 @@ from sim.khepera import (
     CONTROL_PERIOD_S,
     IR_MAX,
     IR_RANGE_MM,
+    LIFE_STEPS,
     MAX_COMMAND,
     N_SENSORS,
 )
@@ -34,6 +35,7 @@ __all__ = [
     "FAULT_MODES",
     "IR_MAX",
     "IR_RANGE_MM",
+    "LIFE_STEPS",
     "MAX_COMMAND",
     "NOISE_STREAMS",
     "N_SENSORS",

@@ -41,14 +41,18 @@ import numpy as np
 from gymnasium import spaces
 
 from sim.arena import N_START_POSES, Arena, load_arena
-from sim.khepera import BODY_RADIUS_MM, CONTROL_PERIOD_S, IR_MAX, MAX_COMMAND, N_SENSORS
+from sim.khepera import (
+    BODY_RADIUS_MM,
+    CONTROL_PERIOD_S,
+    IR_MAX,
+    LIFE_STEPS,
+    MAX_COMMAND,
+    N_SENSORS,
+)
 from sim.reward import C_FROM, TERM_NAMES, CFrom, reward_table
 from sim.world import PHYSICS, Fault, FaultMode, Physics, World, WorldError
 
 ENV_ID = "GnpLab/WallFollow-v0"
-LIFE_STEPS = 1000
-"""Episode length where the env is registered: a training life, T = 1000 steps (thesis Table
-2.4; the lab's own default is ``app.config.TrainingSettings.steps``)."""
 SEED_BOUND = 2**63
 """The robot's noise stream seed is drawn from ``env.np_random`` in [0, SEED_BOUND)."""
 FAULT_KEYS = ("sensors", "mode", "step", "robots")

@@ -26,7 +26,6 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from sim.gym_env import (
-    LIFE_STEPS,
     ArenaArg,
     TopDown,
     action_space,
@@ -39,6 +38,7 @@ from sim.gym_env import (
     parse_faults,
     start_index,
 )
+from sim.khepera import LIFE_STEPS
 from sim.reward import TERM_NAMES, CFrom
 from sim.world import Physics, WorldError
 

@@ -38,6 +38,9 @@ IR_BACKOFF_MM = 4.0
 that a sensor has been pushed into (penetration during a contact) reads IR_MAX, not 0."""
 
 CONTROL_PERIOD_S = 0.064
+LIFE_STEPS = 1000
+"""A training life: T = 1000 control periods (thesis Table 2.4); the lab's training default and
+the Gymnasium env's episode length."""
 
 MASS = 70.0
 """Body mass (g). The force drive makes the motion independent of it; it only scales forces."""

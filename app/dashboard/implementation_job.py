@@ -1,6 +1,6 @@
 """An implementation phase started from the dashboard, run in a worker process (`app.workers`).
 
-The child calls `app.implementation.run_implementation` on the run's final best individual (a
+The child calls `app.implementation.implementation_of` on the run's final best individual (a
 GNP individual, or a neural run's net, which does not learn online) and returns the result;
 nothing is written to the run file (a run on show, the bundled demo included, stays as it was;
 `gnp-lab implement` is the way to store one).
@@ -14,8 +14,7 @@ from typing import Any
 
 from app.config import ImplementationSettings
 from app.dashboard.controls import build
-from app.implementation import run_implementation
-from app.neural import best_individual
+from app.implementation import implementation_of
 from app.store import Implementation, RunFileError, RunReader
 from app.workers import Count, Handler, WorkerPool
 
@@ -58,23 +57,9 @@ def implement_run(request: ImplementationRequest) -> Implementation:
         if run.generations_done == 0:
             raise RunFileError(f"{request.run.name} has no completed generation yet")
         settings = request.settings(run.config.implementation)
-        cfg, individual = best_individual(run, -1)
         generation = run.generations_done - 1
-        seed = run.seed
-        control_period = run.config.training.control_period
-        c_from = run.config.reward.c_from
-        noise_stream = run.config.training.noise_stream  # the run's noise, as `implement` draws it
-    return run_implementation(
-        cfg,
-        individual,
-        settings,
-        seed=seed,
-        control_period=control_period,
-        name="dashboard",
-        generation=generation,
-        c_from=c_from,
-        noise_stream=noise_stream,
-    )
+        phase = implementation_of(run, settings, generation, seed=run.seed, name="dashboard")
+    return phase()
 
 
 def _implementer() -> Handler:

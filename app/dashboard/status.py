@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import viser
 
@@ -24,6 +24,14 @@ REFUSALS = (
     neuro.NeuroError,
 )
 """Errors that mean "this value cannot be used": shown on the page, nothing changes."""
+
+
+class ProgressBar(Protocol):
+    """A progress bar on the page (what `gui.add_progress_bar` returns), by the one thing the
+    tabs use; viser does not export its handle's class."""
+
+    @property
+    def value(self) -> float: ...
 
 
 def set_value(handle: Any, value: object) -> None:

@@ -19,14 +19,13 @@ from pathlib import Path
 from typing import Any
 
 import viser
-from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
 
 from app.dashboard import experiment_view as ev
 from app.dashboard import plots
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
 from app.dashboard.experiment_verdicts import AdaptiveRequest
-from app.dashboard.status import Status, set_value
+from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_runs import set_options
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.layout import DEFINITION
@@ -50,7 +49,7 @@ class ExperimentsTab:
     adaptive: viser.GuiCheckboxHandle
     stage_seeds: viser.GuiNumberHandle[int]
     max_seeds: viser.GuiNumberHandle[int]
-    progress: GuiProgressBarHandle
+    progress: ProgressBar
     progress_text: viser.GuiMarkdownHandle
     about: viser.GuiMarkdownHandle
     stages: viser.GuiMarkdownHandle

@@ -25,7 +25,6 @@ from app.live import brain_name
 
 FIXED = "fixed"
 SCHEDULED = "scheduled from the fault (Eq. 4.3–4.4)"
-MAX_LIVE_NOISE = 300  # the slider's end; the setting goes up to its model's bound (sim.IR_MAX)
 SECOND_STAGE = "Second stage (BS branch / CS credit)"
 LEARNING_LABELS = {
     "epsilon": "ε (fixed)",
@@ -118,13 +117,15 @@ def populate_faults_tab(
     """
     defaults = ImplementationSettings()
     fields = implementation_settings()
+    sigma = fields["noise_sigma"]  # the slider spans the setting's range (0..sim.IR_MAX)
+    assert sigma.low is not None and sigma.high is not None
     noise = gui.add_slider(
         "Noise σ (live)",
-        min=fields["noise_sigma"].low or 0,
-        max=MAX_LIVE_NOISE,
+        min=sigma.low,
+        max=sigma.high,
         step=1,
         initial_value=defaults.noise_sigma,
-        hint=fields["noise_sigma"].help(),
+        hint=sigma.help(),
     )
     sensors = gui.add_text("Sensors to break", "2,3")
     mode = add_choice(gui, fields["fault_mode"], defaults.fault_mode, "Fault mode")

@@ -14,6 +14,7 @@ import viser
 from app import store
 from app.dashboard import plots
 from app.dashboard.stage import Show
+from app.implementation import fault_text
 from app.live import RobotSnapshot
 
 
@@ -89,10 +90,10 @@ def show_line(robots: Sequence[RobotSnapshot], noise_sigma: float) -> str:
     else:
         brain = f"node {first.current_node}{sub} · ε {first.epsilon:.3f} α {first.alpha:.3f}"
     lines = [f"on show: step {first.t} · {rewards} · {brain} · noise σ {noise_sigma:g}"]
-    broken = ", ".join(f"s{i}" for i in np.flatnonzero(first.broken))
+    broken = [int(i) for i in np.flatnonzero(first.broken)]
     if broken:
-        since = f" since step {first.fault_steps[-1]}" if first.fault_steps else ""
-        lines.append(f"broken: {broken} ({first.fault_mode}){since}")
+        since = first.fault_steps[-1] if first.fault_steps else None
+        lines.append(fault_text(broken, str(first.fault_mode), since))
     else:
         lines.append("broken: none")
     plot = f"reward plot: {len(first.rewards)} steps"

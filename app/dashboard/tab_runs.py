@@ -14,7 +14,7 @@ import gnp
 import neuro
 import sim
 from app import store
-from app.config import ImplementationSettings, RunConfig
+from app.config import ImplementationSettings, RunConfig, TrainingSettings
 from app.dashboard.controls import (
     NO_RUNS,
     DashboardInputError,
@@ -28,11 +28,23 @@ from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
+from app.fields import read_setting
 
 NET_NOTE = (
     "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
     "schedule do not apply to it.</small>"
 )
+
+
+def _most_generations() -> int:
+    """A run's most generations (`TrainingSettings.generations`): a replay's generation counts
+    from either end within it."""
+    generations = read_setting(TrainingSettings, "generations")
+    assert generations is not None and generations.high is not None
+    return int(generations.high)
+
+
+MOST_GENERATIONS = _most_generations()
 
 
 def run_brain(config: RunConfig) -> str:
@@ -126,7 +138,7 @@ class RunsTab:
         """Put the loaded run's best of the chosen generation on show, from the pose on show."""
         if self.loaded is None:
             raise DashboardInputError("load a run first")
-        generation = whole(self.generation.value, "generation", -(10**6), 10**6)
+        generation = whole(self.generation.value, "generation", -MOST_GENERATIONS, MOST_GENERATIONS)
         robot = run_robot(self.loaded, generation)
         shown = generation if generation >= 0 else self.loaded.generations_done + generation
         training = self.loaded.config.training
@@ -160,7 +172,9 @@ class RunsTab:
             self.exporting = self._pool.submit(self._export_replay, run, out)
             return
         try:
-            generation = whole(self.generation.value, "generation", -(10**6), 10**6)
+            generation = whole(
+                self.generation.value, "generation", -MOST_GENERATIONS, MOST_GENERATIONS
+            )
             chosen = check_run(self.loaded, generation)
             out = export_run(run, self.exports_dir / f"{run.stem}-g{chosen}", chosen)
         except ExportError as error:

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import viser
-from viser._gui_handles import GuiProgressBarHandle  # not exported by viser 1.1.1
 
 import gnp
 from app.config import PRESET_NAMES, RunConfig, load_preset, train_settings
@@ -26,7 +25,7 @@ from app.dashboard.controls import DashboardInputError, training_config
 from app.dashboard.follower import TrainingFollower
 from app.dashboard.setting_controls import SettingControls, add_controls
 from app.dashboard.stage import Stage
-from app.dashboard.status import Status, set_value
+from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.dashboard.training_job import JobState, TrainingJob
 
@@ -69,7 +68,7 @@ class TrainTab:
     preset: viser.GuiDropdownHandle[str]
     settings: SettingControls
     buttons: dict[str, viser.GuiButtonHandle]
-    progress: GuiProgressBarHandle
+    progress: ProgressBar
     summary: viser.GuiMarkdownHandle
     job: TrainingJob | None = None
     follower: TrainingFollower | None = None

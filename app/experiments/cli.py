@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from app.cli_options import add_quiet, add_runs_dir
+from app.exit_codes import EXIT_INTERRUPTED
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
-from app.experiments.results import ExperimentResults
+from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
 from app.experiments.spec import (
     SCALES,
     ExperimentError,
@@ -30,7 +31,6 @@ from app.experiments.spec import (
 )
 
 DEFAULT_SCALE = "small"
-EXIT_INTERRUPTED = 130
 
 
 def _positive(text: str) -> int:
@@ -204,14 +204,24 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _write_report(
-    spec: ExperimentSpec, scale: str, results: ExperimentResults, out: Path, curves: bool = False
+    spec: ExperimentSpec,
+    scale: str,
+    results: ExperimentResults,
+    out: Path,
+    curves: bool = False,
+    carried: ExperimentResults | None = None,
 ) -> str:
-    """Write the report folder `out` and the ledger of its finished runs beside it."""
+    """Write the report folder `out` of `results` and the ledger of its finished runs beside
+    it; `carried` (a design's every finished run, beyond the looks judged) goes to values.csv
+    and the ledger instead when given."""
     from app.experiments import ledger
     from app.experiments.report_page import write_report
+    from app.experiments.values import write_values_csv
 
     index = write_report(results, out, keep_curves=curves)
-    ledger.write(spec, scale, results, out)
+    if carried is not None:
+        write_values_csv(carried, out / "values.csv")
+    ledger.write(spec, scale, carried or results, out)
     return f"report: {index}"
 
 
@@ -295,11 +305,24 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
         template = harvest.collect(spec, args.scale, empty)  # the shape, every value NaN
     results = read_values_csv(args.from_values, spec, template)
     results = dataclasses.replace(results, looks=_planned_looks(Path(args.from_values)))
+    carried = None
+    if spec.design is not None:  # judged over the looks its report made, carrying the rest
+        from app.experiments import looks_made
+
+        carried = dataclasses.replace(results, looks=spec.design.looks)
+        judged = looks_made.judged_from_values(carried, Path(args.from_values))
+        if judged is None and args.out:
+            index = looks_made.write_before_first_look(spec, args.scale, carried, Path(args.out))
+            print(f"report: {index} (no look made yet)")
+            return 0
+        if judged is None:
+            raise ExperimentError(f"{spec.name}: no look made yet, so no report to print")
+        results = judged
     if args.format == "json":
         return _print_json(results)
     if not args.out:
         raise ExperimentError("--from-values writes a report folder: give --out")
-    print(_write_report(spec, args.scale, results, Path(args.out), curves=True))
+    print(_write_report(spec, args.scale, results, Path(args.out), curves=True, carried=carried))
     return 0
 
 
@@ -350,7 +373,6 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 
     if args.from_values:
         return _from_values(spec, args)
-    results = _collected(spec, args)
     folder = layout.experiment_dir(args.runs_dir, spec.name)
     planned = planning.plan(spec, args.scale, args.runs_dir)
     if not any(Path(t.path).exists() for t in planned) and _ledger(spec, args) is None:
@@ -358,11 +380,36 @@ def cmd_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
             f"no runs of {spec.name!r} at scale {args.scale!r} in {folder}; "
             f"start them with: gnp-lab experiment run {spec.name} --scale {args.scale}"
         )
+    if spec.design is not None and not args.seeds:
+        return _design_report(spec, args)
+    results = _collected(spec, args)
     write_summary(results, layout.summary_path(args.runs_dir, spec.name, args.scale))
     if args.format == "json":
         return _print_json(results)
     out = Path(args.out) if args.out else folder / f"report-{args.scale}"
     print(_write_report(spec, args.scale, results, out))
+    return 0
+
+
+def _design_report(spec: ExperimentSpec, args: argparse.Namespace) -> int:
+    """A pre-registered design's report: judged at the looks made, carrying every finished run
+    (`app.experiments.looks_made`); before the first look, only the runs and no verdict."""
+    from app.experiments import layout, looks_made
+
+    carried, judged = looks_made.carried_and_judged(
+        spec, args.scale, args.runs_dir, _ledger(spec, args)
+    )
+    if args.format == "json":
+        if judged is None:
+            raise ExperimentError(f"{spec.name}: no look made yet, so no report to print")
+        return _print_json(judged)
+    folder = layout.experiment_dir(args.runs_dir, spec.name)
+    out = Path(args.out) if args.out else folder / f"report-{args.scale}"
+    if judged is None:
+        index = looks_made.write_before_first_look(spec, args.scale, carried, out)
+        print(f"report: {index} (no look made yet)")
+        return 0
+    print(_write_report(spec, args.scale, judged, out, carried=carried))
     return 0
 
 
@@ -412,6 +459,14 @@ def cmd_status(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     return 0
 
 
+def _core_time(seconds: float) -> str:
+    """Core time in words, to two significant figures: "40 core-seconds", "9.8 core-hours"."""
+    for unit, size in (("core-hours", 3600.0), ("core-minutes", 60.0)):
+        if seconds >= size:
+            return f"{float(f'{seconds / size:.2g}'):g} {unit}"
+    return f"{float(f'{seconds:.2g}'):g} core-seconds"
+
+
 def cmd_list(args: argparse.Namespace) -> int:
     from app.experiments import planning
     from app.experiments.reproduced import short_count
@@ -425,10 +480,13 @@ def cmd_list(args: argparse.Namespace) -> int:
         for scale, sizes in spec.scales.items():
             cost = planning.work(spec, scale)
             t = spec.run_config(spec.arms[0].name, scale, 0).training
+            seconds = (cost.robot_steps + cost.trial_steps) / CORE_STEPS_PER_SECOND
             print(
                 f"  {scale:6} {cost.runs} runs × {t.generations} generations × {t.population} "
                 f"individuals × {t.steps} steps = {short_count(cost.robot_steps)} robot-steps; "
                 f"{len(spec.conditions)} conditions per run: {short_count(cost.trial_steps)} "
-                "trial-steps" + (f"; measured: {sizes.measured}" if sizes.measured else "")
+                f"trial-steps; about {_core_time(seconds)} at "
+                f"{CORE_STEPS_PER_SECOND / 1e6:.2g} M steps per core-second"
+                + (f"; measured: {sizes.measured}" if sizes.measured else "")
             )
     return 0

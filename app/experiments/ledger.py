@@ -78,25 +78,29 @@ def default_folder(spec: ExperimentSpec, scale: str) -> Path | None:
     return folder if (folder / FILE).is_file() else None
 
 
-def write(spec: ExperimentSpec, scale: str, results: ExperimentResults, folder: Path) -> Path:
-    """Write `folder/ledger.json` for the runs of `results` that finished: trained, and every
-    condition implemented."""
-    finished = []
-    for task in plan(spec, scale, folder, max(len(results.seeds), 1)):
+def finished(spec: ExperimentSpec, scale: str, results: ExperimentResults) -> list[Task]:
+    """The runs of `results` that finished: trained, and every condition implemented."""
+    done = []
+    for task in plan(spec, scale, "", max(len(results.seeds), 1)):
         if task.seed not in results.seeds:
             continue
         row = results.seeds.index(task.seed)
         keys = [("final_best_fitness", task.arm, "")]
         keys += [("mean_reward", task.arm, name) for name, _ in task.conditions]
         if all(np.isfinite(results.scalars[k][row]) for k in keys if k in results.scalars):
-            finished.append(task)
+            done.append(task)
+    return done
+
+
+def write(spec: ExperimentSpec, scale: str, results: ExperimentResults, folder: Path) -> Path:
+    """Write `folder/ledger.json` for the runs of `results` that finished."""
     document = {
         "format": FORMAT,
         "experiment": spec.name,
         "scale": scale,
         "engine_bits": ENGINE_BITS,
         "looks": list(results.looks),
-        "runs": {t.name: fingerprint(t) for t in finished},
+        "runs": {t.name: fingerprint(t) for t in finished(spec, scale, results)},
     }
     path = folder / FILE
     path.write_text(json.dumps(document, indent=1) + "\n")

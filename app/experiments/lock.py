@@ -1,9 +1,10 @@
 """One `experiment run` per experiment folder at a time.
 
-The lock is `experiments/NAME/.run.lock`, an advisory lock holding the holder's pid. The
-kernel drops it when its holder dies (even by SIGKILL); the holder removes the file when it
-ends. Taking it also clears the temporary files (`.*.PID.tmp`) that killed runs left in the
-folder.
+The lock is `experiments/NAME/.run.lock`, filelock's advisory lock (flock) holding the holder's
+pid. The kernel drops it when its holder dies (even by SIGKILL); the holder removes the file when
+it ends, while it still holds it (filelock's acquire starts over on a file removed meanwhile, so
+two processes never hold different files). Taking it also clears the temporary files
+(`.*.PID.tmp`) that killed runs left in the folder.
 """
 
 from __future__ import annotations
@@ -13,8 +14,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from filelock import FileLock, Timeout
+
 from app.experiments.spec import ExperimentError
-from app.store.files import release_lock, remove_temporaries, take_lock
+from app.store.files import remove_temporaries
 
 LOCK_NAME = ".run.lock"
 
@@ -29,26 +32,31 @@ def experiment_lock(folder: str | Path) -> Iterator[None]:
     """
     folder = Path(folder)
     path = folder / LOCK_NAME
+    lock = FileLock(path, timeout=0, on_acquired=_write_pid)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        handle = take_lock(path)
-    except OSError as error:
-        raise ExperimentError(f"cannot write in {folder}: {error.strerror}") from None
-    if handle is None:
+        lock.acquire()
+    except Timeout:  # before OSError: filelock's Timeout is a TimeoutError
         raise ExperimentError(
             f"experiment {folder.name!r} is already running ({_holder(path)}); wait for it to "
             "finish or stop it, then run the same command to go on"
-        )
+        ) from None
+    except OSError as error:
+        raise ExperimentError(f"cannot write in {folder}: {error.strerror}") from None
     try:
-        handle.truncate(0)
-        handle.write(f"{os.getpid()}\n")
-        handle.flush()
         for scale_dir in (folder, *(p for p in folder.iterdir() if p.is_dir())):
             for leftover in scale_dir.glob(".*.tmp"):
                 remove_temporaries(leftover.with_name(_target_name(leftover.name)))
         yield
     finally:
-        release_lock(path, handle)
+        path.unlink(missing_ok=True)  # while held: no lock file is left behind
+        lock.release()
+
+
+def _write_pid(fd: int) -> None:
+    """Write the holder's pid into the lock file it has just taken."""
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
 
 
 def _holder(path: Path) -> str:

@@ -40,6 +40,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import optimize
 from scipy import stats as scipy_stats
+from statsmodels.stats.power import normal_sample_size_one_tail
 
 from app.experiments.results import Direction, Verdict
 
@@ -309,12 +310,14 @@ def seeds_for_power(
     sd: float, effect: float, paired: bool, level: float, power: float = POWER
 ) -> float:
     """Seeds per arm for a two-sided test at `level` to find `effect` with `power` (normal
-    approximation): 2·sd²·(z₁₋ₗ/₂ + z_power)²/effect² per arm, without the 2 when paired.
-    inf when the effect is 0; NaN when sd is unknown."""
+    approximation, one tail: statsmodels' `normal_sample_size_one_tail` at level/2):
+    2·sd²·(z₁₋ₗ/₂ + z_power)²/effect² per arm, without the 2 when paired, rounded up, at
+    least 2. inf when the effect is 0; NaN when sd is unknown."""
     if not math.isfinite(sd) or not math.isfinite(effect):
         return math.nan
     if effect == 0:
         return math.inf
-    z = scipy_stats.norm.ppf(1 - level / 2) + scipy_stats.norm.ppf(power)
-    n = (1 if paired else 2) * (sd * z / effect) ** 2
+    n = (1 if paired else 2) * float(
+        normal_sample_size_one_tail(effect, power, level / 2, std_null=sd)
+    )
     return float(max(2, math.ceil(n)))

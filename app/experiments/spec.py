@@ -20,7 +20,7 @@ import tomllib
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -46,7 +46,7 @@ from app.experiments.results import (
 )
 
 Scale = Literal["smoke", "small", "thesis"]
-SCALES: tuple[Scale, ...] = ("smoke", "small", "thesis")
+SCALES: tuple[Scale, ...] = get_args(Scale)
 SHIPPED_PACKAGE = "app.experiments.shipped"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
 _NAME_RULE = "1-64 letters, digits, '_', '.' or '-', starting with a letter or digit"

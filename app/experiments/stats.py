@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats as scipy_stats
+from statsmodels.stats.multitest import multipletests
 
 from app.experiments.results import Direction
 
@@ -298,7 +299,7 @@ def compare(
 
 
 def holm(p_values: Sequence[float]) -> np.ndarray:
-    """Holm–Bonferroni adjusted p-values, in the order given.
+    """Holm–Bonferroni adjusted p-values, in the order given (statsmodels' `multipletests`).
 
     Step-down: the i-th smallest of m p-values is multiplied by m − i + 1 (i from 1), then
     made monotone by a running maximum in rank order and capped at 1. NaN p-values (claims
@@ -306,9 +307,7 @@ def holm(p_values: Sequence[float]) -> np.ndarray:
     """
     p = np.asarray(p_values, dtype=float)
     adjusted = np.full(p.shape, np.nan)
-    tested = np.flatnonzero(~np.isnan(p))
-    order = tested[np.argsort(p[tested], kind="stable")]
-    m = order.size
-    scaled = (m - np.arange(m)) * p[order]
-    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    tested = ~np.isnan(p)
+    if tested.any():
+        adjusted[tested] = multipletests(p[tested], method="holm")[1]
     return adjusted

@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from app.cli_options import add_run_name, add_runs_dir
+from app.exit_codes import EXIT_ERROR
 from app.store import resolve_run
-
-EXIT_ERROR = 1
+from app.tasks.common import is_task_run
 
 
 def add_export_parser(commands: Any) -> argparse.ArgumentParser:
@@ -41,6 +41,10 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     path = resolve_run(args.runs_dir, args.run)
     out = Path(args.out)
+    if is_task_run(path):  # a Gymnasium task's run: its controller and fitness
+        from app.tasks.cli import export
+
+        return export(path, out, args.generation)
     try:
         if args.replay:
             export_replay(path, out, args.generation)

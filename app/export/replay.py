@@ -20,7 +20,7 @@ import viser
 import gnp
 import sim
 from app.arenas import arena_of
-from app.implementation import faults
+from app.implementation import fault_text, faults
 from app.live import RobotSnapshot
 from app.recording import Trajectory
 from app.store import Implementation, RunReader
@@ -136,10 +136,7 @@ class ReplayScene:
             fault = ""
             if robot.broken.any():
                 assert life.fault is not None
-                sensors = ",".join(str(s) for s in life.fault.sensors)
-                fault = (
-                    f" · sensors {sensors} broken ({life.fault.mode}) since step {life.fault.step}"
-                )
+                fault = " · " + fault_text(life.fault.sensors, life.fault.mode, life.fault.step)
             with self.server.atomic():
                 self.arena.update((robot,))
                 self.graph.update(robot)

@@ -85,6 +85,10 @@ class RunReader:
 
     def _load_header(self) -> None:
         attrs = self._file.attrs
+        if attrs.get("format") == "gnp-lab-task-run":  # app.tasks.store.FORMAT
+            raise RunFileError(
+                f"{self.path} is a run on the task {attrs.get('task')} (gnp-lab replay, export)"
+            )
         if attrs.get("format") != FORMAT:
             raise RunFileError(f"{self.path} is an HDF5 file but not a gnp-lab run")
         version = int(attrs["schema_version"])

@@ -96,3 +96,18 @@ def test_an_outside_agent_on_the_gymnasium_env_as_the_example_does() -> None:
     rewards = agent.episode(env, 0, None)
     assert sum(rewards[100:]) == pytest.approx(_number(lines[0], r"\(healthy control"), abs=1e-3)
     assert _number(text, "mean cost of the fault") > 0
+
+
+@pytest.mark.slow
+def test_gnp_cartpole_example_learns_and_prints_what_its_run_file_holds(tmp_path: Path) -> None:
+    from app.tasks import read_task_run
+
+    run = tmp_path / "cartpole.h5"
+    args = ("--generations", "8", "--population", "60", "--seed", "1", "--out", str(run))
+    text = _run("gnp_cartpole.py", *args)
+    best = [float(v) for v in re.findall(r"best return ([0-9.]+)", text)]
+    fitness = read_task_run(run).fitness
+    assert best == pytest.approx(fitness.max(axis=1).tolist())
+    assert len(best) == 8
+    assert max(best[-3:]) > 2 * best[0]
+    assert "greedy replay of the final best: return" in text

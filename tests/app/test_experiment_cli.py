@@ -12,8 +12,9 @@ from lab_fixtures import file_digest, one_error_line, tiny_config
 
 from app.cli import main
 from app.config import build_config
+from app.experiments.cli import _core_time
 from app.experiments.planning import plan
-from app.experiments.results import VERDICTS
+from app.experiments.results import CORE_STEPS_PER_SECOND, VERDICTS
 from app.experiments.spec import load_file
 from app.experiments.summary import read_summary
 from app.implementation import implement
@@ -188,6 +189,18 @@ def test_list_shows_sources_and_costs(capsys: pytest.CaptureFixture[str]) -> Non
     assert "ch3-bs-rl" in out and "Fig. 3.6" in out
     assert "small  20 runs × 100 generations × 300 individuals × 1000 steps = 600M" in out
     assert "thesis 20 runs × 1000 generations" in out
+    # ch3-bs-rl at thesis: 6G robot-steps + 1.08G trial-steps, priced at the measured rate.
+    hours = (6e9 + 1.08e9) / CORE_STEPS_PER_SECOND / 3600
+    assert f"trial-steps; about {float(f'{hours:.2g}'):g} core-hours at" in out
+
+
+@pytest.mark.parametrize(
+    ("seconds", "text"),
+    [(0.0649, "0.065 core-seconds"), (59.0, "59 core-seconds"), (60.0, "1 core-minutes"),
+     (1390.0, "23 core-minutes"), (3600.0, "1 core-hours"), (553_000.0, "150 core-hours")],
+)  # fmt: skip
+def test_core_time_in_words(seconds: float, text: str) -> None:
+    assert _core_time(seconds) == text
 
 
 @pytest.mark.slow

@@ -63,10 +63,14 @@ def _assert_same(a: Batch, b: Batch) -> None:
     assert np.array_equal(a.world.sense(), b.world.sense())
     assert np.array_equal(a.world.observe(), b.world.observe())
     assert np.array_equal(a.world.fault_modes, b.world.fault_modes)
-    assert np.array_equal(a.population.records, b.population.records)  # Q tables included
-    assert np.array_equal(a.state.walk, b.state.walk)
-    assert np.array_equal(a.state.wheels, b.state.wheels)  # the step's commands
-    assert np.array_equal(a.state.rng, b.state.rng)
+    assert np.array_equal(
+        a.gnp_controllers.population.records, b.gnp_controllers.population.records
+    )  # Q tables included
+    assert np.array_equal(a.gnp_controllers.state.walk, b.gnp_controllers.state.walk)
+    assert np.array_equal(
+        a.gnp_controllers.state.wheels, b.gnp_controllers.state.wheels
+    )  # the step's commands
+    assert np.array_equal(a.gnp_controllers.state.rng, b.gnp_controllers.state.rng)
     assert np.array_equal(a.reward, b.reward)
 
 

@@ -5,7 +5,8 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
 
 0. `sim`, `gnp`, `neuro`: the world and the brains; none imports another nor anything above.
 1. the lab core: app's own modules (`app/*.py`) with `app/store/` and `app/presets/`.
-2. `app.experiments` and `app.views` (what the dashboard and the export both draw).
+2. `app.experiments`, `app.views` (what the dashboard and the export both draw) and
+   `app.tasks` (GNP on Gymnasium tasks).
 3. `app.export`.
 4. `app.dashboard`.
 5. `app.cli`, which wires everything into `gnp-lab`.
@@ -32,6 +33,7 @@ LAYER = {
     CORE: 1,
     "app.experiments": 2,
     "app.views": 2,
+    "app.tasks": 2,
     "app.export": 3,
     "app.dashboard": 4,
     "app.cli": 5,
@@ -167,9 +169,10 @@ def test_the_checks_catch_what_they_are_for() -> None:
 
 
 def test_gymnasium_stays_in_the_envs_modules() -> None:
-    """The task's Gymnasium face (`sim.gym_env`, `sim.gym_vector`) imports the world; nothing
-    else in the packages imports Gymnasium, so the world, the brains and the lab run without
-    it."""
+    """The task's Gymnasium face (`sim.gym_env`, `sim.gym_vector`) imports the world, and GNP
+    on Gymnasium tasks (`app.tasks`, issue #34 item 2) imports Gymnasium's tasks; nothing else
+    in the packages imports Gymnasium, so the world, the brains and the lab run without it
+    (`gnp-lab` loads `app.tasks` only for a task: tests/app/test_tasks.py)."""
     users = set()
     for pkg in PACKAGES:
         for path in (ROOT / pkg).rglob("*.py"):
@@ -183,4 +186,5 @@ def test_gymnasium_stays_in_the_envs_modules() -> None:
                 )
                 if any(name.split(".")[0] == "gymnasium" for name in names):
                     users.add(module_name(path))
-    assert users == {"sim.gym_env", "sim.gym_vector"}
+    tasks = {"app.tasks.config", "app.tasks.faults", "app.tasks.lives", "app.tasks.spaces"}
+    assert users == {"sim.gym_env", "sim.gym_vector", *tasks}

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from lab_fixtures import assert_same_data, tiny_config
 
@@ -97,3 +98,29 @@ def test_both_phases_run_in_the_chosen_physics_and_the_run_file_records_it(
         implement(paths[physics], settings, name="fault", workers=1)
         assert built and set(built) == {physics}
     assert_same_data(paths["pymunk"], paths["analytic"])
+
+
+def test_the_dashboards_implementation_phase_keeps_the_runs_physics(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """It ran in pymunk whatever the run's physics (issue #33); it reads the run's worlds as
+    `implement` does (`app.implementation.implementation_of`), and gives its numbers."""
+    from app.dashboard.implementation_job import ImplementationRequest, implement_run
+
+    path = tmp_path / "analytic.h5"
+    train(tiny_config(generations=1, physics="analytic"), path, workers=1)
+    built: list[str] = []
+    world_init = sim.World.__init__
+
+    def spy(self: sim.World, *args: Any, **kwargs: Any) -> None:
+        world_init(self, *args, **kwargs)
+        built.append(self.physics)
+
+    monkeypatch.setattr(sim.World, "__init__", spy)
+    request = ImplementationRequest(path, (2, 3), "dead", 30, 60, 1, "fixed")
+    result = implement_run(request)
+    assert built and set(built) == {"analytic"}
+    with RunReader(path) as run:
+        settings = request.settings(run.config.implementation)
+    stored = implement(path, settings, name="same", workers=1)
+    np.testing.assert_array_equal(result.trial_mean_reward, stored.trial_mean_reward)

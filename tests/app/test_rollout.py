@@ -31,7 +31,9 @@ def test_a_robot_lives_the_same_life_in_any_batch() -> None:
     b = rollout(alone, 40, 0.1, 0.1)
     assert np.array_equal(a.term_sums[[5, 2]], b.term_sums)
     assert np.array_equal(whole.world.poses[[5, 2]], alone.world.poses)
-    assert np.array_equal(whole.population.q_ss[[5, 2]], alone.population.q_ss)
+    assert np.array_equal(
+        whole.gnp_controllers.population.q_ss[[5, 2]], alone.gnp_controllers.population.q_ss
+    )
 
 
 def test_blocks_of_steps_continue_one_life() -> None:
@@ -39,7 +41,9 @@ def test_blocks_of_steps_continue_one_life() -> None:
     whole = rollout(once, 30, 0.1, 0.2)
     parts = [rollout(blocks, n, 0.1, 0.2) for n in (10, 5, 15)]
     assert np.array_equal(once.world.poses, blocks.world.poses)
-    assert np.array_equal(once.population.q_bs, blocks.population.q_bs)
+    assert np.array_equal(
+        once.gnp_controllers.population.q_bs, blocks.gnp_controllers.population.q_bs
+    )
     assert np.array_equal(
         whole.step_reward_sums, np.concatenate([p.step_reward_sums for p in parts])
     )
@@ -61,22 +65,22 @@ def test_the_returned_sums_are_the_recorded_rewards() -> None:
 
 def test_epsilon_alpha_are_taken_per_step() -> None:
     batch = _batch(3)
-    q_before = batch.population.q_ss.copy()
+    q_before = batch.gnp_controllers.population.q_ss.copy()
     alpha = np.zeros(40)
     rollout(batch, 40, 0.1, alpha)  # α = 0: Sarsa moves nothing
-    assert np.array_equal(batch.population.q_ss, q_before)
+    assert np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
     alpha[30:] = 0.5
     rollout(batch, 40, 0.1, alpha)
-    assert not np.array_equal(batch.population.q_ss, q_before)
+    assert not np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
     with pytest.raises(ValueError):
         rollout(batch, 40, 0.1, np.zeros(39))
 
 
 def test_offline_steps_leave_q_tables_alone() -> None:
     batch = _batch(3)
-    q_before = batch.population.q_ss.copy()
+    q_before = batch.gnp_controllers.population.q_ss.copy()
     rollout(batch, 30, 0.1, 0.5, learn=False)
-    assert np.array_equal(batch.population.q_ss, q_before)
+    assert np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
 
 
 def test_episodes_move_robots_to_their_next_start_pose() -> None:

@@ -104,7 +104,7 @@ def test_break_a_sensor_marks_it_and_the_reward_curve_reacts(page: Any, screensh
     type_into(page, "Sensors to break", "2,3")
     choose(page, "Fault mode", "saturated")
     press(page, "Break now")
-    match = wait_for(page, r"broken: s2, s3 \(saturated\) since step (\d+)")
+    match = wait_for(page, r"sensors 2,3 broken \(saturated\) since step (\d+)")
     fault = int(match.group(1))
     reaction = wait_for(
         page, rf"fault marked at step {fault} · reward/step before ([\d.]+), after ([\d.]+)"
@@ -209,7 +209,7 @@ def test_compare_two_runs_after_the_same_fault(page: Any, screenshots: Path) -> 
     type_into(page, "At step", "40")
     press(page, "Compare")
     wait_for(page, r"on show: step \d+ · bs: reward/step [\d.]+ · cs: reward/step")
-    wait_for(page, r"broken: s2, s3 \(dead\) since step 40")
+    wait_for(page, r"sensors 2,3 broken \(dead\) since step 40")
     wait_for(page, r"on show: step (\d+)", at_least=115)  # both trails well past the fault
     page.screenshot(path=str(screenshots / "compare.png"))
 
@@ -223,7 +223,7 @@ def test_tabs_share_state_and_closing_one_leaves_the_server_healthy(
     wait_for(other, r"broken: none")
     type_into(page, "Sensors to break", "5")
     press(page, "Break now")
-    wait_for(other, r"broken: s5 \(")  # the other tab sees the same robot
+    wait_for(other, r"sensors 5 broken \(")  # the other tab sees the same robot
     other.close()
     later_step(page, step_of(page))  # the server carries on after a tab closed
     press(page, "Repair all")

@@ -22,7 +22,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import sim
-from sim.gym_env import ENV_ID, LIFE_STEPS, WallFollowEnv
+from sim import LIFE_STEPS
+from sim.gym_env import ENV_ID, WallFollowEnv
 from sim.gym_vector import WallFollowVectorEnv
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,0 +1,55 @@
+"""What the lab knows of task runs without importing Gymnasium: the run file's format, the
+error a task raises, and `gnp-lab replay`'s options. `gnp-lab` imports this module alone and
+the rest of `app.tasks` (and Gymnasium) only when a task is asked for."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import h5py
+
+from app.cli_options import add_run_name, add_runs_dir
+from sim import FAULT_MODES
+
+FORMAT = "gnp-lab-task-run"
+"""The `format` attribute of a task run file (app.tasks.store)."""
+
+
+class TaskError(ValueError):
+    """A task GNP cannot run (unknown id, a space it cannot judge or emit, bad bounds)."""
+
+
+def is_task_run(path: str | Path) -> bool:
+    """Whether `path` is a task run file (False for anything else, a robot run included)."""
+    try:
+        with h5py.File(path, "r", locking=False) as handle:
+            return bool(handle.attrs.get("format") == FORMAT)
+    except (OSError, ValueError):
+        return False
+
+
+def add_replay_parser(commands: Any) -> argparse.ArgumentParser:
+    """`gnp-lab replay`: live a task run's best individual again."""
+    replay = commands.add_parser(
+        "replay",
+        help="live a task run's best individual one episode again and print its return",
+        description="Live the best individual of a generation (default: the last) of a task "
+        "run for one episode from --seed, learning online as in training, with observation "
+        "faults if asked.",
+    )
+    add_run_name(replay)
+    add_runs_dir(replay)
+    replay.add_argument("--seed", type=int, default=0, help="episode and controller seed")
+    replay.add_argument(
+        "--episodes", type=int, default=1, metavar="K", help="K episodes, seeds SEED..SEED+K-1"
+    )
+    replay.add_argument("--generation", type=int, metavar="G", help="the best of this one")
+    replay.add_argument("--greedy", action="store_true", help="ε = 0 (no exploration)")
+    replay.add_argument("--fault-step", type=int, default=0, metavar="T", help="faults from T")
+    replay.add_argument(
+        "--fault-features", default="", metavar="J,K", help="observation features that break"
+    )
+    replay.add_argument("--fault-mode", choices=FAULT_MODES, default="dead")
+    return replay

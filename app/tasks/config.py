@@ -1,0 +1,137 @@
+"""Settings of a GNP run on a Gymnasium task: the task, and the lab's own GNP settings.
+
+A `TaskRunConfig` holds the lab's `ControllerSettings` and `EvolutionConfig` unchanged and, of
+the training phase, what a task uses: population, generations, a life's cap in steps and the
+ε/α schedules (built from the lab's `TrainingSettings`, so `gnp-lab train`'s options set them).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import gymnasium as gym
+from pydantic import BaseModel, ConfigDict, Field
+
+import gnp
+from app.config import ControllerSettings, RunConfig
+from app.tasks.common import TaskError
+from app.tasks.spaces import TaskAdapter, task_adapter
+from gnp import EvolutionConfig, Schedule
+from gnp.config import GenerationProgress
+
+Bounds = tuple[float | None, ...] | None
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class TaskSettings(_Frozen):
+    """Which Gymnasium task, and the bounds GNP scales its features and actions by."""
+
+    id: str = Field(description="a registered Gymnasium id, e.g. CartPole-v1")
+    obs_low: Bounds = Field(
+        default=None, description="low bound per observation feature (null = the space's)"
+    )
+    obs_high: Bounds = Field(default=None, description="high bound per observation feature")
+    act_low: Bounds = Field(default=None, description="low bound per Box action component")
+    act_high: Bounds = Field(default=None, description="high bound per Box action component")
+
+    def adapter(self) -> TaskAdapter:
+        """The task's adapter (builds one environment to read its spaces).
+
+        Raises:
+            TaskError: unknown id, or a space GNP cannot judge or emit.
+        """
+        env = make_env(self.id)
+        try:
+            return task_adapter(
+                self.id,
+                env.observation_space,
+                env.action_space,
+                self.obs_low,
+                self.obs_high,
+                self.act_low,
+                self.act_high,
+            )
+        finally:
+            env.close()
+
+
+def make_env(task: str) -> gym.Env:
+    """`gymnasium.make(task)`, an unknown or unusable id as one TaskError line."""
+    try:
+        return gym.make(task)
+    except gym.error.DependencyNotInstalled as error:
+        raise TaskError(f"task {task!r} cannot be made: {error}") from None
+    except gym.error.Error as error:
+        raise TaskError(f"unknown task {task!r}: {str(error).splitlines()[0]}") from None
+    except (ImportError, ModuleNotFoundError) as error:  # an id whose package is missing
+        raise TaskError(f"task {task!r} cannot be made: {error}") from None
+
+
+class TaskTraining(_Frozen):
+    """The training phase on a task: each individual lives one episode, capped at `steps`."""
+
+    population: int = Field(default=100, ge=2, le=100_000, description="individuals")
+    generations: int = Field(default=20, ge=1, le=1_000_000, description="generations G")
+    steps: int = Field(
+        default=1000, ge=1, le=1_000_000, description="a life's cap in steps (one episode)"
+    )
+    epsilon: Schedule = Field(default=Schedule.fixed(0.1), description="ε over generations")
+    alpha: Schedule = Field(default=Schedule.fixed(0.1), description="α over generations")
+    schedule_progress: GenerationProgress = Field(
+        default="last-generation-min", description="progress of Eq. 4.1-4.2"
+    )
+
+    def epsilon_alpha(self, generation: int) -> tuple[float, float]:
+        """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
+        return gnp.epsilon_alpha_over_generations(
+            self.epsilon, self.alpha, generation, self.generations, self.schedule_progress
+        )
+
+
+class TaskRunConfig(_Frozen):
+    """Everything a task run's results depend on."""
+
+    seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
+    task: TaskSettings
+    controller: ControllerSettings = ControllerSettings()
+    evolution: EvolutionConfig = EvolutionConfig()
+    training: TaskTraining = TaskTraining()
+
+    @cached_property
+    def adapter(self) -> TaskAdapter:
+        return self.task.adapter()
+
+    def gnp_config(self) -> gnp.GnpConfig:
+        """The brain: the lab's controller settings, inputs and outputs the task's."""
+        adapter = self.adapter
+        settings = self.controller.gnp_config().model_dump()
+        return gnp.GnpConfig(
+            **{**settings, "n_inputs": adapter.n_inputs, "n_outputs": adapter.n_outputs}
+        )
+
+    @classmethod
+    def from_run_config(cls, config: RunConfig, task: TaskSettings) -> TaskRunConfig:
+        """The task run of the lab's settings (seed, controller, evolution, population,
+        generations, steps, ε/α schedules); the arena, noise and physics do not apply."""
+        eps, alpha = config.training.schedules()
+        training = TaskTraining(
+            population=config.training.population,
+            generations=config.training.generations,
+            steps=config.training.steps,
+            epsilon=eps,
+            alpha=alpha,
+            schedule_progress=config.training.schedule_progress,
+        )
+        return cls(
+            seed=config.seed,
+            task=task,
+            controller=config.controller,
+            evolution=config.evolution,
+            training=training,
+        )
+
+
+__all__ = ["TaskError", "TaskRunConfig", "TaskSettings", "TaskTraining", "make_env"]

@@ -1,0 +1,176 @@
+"""Task run files: one HDF5 file per run, with the lab's run-file conventions.
+
+Root attributes `format` ("gnp-lab-task-run"), `schema_version`, `package_version`, `seed`,
+`config` (the `TaskRunConfig` as JSON), `task` (the Gymnasium id) and `generations_done`;
+`history/fitness` (G, N) returns, `history/epsilon`, `history/alpha` (G,), `history/best/<field>`
+(G, ...) the genome and Q tables of each generation's best after its life, and
+`checkpoint/<field>` (N, ...) the population the next generation (`checkpoint.attrs
+["generation"]`) starts from. Plain h5py, no pickled objects; rows past `generations_done` are
+not yet valid. Written generation by generation (flushed), so a crash loses at most the
+generation in flight, and `resume` goes on from the checkpoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import gnp
+from app.store.files import LIBVER, RunFileError
+from app.store.schema import package_version
+from app.tasks.common import FORMAT
+from app.tasks.config import TaskRunConfig
+
+SCHEMA_VERSION = 1
+
+
+class TaskRunWriter:
+    """The writer of a task run file (open for the whole training)."""
+
+    def __init__(self, path: Path, handle: h5py.File, config: TaskRunConfig) -> None:
+        self.path = path
+        self.config = config
+        self._file = handle
+
+    @classmethod
+    def create(cls, path: str | Path, config: TaskRunConfig) -> TaskRunWriter:
+        """A new file; refuses to overwrite one.
+
+        Raises:
+            RunFileError: `path` exists or cannot be created.
+        """
+        path = Path(path)
+        if path.exists():
+            raise RunFileError(f"{path} already exists; choose another --out or --resume it")
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            handle = h5py.File(path, "w-", libver=LIBVER, locking=False)
+        except OSError as error:
+            raise RunFileError(f"cannot create {path}: {error}") from None
+        n = config.training.population
+        handle.attrs["format"] = FORMAT
+        handle.attrs["schema_version"] = SCHEMA_VERSION
+        handle.attrs["package_version"] = package_version()
+        handle.attrs["seed"] = config.seed
+        handle.attrs["task"] = config.task.id
+        handle.attrs["config"] = config.model_dump_json()
+        handle.attrs["generations_done"] = 0
+        history = handle.create_group("history")
+        history.create_dataset("fitness", (0, n), np.float64, maxshape=(None, n))
+        history["fitness"].attrs["unit"] = "episode return"
+        for name in ("epsilon", "alpha"):
+            history.create_dataset(name, (0,), np.float64, maxshape=(None,))
+        cfg = config.gnp_config()
+        best = history.create_group("best")
+        for name, shape in gnp.field_shapes(cfg).items():
+            best.create_dataset(name, (0, *shape), gnp.field_dtype(name), maxshape=(None, *shape))
+        return cls(path, handle, config)
+
+    @classmethod
+    def resume(cls, path: str | Path) -> tuple[TaskRunWriter, int, dict[str, np.ndarray]]:
+        """The writer of an unfinished run, its next generation and that generation's arrays.
+
+        Raises:
+            RunFileError: not a task run, or already finished.
+        """
+        run = read_task_run(path)
+        if run.generation_done >= run.config.training.generations:
+            raise RunFileError(f"{Path(path).name} is finished; nothing to resume")
+        handle = h5py.File(path, "r+", locking=False)
+        generation = int(handle["checkpoint"].attrs["generation"])
+        arrays = {name: ds[()] for name, ds in handle["checkpoint"].items()}
+        return cls(Path(path), handle, run.config), generation, arrays
+
+    def write_generation(
+        self,
+        generation: int,
+        fitness: np.ndarray,
+        epsilon: float,
+        alpha: float,
+        best: dict[str, np.ndarray],
+    ) -> None:
+        history = self._file["history"]
+        rows = generation + 1
+        for name, value in (("fitness", fitness), ("epsilon", epsilon), ("alpha", alpha)):
+            ds = history[name]
+            ds.resize(rows, axis=0)
+            ds[generation] = value
+        for name, value in best.items():
+            ds = history["best"][name]
+            ds.resize(rows, axis=0)
+            ds[generation] = value[0]
+
+    def write_checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
+        """The population generation `next_generation` starts from (replaces the last)."""
+        if "checkpoint" in self._file:
+            del self._file["checkpoint"]
+        group = self._file.create_group("checkpoint")
+        group.attrs["generation"] = next_generation
+        for name, value in arrays.items():
+            group.create_dataset(name, data=value)
+
+    def mark_done(self, generations_done: int) -> None:
+        self._file.attrs["generations_done"] = generations_done
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+@dataclass(frozen=True)
+class TaskRun:
+    """A task run file, read."""
+
+    path: Path
+    config: TaskRunConfig
+    generation_done: int
+    fitness: np.ndarray  # (generations_done, N)
+    epsilon: np.ndarray
+    alpha: np.ndarray
+    package_version: str
+
+    def best_genome(self, generation: int | None = None) -> tuple[gnp.GnpConfig, gnp.Population]:
+        """(brain config, 1-individual population) of a generation's best (default: last)."""
+        done = self.generation_done
+        g = done - 1 if generation is None else generation
+        if not 0 <= g < done:
+            raise RunFileError(f"{self.path.name} has generations 0..{done - 1}, not {g}")
+        cfg = self.config.gnp_config()
+        with h5py.File(self.path, "r", locking=False) as handle:
+            best = handle["history/best"]
+            arrays = {name: best[name][g : g + 1] for name in best}
+        return cfg, gnp.population_from_arrays(cfg, arrays)
+
+
+def read_task_run(path: str | Path) -> TaskRun:
+    """Read a task run file's settings and history.
+
+    Raises:
+        RunFileError: missing, not a task run, or of an unknown schema version.
+    """
+    path = Path(path)
+    try:
+        handle = h5py.File(path, "r", locking=False)
+    except OSError as error:
+        raise RunFileError(f"cannot read {path}: {error}") from None
+    with handle:
+        if handle.attrs.get("format") != FORMAT:
+            raise RunFileError(f"{path} is not a task run file")
+        version = int(handle.attrs["schema_version"])
+        if version != SCHEMA_VERSION:
+            raise RunFileError(f"{path} is task run schema {version}; this reads {SCHEMA_VERSION}")
+        config = TaskRunConfig.model_validate_json(str(handle.attrs["config"]))
+        done = int(handle.attrs["generations_done"])
+        history = handle["history"]
+        return TaskRun(
+            path=path,
+            config=config,
+            generation_done=done,
+            fitness=history["fitness"][:done],
+            epsilon=history["epsilon"][:done],
+            alpha=history["alpha"][:done],
+            package_version=str(handle.attrs["package_version"]),
+        )

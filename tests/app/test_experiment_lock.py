@@ -1,0 +1,74 @@
+"""The experiment lock (filelock's, `app.experiments.lock`): one holder, its pid in the file,
+no file left, and the same messages as before."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.experiments.lock import LOCK_NAME, experiment_lock
+from app.experiments.spec import ExperimentError
+
+
+def test_the_holder_writes_its_pid_and_leaves_no_file(tmp_path: Path) -> None:
+    folder = tmp_path / "runs" / "tiny"  # created
+    with experiment_lock(folder):
+        assert (folder / LOCK_NAME).read_text(encoding="utf-8") == f"{os.getpid()}\n"
+    assert not (folder / LOCK_NAME).exists()
+    with experiment_lock(folder):  # and it can be taken again
+        pass
+    assert list(folder.iterdir()) == []
+
+
+def test_a_second_holder_is_refused_with_the_first_ones_pid(tmp_path: Path) -> None:
+    with (
+        experiment_lock(tmp_path),
+        pytest.raises(ExperimentError) as refused,
+        experiment_lock(tmp_path),
+    ):
+        pass
+    assert str(refused.value) == (
+        f"experiment {tmp_path.name!r} is already running (pid {os.getpid()}); wait for it "
+        "to finish or stop it, then run the same command to go on"
+    )
+
+
+def test_another_process_is_refused_and_a_killed_holder_frees_it(tmp_path: Path) -> None:
+    script = (
+        "import time; from app.experiments.lock import experiment_lock\n"
+        f"with experiment_lock({str(tmp_path)!r}):\n"
+        "    print('held', flush=True); time.sleep(60)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+        refused = rf"already running \(pid {holder.pid}\)"
+        with pytest.raises(ExperimentError, match=refused), experiment_lock(tmp_path):
+            pass
+    finally:
+        holder.kill()
+        holder.wait()
+    with experiment_lock(tmp_path):  # the kernel dropped the killed holder's lock
+        assert (tmp_path / LOCK_NAME).read_text(encoding="utf-8") == f"{os.getpid()}\n"
+
+
+def test_temporaries_of_killed_runs_are_cleared(tmp_path: Path) -> None:
+    scale = tmp_path / "smoke"
+    scale.mkdir()
+    left = scale / ".run-0.h5.999999999.tmp"  # a pid that runs nowhere
+    left.write_bytes(b"")
+    with experiment_lock(tmp_path):
+        assert not left.exists()
+
+
+def test_a_folder_that_cannot_be_made_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("")
+    with (
+        pytest.raises(ExperimentError, match="cannot write in"),
+        experiment_lock(tmp_path / "file" / "tiny"),
+    ):
+        pass
