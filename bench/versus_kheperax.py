@@ -7,7 +7,8 @@
 
 Measured (2026-12-04, the 2-core VM at load ~5, CPU time, 3 alternating rounds × 3 lives):
 Kheperax 0.77 M robot-steps per CPU second; ours 2.47 M with box-muller-v1 noise (3.19×),
-2.73 M with ziggurat-v1 (3.52×). The issue's moonshot is 5×.
+2.73 M with ziggurat-v1 (3.52×); after merging main, at load ~21: 0.79 M, 2.41 M and 2.63 M
+(3.07× and 3.35×). The issue's moonshot is 5×.
 
 Kheperax (a JAX maze task; `pip install gnp-lab[kheperax]`, best in a venv of its own: JAX is no
 dependency of the lab nor of its tests) is timed as its users run it: its own
