@@ -117,6 +117,7 @@ def new_world(
     noise_sigma: float,
     control_period: float = sim.CONTROL_PERIOD_S,
     physics: sim.Physics = "pymunk",
+    noise_stream: sim.NoiseStream = "box-muller-v1",
 ) -> sim.World:
     """A world of `n` robots in `arena`: the one place the lab builds a `sim.World` (training's
     shards, the implementation phase's trials, the dashboard's live robots)."""
@@ -127,6 +128,7 @@ def new_world(
         noise_sigma=noise_sigma,
         control_period=control_period,
         physics=physics,
+        noise_stream=noise_stream,
     )
 
 

@@ -32,7 +32,7 @@ from app.fields import Setting, read_setting, sections, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
-from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, Physics
+from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
 from sim.reward import CFrom
 
@@ -198,6 +198,11 @@ class TrainingSettings(_Frozen):
         default="pymunk",
         description="the world's physics in both phases, like control_period: pymunk (the "
         "reference) or analytic (the same contacts in numba, faster, for sweeps)",
+    )
+    noise_stream: NoiseStream = Field(
+        default="box-muller-v1",
+        description="how the sensor noise's normals are drawn in both phases: box-muller-v1 "
+        "(every earlier run's bits) or ziggurat-v1 (faster, other draws of the same N(0, σ²))",
     )
     # ε/α: the fields every phase has (RATE_FIELDS), written once in `_rate`
     schedule: ScheduleKind = _rate(_TRAINING_RATES, "schedule")

@@ -144,6 +144,7 @@ def _live_trials(
     seed: int,
     control_period: float,
     physics: sim.Physics,
+    noise_stream: sim.NoiseStream,
     c_from: CFrom,
     part: slice,
     record: bool,
@@ -161,6 +162,7 @@ def _live_trials(
         noise_sigma=settings.noise_sigma,
         control_period=control_period,
         physics=physics,
+        noise_stream=noise_stream,
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
@@ -198,13 +200,14 @@ def run_implementation(
     progress: StepProgress | None = None,
     c_from: CFrom = "true",
     physics: sim.Physics = "pymunk",
+    noise_stream: sim.NoiseStream = "box-muller-v1",
 ) -> Implementation:
     """Implement a 1-individual population; returns the results (nothing is written).
 
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
     process, such as a Dask worker); results are identical for any count. `c_from`: the
-    readings the reward's C is judged from, the run's `reward.c_from`; `physics` is the
-    worlds' physics (a run's `training.physics`).
+    readings the reward's C is judged from, the run's `reward.c_from`; `physics` and
+    `noise_stream` are the worlds' (a run's `training.physics` and `training.noise_stream`).
     """
     arena = arena_of(settings.arena)
     n_starts = len(arena.start_poses)
@@ -214,7 +217,7 @@ def run_implementation(
     report = progress or (lambda done, total: None)
     total = parts[-1].stop * settings.steps
     calls = [
-        (cfg, individual, settings, seed, control_period, physics, c_from, part,
+        (cfg, individual, settings, seed, control_period, physics, noise_stream, c_from, part,
          part.start == 0 and recorded > 0)
         for part in parts
     ]  # fmt: skip
@@ -292,7 +295,7 @@ def implementation_of(
     run: RunReader, settings: ImplementationSettings, generation: int, *, seed: int, name: str
 ) -> partial[Implementation]:
     """`run_implementation` of `run`'s best of `generation` in the run's own worlds: its
-    control period, physics and reward's C, read from the run's config here only (for
+    control period, physics, noise stream and reward's C, read from the run's config here only (for
     `implement` and the dashboard alike). Call it once the file is closed (`workers`,
     `progress` may be given then)."""
     cfg, individual = best_individual(run, generation)
@@ -305,6 +308,7 @@ def implementation_of(
         seed=seed,
         control_period=config.training.control_period,
         physics=config.training.physics,
+        noise_stream=config.training.noise_stream,
         c_from=config.reward.c_from,
         name=name,
         generation=generation,

@@ -114,6 +114,7 @@ def make_world(config: RunConfig, n: int) -> sim.World:
         noise_sigma=training.noise_sigma,
         control_period=training.control_period,
         physics=training.physics,
+        noise_stream=training.noise_stream,
     )
 
 

@@ -7,7 +7,8 @@ One life of `--robots` generation-0 controllers of the preset (σ = `--noise`) i
 training arena; then each stage replays its share of that life alone, on the recorded inputs:
 - sensing: the 8 IR rays of every robot at the recorded poses (`sim.ir_readings`), and the
   same with every wall tested for reach (`sim.kernels.ir_readings`, the kernel before the cull);
-- noise: what the controllers see (`World.observe`: Eq. 2.6 noise and faults) on those readings;
+- noise: what the controllers see (`World.observe`: Eq. 2.6 noise and faults) on those readings,
+  with the default noise stream (box-muller-v1) and with ziggurat-v1 (`training.noise_stream`);
 - physics pymunk: `World.step` through the recorded commands (the same contacts);
 - controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
 - reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
@@ -15,7 +16,8 @@ training arena; then each stage replays its share of that life alone, on the rec
   step: in a pymunk world the stages one call at a time, in an analytic world ("loop analytic")
   one compiled call a step (`app.fused`, watched as the dashboard and the recorder watch it);
 - rollout analytic: `app.rollout.rollout`, as training and implementation run the loop: k steps
-  in one compiled call, robots in blocks (`app.fused`).
+  in one compiled call, robots in blocks (`app.fused`); "rollout zig." the same with ziggurat-v1
+  noise (other draws, so another life than the one recorded: the same work per step).
 Each repeat of a loop starts from the life's start (world reset, fresh controllers): it lives the
 recorded life. A loop's limit is what its stages add up to (1 / Σ 1/rate); loop / limit below 1
 is the loop's own overhead, above 1 what fusing the stages saves (one pass over the robots'
@@ -28,7 +30,9 @@ What each stage's arithmetic costs, against what it takes (the figures `--steps 
 loaded 2-core VM, ns per robot-step; issue #31):
 - sensing ~105 ns: 8 rays against the 1.2 walls of the robot's cell, one `sincos`: ~15 ns;
 - noise ~185 ns: four Box–Muller pairs, 4 × (`log`, `sqrt`, `sincos`) of glibc and 4 hashes:
-  ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md);
+  ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md); "noise ziggurat-v1"
+  ~40 ns (8 hashes, 8 table look-ups; 134 against 41 ns on 2026-12-04), the faster stream a
+  run may declare (`training.noise_stream`), not bit-compatible;
 - physics analytic ~345 ns: the drive's two `sincos`, then 3 substeps of integration, contact
   search and, on a wall (a third of the robots), 5 solver passes: ~30-60 ns of arithmetic, the
   rest chipmunk's branchy contact bookkeeping done operation by operation;
@@ -157,16 +161,18 @@ def sensing_every_wall(life: Life) -> Timed:
     return run
 
 
-def noise(life: Life) -> Timed:
+def noise(life: Life, stream: sim.NoiseStream = "box-muller-v1") -> Timed:
     world = life.world()
     mode = np.zeros(life.readings.shape[1:], np.int8)
     stuck = np.zeros(life.readings.shape[1:])
     out = np.empty(life.readings.shape[1:])
     keys = kernels.robot_keys(life.world_seeds)
+    code = kernels.noise_stream_code(stream)
+    sigma = world.noise_sigma
 
     def run() -> None:
         for t, readings in enumerate(life.readings):  # World.observe's kernel, as it calls it
-            kernels.observe(readings, keys, np.uint64(t), world.noise_sigma, mode, stuck, out)
+            kernels.observe(readings, keys, np.uint64(t), sigma, mode, stuck, out, code)
 
     return run
 
@@ -243,12 +249,23 @@ STAGES: dict[str, Callable[[Life], Timed]] = {
     "loop": loop,
     "loop analytic": lambda life: loop(life, physics="analytic"),
     "rollout analytic": lambda life: rollout_life(life, physics="analytic"),
+    "noise ziggurat-v1": lambda life: noise(life, "ziggurat-v1"),
+    "rollout zig. analytic": lambda life: rollout_life(
+        life, physics="analytic", noise_stream="ziggurat-v1"
+    ),
 }
 """Each stage's timed replay, built from the recorded life (one line adds a stage)."""
 LOOPS = {
     "loop": ("sensing", "noise", "physics pymunk", "controller", "reward"),
     "loop analytic": ("sensing", "noise", "physics analytic", "controller", "reward"),
     "rollout analytic": ("sensing", "noise", "physics analytic", "controller", "reward"),
+    "rollout zig. analytic": (
+        "sensing",
+        "noise ziggurat-v1",
+        "physics analytic",
+        "controller",
+        "reward",
+    ),
 }
 """Each loop and the stages it runs in turn: their limit is what the loop could reach per core."""
 

@@ -6,6 +6,7 @@ The constants below are the world's facts; `app` imports them rather than re-typ
 
 from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
+from sim.kernels import NOISE_STREAMS, NoiseStream
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -17,7 +18,15 @@ from sim.khepera import (
 )
 from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import WallGrid, ir_readings, sensor_rays
-from sim.world import FAULT_MODES, PHYSICS, Fault, FaultMode, Physics, World, WorldError
+from sim.world import (
+    FAULT_MODES,
+    PHYSICS,
+    Fault,
+    FaultMode,
+    Physics,
+    World,
+    WorldError,
+)
 
 __all__ = [
     "ARENA_NAMES",
@@ -28,6 +37,7 @@ __all__ = [
     "IR_RANGE_MM",
     "LIFE_STEPS",
     "MAX_COMMAND",
+    "NOISE_STREAMS",
     "N_SENSORS",
     "N_START_POSES",
     "PHYSICS",
@@ -36,6 +46,7 @@ __all__ = [
     "ArenaError",
     "Fault",
     "FaultMode",
+    "NoiseStream",
     "Physics",
     "WallGrid",
     "World",

@@ -30,6 +30,7 @@ class WorldArrays(NamedTuple):
     stuck: np.ndarray  # (N, 8)
     keys: np.ndarray  # (N,) uint64 stream keys
     noise_sigma: float
+    noise_stream: int  # the index of a kernels.NOISE_STREAMS name
     wall_table: np.ndarray
     grid_frame: np.ndarray
     grid_starts: np.ndarray
@@ -72,6 +73,7 @@ def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
         world.stuck[lo:hi],
         world.keys[lo:hi],
         world.noise_sigma,
+        world.noise_stream,
         world.wall_table,
         world.grid_frame,
         world.grid_starts,
@@ -104,6 +106,7 @@ def observe(world: WorldArrays, t: int) -> None:
         world.fault_modes,
         world.stuck,
         world.observed,
+        world.noise_stream,
     )
 
 
@@ -126,6 +129,7 @@ def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
             observed,
             i,
             b,
+            world.noise_stream,
         )
         drawn[i, b] = True
     return observed[i, j]

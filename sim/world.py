@@ -13,6 +13,7 @@ import pymunk.batch as pb
 from sim import kernels
 from sim.analytic import AnalyticBodies
 from sim.arena import Arena
+from sim.kernels import NoiseStream
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -256,6 +257,9 @@ class World:
         control_period: Simulated seconds per ``step``.
         substeps: Physics steps per control period.
         physics: ``pymunk`` (the reference) or ``analytic`` (sim.analytic: no pymunk space).
+        noise_stream: How the noise's normals are drawn (``sim.NOISE_STREAMS``): the default
+            ``box-muller-v1`` gives every earlier run's bits, ``ziggurat-v1`` is faster and
+            draws other numbers from the same distribution.
     """
 
     def __init__(
@@ -267,6 +271,7 @@ class World:
         control_period: float = CONTROL_PERIOD_S,
         substeps: int = DEFAULT_SUBSTEPS,
         physics: Physics = "pymunk",
+        noise_stream: NoiseStream = "box-muller-v1",
     ) -> None:
         if not isinstance(arena, Arena):
             raise WorldError(f"arena must be a sim.Arena (see sim.load_arena), got {arena!r}")
@@ -279,6 +284,11 @@ class World:
         if physics not in PHYSICS:
             raise WorldError(f"unknown physics {physics!r}: expected one of {', '.join(PHYSICS)}")
         self.physics = physics
+        try:
+            self._noise_stream = kernels.noise_stream_code(noise_stream)
+        except ValueError as error:
+            raise WorldError(str(error)) from None
+        self.noise_stream = noise_stream
         self.arena = arena
         self.n = int(n)
         self.seed = int(seed)
@@ -485,6 +495,7 @@ class World:
             self._fault_mode,
             self._stuck,
             self._observed,
+            self._noise_stream,
         )
         return self._observed.copy()
 
@@ -536,6 +547,7 @@ class World:
             self._stuck,
             self._keys,
             self._noise_sigma,
+            self._noise_stream,
             grid.table,
             grid.frame,
             grid.starts,

@@ -33,6 +33,7 @@ THESIS_SHIPPED = (
     "ch4-schedules",
     "ch5-cs-bs-rl",
     "ch5-cs-bs-rl-decisive",
+    "noise-stream-equivalence",
     "physics-equivalence",
 )
 #: Beyond the thesis: claims that are our hypotheses, citing no table or figure of it.
@@ -203,6 +204,28 @@ def test_a_decisive_experiment_is_pre_registered_on_fresh_seeds(name: str) -> No
         assert thesis.training.physics == "analytic"
         for condition in spec.conditions:
             assert spec.condition_settings(condition, thesis, "thesis").repeats == 300
+
+
+def test_the_noise_stream_equivalence_is_pre_registered_on_fresh_seeds() -> None:
+    """Declared before any run: TOST claims only, on seeds no report or other experiment used."""
+    spec = load_shipped("noise-stream-equivalence")
+    assert spec.design is not None
+    used: set[int] = set()
+    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+        if values.parent.name.startswith(f"{spec.name}-"):
+            continue  # its own runs, once committed
+        with values.open() as handle:
+            used |= {int(row["seed"]) for row in csv.DictReader(handle)}
+    for other in shipped_names():
+        if other != spec.name:
+            other_spec = load_shipped(other)
+            used |= {s for scale in other_spec.scales for s in other_spec.seed_list(scale)}
+    assert used and not used & set(spec.seed_list("thesis"))
+    assert len(spec.seed_list("thesis")) == spec.design.looks[-1]
+    assert all(c.direction == "equivalent" and c.margin == 0.02 for c in spec.comparisons)
+    assert all(c.paired is not None for c in spec.comparisons)
+    streams = {spec.run_config(arm.name, "thesis", 0).training.noise_stream for arm in spec.arms}
+    assert streams == {"box-muller-v1", "ziggurat-v1"}
 
 
 @pytest.mark.parametrize("name", BEYOND)

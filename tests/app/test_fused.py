@@ -39,11 +39,17 @@ CONTROLLERS = [
 
 
 def _batch(
-    method: gnp.Method, fuzzy: bool, c_from: CFrom, physics: sim.Physics = "analytic"
+    method: gnp.Method,
+    fuzzy: bool,
+    c_from: CFrom,
+    physics: sim.Physics = "analytic",
+    noise_stream: sim.NoiseStream = "box-muller-v1",
 ) -> Batch:
     cfg = gnp.GnpConfig(method=method, n_sub=2, n_branch=2, fuzzy=fuzzy)
     arena = sim.load_arena("training")
-    world = sim.World(arena, n=N, seed=0, noise_sigma=50.0, physics=physics)
+    world = sim.World(
+        arena, n=N, seed=0, noise_sigma=50.0, physics=physics, noise_stream=noise_stream
+    )
     robots = np.arange(N)
     world.reset(arena.start_poses[robots % len(arena.start_poses)], seeds=1000 + robots)
     world.schedule_faults(FAULTS)
@@ -107,6 +113,36 @@ def test_each_compiled_step_is_the_staged_step_to_the_bit(
         assert np.array_equal(outcome.term_sums, record.term_table)
         assert outcome.step_reward_sums[0] == record.reward.sum()
     assert len(compiled_calls) == 2 * (20 - len({f.step for f in FAULTS}))  # fault steps: staged
+
+
+@pytest.mark.parametrize(
+    ("method", "fuzzy", "c_from"), [("BS", True, "true"), ("CS", False, "observed")]
+)
+def test_the_ziggurat_stream_is_drawn_alike_compiled_and_staged(
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
+) -> None:
+    """The compiled loop (lazy draws when C is true, all four pairs when observed) draws the
+    ziggurat-v1 stream the staged path draws, a step per call and 30 steps in one call."""
+    staged, stepped, rolled = (
+        _batch(method, fuzzy, c_from, noise_stream="ziggurat-v1") for _ in range(3)
+    )
+    for _ in range(20):
+        record = staged.staged_step(0.1, 0.1)
+        again = stepped.step(0.1, 0.1)
+        rollout(rolled, 1, 0.1, 0.1)
+        _assert_same(staged, stepped)
+        _assert_same(staged, rolled)
+        assert np.array_equal(again.observations, record.observations)
+    for _ in range(30):
+        staged.staged_step(0.1, 0.1)
+    rollout(rolled, 30, 0.1, 0.1)
+    _assert_same(staged, rolled)
+    assert compiled_calls[-1] == 30
+    default = _batch(method, fuzzy, c_from)
+    default.staged_step(0.1, 0.1)
+    first = _batch(method, fuzzy, c_from, noise_stream="ziggurat-v1")
+    first.staged_step(0.1, 0.1)
+    assert not np.array_equal(default.world.observe(), first.world.observe())
 
 
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)

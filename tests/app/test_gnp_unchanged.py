@@ -25,6 +25,7 @@ GNP_RUN_DIGEST = "0681512e7af645c803ad68703475b075b82f3769469b5b891411907065ba69
 ADDED_SINCE: dict[tuple[str, ...], object] = {
     ("reward",): {"c_from": "true"},
     ("training", "physics"): "pymunk",
+    ("training", "noise_stream"): "box-muller-v1",
 }
 
 

@@ -142,6 +142,8 @@ NOT_FROM_THE_THESIS = {
     "controller.n_branch",  # used by BS only; checked for ch. 3-4
     "training.control_period",  # Webots' 64 ms (docs/decisions.md, "The robot"); not in the text
     "training.physics",  # the simulator (docs/decisions.md, "The world"); the thesis used Webots
+    "training.noise_stream",  # how the noise's normals are drawn (docs/decisions.md, "A faster
+    # noise stream"); the thesis gives only σ (Eq. 2.6)
     "training.checkpoint_every",
     "training.shard_size",
     "implementation.broken_sensors",  # which sensor breaks: not said (docs/decisions.md)
