@@ -90,30 +90,11 @@ def documented(task: str) -> FracneticsSettings:
 
 @dataclass(frozen=True)
 class FracneticsResult:
-    """A fracnetics run: every individual's return per generation, the final elite's return
-    on each test seed, and the env-steps its training took."""
+    """A fracnetics run: every individual's return per generation, and the final elite's
+    return on each test seed."""
 
     fitness: np.ndarray  # (G, N)
     test_returns: np.ndarray  # (K,)
-    env_steps: int
-
-
-class _Counting:
-    """A Gymnasium env wrapper's minimum: counts steps (fracnetics calls reset/step)."""
-
-    def __init__(self, env: object) -> None:
-        self.env = env
-        self.steps = 0
-
-    def reset(self, *args: object, **kwargs: object) -> object:
-        return self.env.reset(*args, **kwargs)  # type: ignore[attr-defined]
-
-    def step(self, action: object) -> object:
-        self.steps += 1
-        return self.env.step(action)  # type: ignore[attr-defined]
-
-    def __getattr__(self, name: str) -> object:
-        return getattr(self.env, name)
 
 
 def train_fracnetics(
@@ -125,7 +106,6 @@ def train_fracnetics(
     max_steps: int,
     test_seeds: Sequence[int],
     progress: Callable[[int, float], None] | None = None,
-    count_steps: bool = False,
 ) -> FracneticsResult:
     """Evolve fracnetics' population on `task` for `generations` (its loop, its operators),
     then live its final elite (the best of the last generation) one episode per test seed."""
@@ -141,8 +121,7 @@ def train_fracnetics(
         fractalJudgment=False, nFeatureValues=[0] * s.jnf,
     )  # fmt: skip
     pop.setAllNodeBoundaries(lo, hi)
-    raw = gym.make(task)
-    env: object = _Counting(raw) if count_steps else raw
+    env = gym.make(task)
     fitness = np.zeros((generations, population))
     try:
         for g in range(generations):
@@ -161,13 +140,12 @@ def train_fracnetics(
             pop.callEdgeMutation(probInnerNodes=s.edge_inner, probStartNode=s.edge_start)
             if s.boundary_uniform is not None:
                 pop.callBoundaryMutationUniform(s.boundary_uniform)
-        steps = env.steps if isinstance(env, _Counting) else 0
         pop.individuals = [pop.individuals[int(np.argmax(fitness[-1]))]]
         pop.gymnasium(
-            raw, dMax=s.d_max, maxSteps=max_steps, maxConsecutiveP=s.max_consecutive_p,
+            env, dMax=s.d_max, maxSteps=max_steps, maxConsecutiveP=s.max_consecutive_p,
             seeds=[int(t) for t in test_seeds],
         )  # fmt: skip
         test = np.asarray(pop.individuals[0].caseScores, dtype=np.float64)
     finally:
-        raw.close()
-    return FracneticsResult(fitness=fitness, test_returns=test, env_steps=steps)
+        env.close()
+    return FracneticsResult(fitness=fitness, test_returns=test)
