@@ -521,7 +521,25 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
                         f"the same for every arm (the first arm's are {shape})"
                     )
         spec.check_control(scale)
+        _check_fracnetics(spec, scale, source)
     return spec
+
+
+def _check_fracnetics(spec: ExperimentSpec, scale: str, source: str) -> None:
+    """A fracnetics arm's population holds its tournament (else fracnetics never returns)."""
+    if spec.task is None:
+        return
+    from app.tasks.common import TaskError
+    from app.tasks.fracnetics_arm import check_population, documented
+
+    for arm in spec.arms:
+        if arm.brain == "fracnetics":
+            population = spec.run_config(arm.name, scale, 0).training.population
+            try:
+                check_population(documented(spec.task.id), population)
+            except TaskError as error:
+                where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
+                raise ExperimentError(f"{where}: {error}") from None
 
 
 def load_file(path: str | Path) -> ExperimentSpec:

@@ -88,6 +88,19 @@ def documented(task: str) -> FracneticsSettings:
     return DOCUMENTED[task]
 
 
+def check_population(settings: FracneticsSettings, population: int) -> None:
+    """fracnetics' tournament draws N distinct individuals: with fewer it never returns.
+
+    Raises:
+        TaskError: a population smaller than the tournament.
+    """
+    if population < settings.tournament:
+        raise TaskError(
+            f"fracnetics arm: population {population} is smaller than its tournament "
+            f"({settings.tournament}); give at least {settings.tournament} individuals"
+        )
+
+
 @dataclass(frozen=True)
 class FracneticsResult:
     """A fracnetics run: every individual's return per generation, and the final elite's
@@ -115,6 +128,7 @@ def train_fracnetics(
     if not 0 <= seed < 2**31 - generations:
         raise TaskError(f"fracnetics arm: seed {seed} must fit its int episode seeds")
     s = settings
+    check_population(s, population)
     lo, hi = list(s.obs_low), list(s.obs_high)
     pop = fn.Population(
         seed=seed, ni=population, jn=s.jn, jnf=s.jnf, pn=s.pn, pnf=s.pnf,
