@@ -38,6 +38,8 @@ def run_task(task: Task) -> dict[str, Any]:
     from app.training import resume, train
 
     emit = _emitter(task)
+    if task.task_json:
+        return _run_task_run(task, emit)
     path = Path(task.path)
     state = inspect(task)
 
@@ -65,6 +67,26 @@ def run_task(task: Task) -> dict[str, Any]:
         results = {name: run.implementation(name, recorded=False) for name, _ in task.conditions}
     outcome["conditions"] = {n: (r.mean_reward, r.mean_after_fault) for n, r in results.items()}
     return outcome
+
+
+def _run_task_run(task: Task, emit: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+    """A task experiment's run (app.tasks.peer): train or resume, then test the final elite."""
+    import numpy as np
+
+    from app.tasks.peer import PeerRun, run_peer
+
+    inspect(task)  # a foreign file is refused, not overwritten
+    peer = PeerRun.model_validate_json(task.task_json)
+    result = run_peer(peer, task.path, progress=lambda g: emit({"generations": g + 1}))
+    assert result.test_returns is not None
+    return {
+        "task": task.key,
+        "arm": task.arm,
+        "seed": task.seed,
+        "final_best_fitness": float(result.best_curve[-1]),
+        "test_return": float(np.mean(result.test_returns)),
+        "conditions": {},
+    }
 
 
 def execute(

@@ -9,7 +9,7 @@ from typing import Protocol
 
 import numpy as np
 
-from app.experiments.planning import inspect, plan, work
+from app.experiments.planning import Task, inspect, plan, work
 from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
 from app.experiments.spec import ExperimentSpec
 from app.store import RunReader
@@ -49,6 +49,36 @@ def _fault_effects(
             ) - control[:, c.fault_step :].mean(axis=1)
 
 
+def _task_results(
+    spec: ExperimentSpec,
+    tasks: list[Task],
+    seed_list: tuple[int, ...],
+    scalars: dict[tuple[str, str, str], np.ndarray],
+    curves: dict[tuple[str, str, str], np.ndarray],
+) -> None:
+    """A task experiment's values: final best return, the final elite's mean test return, and
+    the best return per generation (as `best_fitness_curve`), from each run's file."""
+    from app.tasks.peer import read_peer
+
+    n = len(seed_list)
+    for arm in spec.arms:
+        for metric in ("final_best_return", "test_return"):
+            scalars[(metric, arm.name, "")] = np.full(n, np.nan)
+    for task in tasks:
+        key = ("best_fitness_curve", task.arm, "")
+        if key not in curves:
+            curves[key] = np.full((n, task.config.training.generations), np.nan)
+        if not Path(task.path).exists():
+            continue
+        inspect(task)
+        result = read_peer(task.path)
+        row = seed_list.index(task.seed)
+        curves[key][row, : result.best_curve.size] = result.best_curve
+        if result.finished and result.test_returns is not None:
+            scalars[("final_best_return", task.arm, "")][row] = result.best_curve[-1]
+            scalars[("test_return", task.arm, "")][row] = float(np.mean(result.test_returns))
+
+
 def collect(
     spec: ExperimentSpec,
     scale: str,
@@ -69,7 +99,9 @@ def collect(
     scalars: dict[tuple[str, str, str], np.ndarray] = {}
     curves: dict[tuple[str, str, str], np.ndarray] = {}
     fault_steps = {c.name: c.steps if c.fault_step is None else c.fault_step for c in conditions}
-    for arm in spec.arms:
+    if spec.task is not None:
+        _task_results(spec, tasks, seed_list, scalars, curves)
+    for arm in spec.arms if spec.task is None else ():
         generations = spec.run_config(arm.name, scale, 0).training.generations
         scalars[("final_best_fitness", arm.name, "")] = np.full(n, np.nan)
         scalars[("convergence_generation", arm.name, "")] = np.full(n, np.nan)
@@ -78,7 +110,7 @@ def collect(
             for metric in ("mean_reward", "mean_reward_before_fault", "mean_reward_after_fault"):
                 scalars[(metric, arm.name, c.name)] = np.full(n, np.nan)
             curves[("reward_per_step", arm.name, c.name)] = np.full((n, c.steps), np.nan)
-    for task in tasks:
+    for task in tasks if spec.task is None else ():
         row = seed_list.index(task.seed)
         state = inspect(task)
         if not Path(task.path).exists():

@@ -41,7 +41,10 @@ DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
 
 def fingerprint(task: Task) -> str:
     """A run's identity: its config and its conditions' settings, hashed."""
-    text = json.dumps({"config": task.config_json, "conditions": task.conditions})
+    identity: dict[str, Any] = {"config": task.config_json, "conditions": task.conditions}
+    if task.task_json:  # a task experiment's run: its brain, task and test seeds too
+        identity["task"] = task.task_json
+    text = json.dumps(identity)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -85,7 +88,8 @@ def finished(spec: ExperimentSpec, scale: str, results: ExperimentResults) -> li
         if task.seed not in results.seeds:
             continue
         row = results.seeds.index(task.seed)
-        keys = [("final_best_fitness", task.arm, "")]
+        trained = "test_return" if task.task_json else "final_best_fitness"
+        keys = [(trained, task.arm, "")]
         keys += [("mean_reward", task.arm, name) for name, _ in task.conditions]
         if all(np.isfinite(results.scalars[k][row]) for k in keys if k in results.scalars):
             done.append(task)

@@ -28,6 +28,7 @@ class Task:
     conditions: tuple[tuple[str, str], ...]  # (name, ImplementationSettings JSON)
     generation_cost: int  # robot-steps of one generation
     condition_cost: int  # trial-steps of one condition
+    task_json: str = ""  # a task experiment's run (app.tasks.peer.PeerRun JSON); "" = robot
 
     @property
     def name(self) -> str:
@@ -53,6 +54,9 @@ def plan(
     for arm in spec.arms:
         for seed in spec.seed_list(scale, seeds):  # type: ignore[arg-type]
             config = spec.run_config(arm.name, scale, seed)
+            if spec.task is not None:
+                tasks.append(_task_run(spec, arm.name, seed, config, folder))
+                continue
             settings = [
                 (c.name, spec.condition_settings(c, config, scale)) for c in spec.conditions
             ]
@@ -68,6 +72,39 @@ def plan(
                 )
             )
     return tasks
+
+
+def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
+    """The `app.tasks.peer.PeerRun` of one run of a task experiment, as JSON: the lab's
+    settings as a task run (`TaskRunConfig.from_run_config`), the arm's brain and the test
+    seeds; a fracnetics arm takes fracnetics' documented settings of the task."""
+    from app.tasks.config import TaskRunConfig, TaskSettings
+    from app.tasks.fracnetics_arm import documented
+    from app.tasks.peer import PeerRun
+
+    assert spec.task is not None
+    brain = spec.arm(arm).brain
+    run = TaskRunConfig.from_run_config(config, TaskSettings(id=spec.task.id))
+    peer = PeerRun(
+        brain=brain,
+        run=run,
+        fracnetics=documented(spec.task.id) if brain == "fracnetics" else None,
+        test_seeds=spec.task.seeds(),
+    )
+    return peer.model_dump_json()
+
+
+def _task_run(spec: ExperimentSpec, arm: str, seed: int, config: RunConfig, folder: Path) -> Task:
+    return Task(
+        arm=arm,
+        seed=seed,
+        path=str(folder / f"{arm}-seed{seed}.h5"),
+        config_json=config.model_dump_json(),
+        conditions=(),
+        generation_cost=config.training.population * config.training.steps,
+        condition_cost=0,
+        task_json=peer_run_json(spec, arm, config),
+    )
 
 
 def training_steps(config: RunConfig) -> int:
@@ -126,6 +163,8 @@ def inspect(task: Task) -> RunState:
     state = RunState(generations=config.training.generations)
     if not path.exists():
         return state
+    if task.task_json:
+        return _inspect_task_run(task, state)
     try:
         with RunReader(path) as run:
             if run.config != config:
@@ -148,6 +187,27 @@ def inspect(task: Task) -> RunState:
             state.conditions = tuple(n for n, _ in task.conditions if n in names)
     except RunFileError as error:
         raise ExperimentError(f"{path}: {error}") from None
+    return state
+
+
+def _inspect_task_run(task: Task, state: RunState) -> RunState:
+    """A task experiment's run file (either brain): its config must be the task's."""
+    from app.tasks.peer import PeerRun, read_peer
+
+    path = Path(task.path)
+    try:
+        result = read_peer(path)
+    except RunFileError as error:
+        raise ExperimentError(f"{path}: {error}") from None
+    peer = PeerRun.model_validate_json(task.task_json)
+    stored = PeerRun.model_validate_json(result.peer_json) if result.peer_json else None
+    if result.run != peer.run or (stored is not None and stored != peer):
+        raise ExperimentError(
+            f"{path} holds a run with another config than the experiment's "
+            f"{task.name} (left untouched; move it away or use another --runs-dir)"
+        )
+    state.generations_done = result.generations_done
+    state.finished = result.finished
     return state
 
 

@@ -137,6 +137,11 @@ class Progress:
 
 def outcome_line(outcome: dict[str, Any]) -> str:
     """The live line printed when a run finishes."""
+    if "test_return" in outcome:  # a task experiment's run: returns
+        return (
+            f"{outcome['arm']} seed {outcome['seed']}: final best return "
+            f"{outcome['final_best_fitness']:.1f}; test return {outcome['test_return']:.1f}"
+        )
     parts = [f"{outcome['arm']} seed {outcome['seed']}: final best fitness "]
     parts[0] += f"{outcome['final_best_fitness']:.4f}"
     for name, (mean, after) in outcome["conditions"].items():

@@ -15,6 +15,8 @@ import numpy as np
 
 MetricKind = Literal["scalar", "curve"]
 MetricScope = Literal["training", "condition"]
+#: The metrics of a task experiment (a Gymnasium task instead of the robot; app.tasks.peer).
+TASK_METRICS = ("final_best_return", "test_return")
 Direction = Literal["greater", "less", "equivalent"]
 # `exploratory` is not a verdict: what an exploratory claim shows in a verdict's place.
 Verdict = Literal["held", "reversed", "ruled out", "undecided", "exploratory"]
@@ -114,6 +116,23 @@ METRICS: dict[str, Metric] = {
             f"first generation whose best fitness reaches {CONVERGENCE_SHARE:.0%} of the "
             "run's final best fitness (counted from 1)",
             bounds=(1.0, math.inf),
+        ),
+        Metric(
+            "final_best_return",
+            "final best return",
+            "scalar",
+            "training",
+            "best episode return of the last generation (a task experiment)",
+            bounds=(-math.inf, math.inf),
+        ),
+        Metric(
+            "test_return",
+            "test return of the final elite",
+            "scalar",
+            "training",
+            "mean return of the last generation's best over the experiment's K test episodes, "
+            "the same episode seeds for every arm (a task experiment)",
+            bounds=(-math.inf, math.inf),
         ),
         Metric(
             "reward_per_step",

@@ -57,6 +57,31 @@ class RunOptions:
         return self.ledger.pending(open_tasks) if self.ledger is not None else open_tasks
 
 
+def check_task(spec: ExperimentSpec) -> None:
+    """A task experiment's task can be run by GNP, and fracnetics is there for its arm.
+
+    Raises:
+        ExperimentError: one line saying why not.
+    """
+    if spec.task is None:
+        return
+    from app.tasks.common import TaskError
+    from app.tasks.config import TaskSettings
+
+    try:
+        TaskSettings(id=spec.task.id).adapter()
+    except TaskError as error:
+        raise ExperimentError(f"experiment {spec.name!r}: {error}") from None
+    if any(arm.brain == "fracnetics" for arm in spec.arms):
+        try:
+            import fracnetics  # noqa: F401
+        except ImportError:
+            raise ExperimentError(
+                f"experiment {spec.name!r}: its fracnetics arm needs fracnetics "
+                "(pip install fracnetics)"
+            ) from None
+
+
 def run_experiment(
     spec: ExperimentSpec,
     scale: str,
@@ -73,6 +98,7 @@ def run_experiment(
     """
     options = options or RunOptions()
     spec.scale(scale)
+    check_task(spec)
     tasks = plan(spec, scale, runs_dir, seeds)
     for task in tasks:  # refuse a foreign file before starting anything
         inspect(task)

@@ -35,6 +35,7 @@ from app.config import (
 )
 from app.experiments.results import (
     METRICS,
+    TASK_METRICS,
     Arm,
     ClaimKind,
     Comparison,
@@ -73,6 +74,11 @@ class ArmSpec(_Frozen):
     name: str = Field(description="short name used in comparisons and file names")
     label: str = Field(description="as the thesis names it")
     config: dict[str, Any] = Field(default_factory=dict, description="RunConfig overlay")
+    brain: Literal["gnp", "fracnetics"] = Field(
+        default="gnp",
+        description="a task experiment's brain: ours (GNP, as the config says) or fracnetics "
+        "with its documented settings (app.tasks.fracnetics_arm)",
+    )
 
     @model_validator(mode="after")
     def _named(self) -> ArmSpec:
@@ -174,6 +180,23 @@ class DesignSpec(_Frozen):
         return self
 
 
+class TaskSpec(_Frozen):
+    """A task experiment: every run trains on a Gymnasium task instead of the robot, and its
+    final elite is tested on the same K episode seeds for every arm (app.tasks.peer)."""
+
+    id: str = Field(description="a Gymnasium id, e.g. CartPole-v1")
+    test_seeds: int = Field(default=20, ge=1, le=10_000, description="K test episodes")
+    first_test_seed: int = Field(
+        default=1_000_000,
+        ge=0,
+        le=2**31 - 10_001,
+        description="test episode seeds first_test_seed..+K-1 (none a training episode's)",
+    )
+
+    def seeds(self) -> tuple[int, ...]:
+        return tuple(range(self.first_test_seed, self.first_test_seed + self.test_seeds))
+
+
 class ScaleSpec(_Frozen):
     """A size: a config overlay applied after the arm's, and a seed count."""
 
@@ -237,10 +260,14 @@ class ExperimentSpec(_Frozen):
     comparisons: tuple[ComparisonSpec, ...] = ()
     thesis: tuple[ThesisValueSpec, ...] = ()
     scales: dict[Scale, ScaleSpec] = Field(min_length=1)
+    task: TaskSpec | None = Field(
+        None, description="a Gymnasium task every run trains on instead of the robot"
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> ExperimentSpec:
         check_name(self.name)
+        self._check_task()
         if self.preset not in PRESET_NAMES:
             raise ValueError(f"unknown preset {self.preset!r}; choose one of {PRESET_NAMES}")
         _unique("arm", [a.name for a in self.arms])
@@ -294,6 +321,40 @@ class ExperimentSpec(_Frozen):
                 raise ValueError(f"{where}: unknown arm {value.arm!r}")
             _check_metric(where, value.metric, value.condition, conditions)
         return self
+
+    def _check_task(self) -> None:
+        """A task experiment has no implementation conditions and measures returns; a robot
+        experiment neither measures returns nor has a fracnetics arm."""
+        metrics = [(f"comparison {c.name!r}", c.metric) for c in self.comparisons]
+        metrics += [(f"comparison {c.name!r}", c.metric_b) for c in self.comparisons if c.metric_b]
+        metrics += [(f"thesis value of {v.arm!r}", v.metric) for v in self.thesis]
+        if self.task is None:
+            for arm in self.arms:
+                if arm.brain != "gnp":
+                    raise ValueError(f"arm {arm.name!r}: brain {arm.brain!r} needs a task")
+            for where, metric in metrics:
+                if metric in TASK_METRICS:
+                    raise ValueError(f"{where}: metric {metric!r} needs a task")
+            return
+        if self.conditions or self.control is not None:
+            raise ValueError("a task experiment has no conditions or control (its test episodes)")
+        if self.design is not None:
+            raise ValueError("a task experiment has no sequential design")
+        for where, metric in metrics:
+            if metric in METRICS and metric not in TASK_METRICS:
+                raise ValueError(
+                    f"{where}: a task experiment measures {' or '.join(TASK_METRICS)}, "
+                    f"not {metric!r}"
+                )
+        for arm in self.arms:
+            if arm.brain == "fracnetics":
+                from app.tasks.fracnetics_arm import DOCUMENTED
+
+                if self.task.id not in DOCUMENTED:
+                    raise ValueError(
+                        f"arm {arm.name!r}: fracnetics documents no settings for "
+                        f"{self.task.id!r}; choose one of {', '.join(DOCUMENTED)}"
+                    )
 
     def _check_design(self, design: DesignSpec) -> None:
         primary = [c.name for c in self.comparisons if c.family == "primary"]
@@ -460,7 +521,25 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
                         f"the same for every arm (the first arm's are {shape})"
                     )
         spec.check_control(scale)
+        _check_fracnetics(spec, scale, source)
     return spec
+
+
+def _check_fracnetics(spec: ExperimentSpec, scale: str, source: str) -> None:
+    """A fracnetics arm's population holds its tournament (else fracnetics never returns)."""
+    if spec.task is None:
+        return
+    from app.tasks.common import TaskError
+    from app.tasks.fracnetics_arm import check_population, documented
+
+    for arm in spec.arms:
+        if arm.brain == "fracnetics":
+            population = spec.run_config(arm.name, scale, 0).training.population
+            try:
+                check_population(documented(spec.task.id), population)
+            except TaskError as error:
+                where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
+                raise ExperimentError(f"{where}: {error}") from None
 
 
 def load_file(path: str | Path) -> ExperimentSpec:

@@ -38,7 +38,9 @@ THESIS_SHIPPED = (
 )
 #: Beyond the thesis: claims that are our hypotheses, citing no table or figure of it.
 BEYOND = ("beyond-neuroevolution",)
-SHIPPED = tuple(sorted(THESIS_SHIPPED + BEYOND))
+#: Beyond the thesis, on Gymnasium tasks: GNP beside fracnetics (issue #34 item 3).
+TASKS = ("gnp-vs-fracnetics-acrobot", "gnp-vs-fracnetics-cartpole", "gnp-vs-fracnetics-mountaincar")
+SHIPPED = tuple(sorted(THESIS_SHIPPED + BEYOND + TASKS))
 # "Fig. 3.6 (Simulation 1)" and "§2.5, Table 2.5 (its text)" cite Fig. 3.6 and Table 2.5
 SOURCE = re.compile(r"(Table|Fig\.) \d\.\d+")
 
@@ -159,6 +161,8 @@ def test_loads_at_every_scale(name: str) -> None:
         assert len(spec.conditions_info(scale)) == len(spec.conditions)
     if spec.design is not None:
         return  # test_a_decisive_experiment_is_pre_registered_on_fresh_seeds
+    if spec.task is not None:
+        return  # test_a_task_experiment_gives_every_arm_one_budget_on_fresh_seeds
     assert spec.seed_list("small") == spec.seed_list("thesis") == tuple(range(10))
     for arm in spec.arms:
         small, thesis = (spec.run_config(arm.name, scale, 0) for scale in ("small", "thesis"))
@@ -217,8 +221,9 @@ def test_the_noise_stream_equivalence_is_pre_registered_on_fresh_seeds() -> None
         with values.open() as handle:
             used |= {int(row["seed"]) for row in csv.DictReader(handle)}
     for other in shipped_names():
-        if other != spec.name:
-            other_spec = load_shipped(other)
+        other_spec = load_shipped(other)
+        if other != spec.name and other_spec.task is None:  # the robot's world: a task's
+            # seeds seed another world, whose runs say nothing about this one
             used |= {s for scale in other_spec.scales for s in other_spec.seed_list(scale)}
     assert used and not used & set(spec.seed_list("thesis"))
     assert len(spec.seed_list("thesis")) == spec.design.looks[-1]
@@ -226,6 +231,40 @@ def test_the_noise_stream_equivalence_is_pre_registered_on_fresh_seeds() -> None
     assert all(c.paired is not None for c in spec.comparisons)
     streams = {spec.run_config(arm.name, "thesis", 0).training.noise_stream for arm in spec.arms}
     assert streams == {"box-muller-v1", "ziggurat-v1"}
+
+
+def _task_id(name: str) -> str | None:
+    task = load_shipped(name).task
+    return task.id if task is not None else None
+
+
+@pytest.mark.parametrize("name", TASKS)
+def test_a_task_experiment_gives_every_arm_one_budget_on_fresh_seeds(name: str) -> None:
+    spec = load_shipped(name)
+    assert spec.task is not None and spec.task.test_seeds >= 20 and spec.kind == "beyond"
+    assert [a.brain for a in spec.arms] == ["gnp", "gnp", "gnp", "fracnetics"]
+    for scale in ("small", "thesis"):
+        assert len(spec.seed_list(scale)) >= 20  # at least 20 seeds per arm
+        budgets = {
+            (t.population, t.generations, t.steps)
+            for t in (spec.run_config(a.name, scale, 0).training for a in spec.arms)
+        }
+        assert len(budgets) == 1  # the same episodes for every arm
+    used: set[int] = set()
+    same_task = [o for o in shipped_names() if _task_id(o) == spec.task.id]
+    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+        others = [o for o in same_task if o != name and values.parent.name.startswith(f"{o}-")]
+        if others:  # fresh within the task's own world (a robot's seed seeds another)
+            with values.open() as handle:
+                used |= {int(row["seed"]) for row in csv.DictReader(handle)}
+    for other in same_task:
+        if other != name:
+            used |= set(load_shipped(other).seed_list("thesis"))
+    assert not used & set(spec.seed_list("thesis"))  # fresh seeds
+    primary = [c for c in spec.comparisons if c.family == "primary"]
+    assert primary and all(c.margin is not None and c.metric == "test_return" for c in primary)
+    assert not spec.thesis  # our hypotheses (or, exploratory, no prior): none the thesis's
+    assert all(c.source.startswith(("hypothesis", "no prior")) for c in spec.comparisons)
 
 
 @pytest.mark.parametrize("name", BEYOND)

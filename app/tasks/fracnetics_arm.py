@@ -1,0 +1,165 @@
+"""fracnetics (GNP in C++, github.com/fracnetics, 4.0.0) as an arm of a task experiment, trained
+through its own library with its documented settings.
+
+Its documented settings are its example notebooks': CartPole-v1 (examples/cartPole.ipynb) and
+MountainCar-v0 (examples/mountainCar.ipynb). It documents none for Acrobot-v1: there the
+CartPole pattern is taken with Acrobot's observation bounds (the space's) and its three actions
+(`DOCUMENTED`; docs/decisions.md, "GNP beside fracnetics"). Population and generations are the
+experiment's, the same episode budget as every arm's: one episode per individual per generation
+(fracnetics' `gymnasium(..., seeds=[seed + g])`: every individual of generation g starts from
+episode seed `seed + g`, its examples' scheme). Its population lives in C++ and is not written
+to the run file: a fracnetics run stores its results only and is not resumable (a cut run
+starts again; runs are short).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.tasks.common import TaskError
+
+
+class FracneticsSettings(BaseModel):
+    """fracnetics' settings of one task (its notebooks' names in the descriptions)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    jn: int = Field(ge=1, description="judgment nodes per judgment function (jn)")
+    jnf: int = Field(ge=1, description="judgment functions: observation features (jnf)")
+    pn: int = Field(ge=1, description="processing nodes per processing function (pn)")
+    pnf: int = Field(ge=1, description="processing functions: discrete actions (pnf)")
+    d_max: int = Field(ge=1, description="most judgments per decision (dMax)")
+    max_consecutive_p: int = Field(ge=1, description="maxConsecutiveP")
+    tournament: int = Field(ge=2, description="tournament size N")
+    elite: int = Field(ge=0, description="elite kept E")
+    add_del: float = Field(ge=0, description="callAddDelNodes' probability")
+    crossover: float = Field(ge=0, le=1, description="uniform crossover probability")
+    edge_inner: float = Field(ge=0, le=1, description="callEdgeMutation probInnerNodes")
+    edge_start: float = Field(ge=0, le=1, description="callEdgeMutation probStartNode")
+    boundary_uniform: float | None = Field(
+        None, description="callBoundaryMutationUniform's probability (None: not called)"
+    )
+    obs_low: tuple[float, ...] = Field(description="setAllNodeBoundaries' minFeatures")
+    obs_high: tuple[float, ...] = Field(description="setAllNodeBoundaries' maxFeatures")
+
+
+_CARTPOLE = FracneticsSettings(
+    jn=1, jnf=4, pn=2, pnf=2, d_max=10, max_consecutive_p=10, tournament=5, elite=1,
+    add_del=1.0, crossover=0.05, edge_inner=0.05, edge_start=0.05, boundary_uniform=None,
+    obs_low=(-4.8, -5.0, -0.418, -10.0), obs_high=(4.8, 5.0, 0.418, 10.0),
+)  # fmt: skip
+
+_MOUNTAINCAR = FracneticsSettings(
+    jn=2, jnf=2, pn=3, pnf=3, d_max=20, max_consecutive_p=10, tournament=4, elite=1,
+    add_del=0.5, crossover=0.1, edge_inner=0.05, edge_start=0.01, boundary_uniform=0.05,
+    obs_low=(-1.2, -0.07), obs_high=(0.6, 0.07),
+)  # fmt: skip
+
+#: Its documented settings per task (Acrobot: the CartPole pattern, see the module docstring).
+DOCUMENTED: dict[str, FracneticsSettings] = {
+    "CartPole-v1": _CARTPOLE,
+    "MountainCar-v0": _MOUNTAINCAR,
+    "Acrobot-v1": _CARTPOLE.model_copy(
+        update={
+            "jnf": 6,
+            "pnf": 3,
+            "obs_low": (-1.0, -1.0, -1.0, -1.0, -4 * np.pi, -9 * np.pi),
+            "obs_high": (1.0, 1.0, 1.0, 1.0, 4 * np.pi, 9 * np.pi),
+        }
+    ),
+}
+
+
+def documented(task: str) -> FracneticsSettings:
+    """fracnetics' settings for `task`.
+
+    Raises:
+        TaskError: a task it documents no settings for.
+    """
+    if task not in DOCUMENTED:
+        raise TaskError(
+            f"fracnetics arm: no documented settings for {task!r}; "
+            f"choose one of {', '.join(DOCUMENTED)}"
+        )
+    return DOCUMENTED[task]
+
+
+def check_population(settings: FracneticsSettings, population: int) -> None:
+    """fracnetics' tournament draws N distinct individuals: with fewer it never returns.
+
+    Raises:
+        TaskError: a population smaller than the tournament.
+    """
+    if population < settings.tournament:
+        raise TaskError(
+            f"fracnetics arm: population {population} is smaller than its tournament "
+            f"({settings.tournament}); give at least {settings.tournament} individuals"
+        )
+
+
+@dataclass(frozen=True)
+class FracneticsResult:
+    """A fracnetics run: every individual's return per generation, and the final elite's
+    return on each test seed."""
+
+    fitness: np.ndarray  # (G, N)
+    test_returns: np.ndarray  # (K,)
+
+
+def train_fracnetics(
+    task: str,
+    settings: FracneticsSettings,
+    population: int,
+    generations: int,
+    seed: int,
+    max_steps: int,
+    test_seeds: Sequence[int],
+    progress: Callable[[int, float], None] | None = None,
+) -> FracneticsResult:
+    """Evolve fracnetics' population on `task` for `generations` (its loop, its operators),
+    then live its final elite (the best of the last generation) one episode per test seed."""
+    import fracnetics as fn
+    import gymnasium as gym
+
+    if not 0 <= seed < 2**31 - generations:
+        raise TaskError(f"fracnetics arm: seed {seed} must fit its int episode seeds")
+    s = settings
+    check_population(s, population)
+    lo, hi = list(s.obs_low), list(s.obs_high)
+    pop = fn.Population(
+        seed=seed, ni=population, jn=s.jn, jnf=s.jnf, pn=s.pn, pnf=s.pnf,
+        fractalJudgment=False, nFeatureValues=[0] * s.jnf,
+    )  # fmt: skip
+    pop.setAllNodeBoundaries(lo, hi)
+    env = gym.make(task)
+    fitness = np.zeros((generations, population))
+    try:
+        for g in range(generations):
+            pop.gymnasium(
+                env, dMax=s.d_max, maxSteps=max_steps, maxConsecutiveP=s.max_consecutive_p,
+                seeds=[seed + g],
+            )  # fmt: skip
+            fitness[g] = [ind.fitness for ind in pop.individuals]
+            if progress is not None:
+                progress(g, float(fitness[g].max()))
+            if g + 1 == generations:
+                break
+            pop.tournamentSelection(N=s.tournament, E=s.elite)
+            pop.callAddDelNodes(lo, hi, s.add_del)
+            pop.crossover(probability=s.crossover, type="uniform")
+            pop.callEdgeMutation(probInnerNodes=s.edge_inner, probStartNode=s.edge_start)
+            if s.boundary_uniform is not None:
+                pop.callBoundaryMutationUniform(s.boundary_uniform)
+        pop.individuals = [pop.individuals[int(np.argmax(fitness[-1]))]]
+        pop.gymnasium(
+            env, dMax=s.d_max, maxSteps=max_steps, maxConsecutiveP=s.max_consecutive_p,
+            seeds=[int(t) for t in test_seeds],
+        )  # fmt: skip
+        test = np.asarray(pop.individuals[0].caseScores, dtype=np.float64)
+    finally:
+        env.close()
+    return FracneticsResult(fitness=fitness, test_returns=test)

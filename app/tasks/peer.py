@@ -1,0 +1,157 @@
+"""One run of a task experiment: a brain (ours or fracnetics) trained on a Gymnasium task, then
+its final elite tested on K fixed episode seeds (the same for every arm).
+
+GNP runs are task run files (`app.tasks.store`), resumable, with a `test` group added when
+training is done: the best individual of the last generation lives one episode per test seed as
+in training (its generation's ε and α, Sarsa on, each episode from the Q tables it ended
+training with; `replay_episodes`). fracnetics runs (`app.tasks.fracnetics_arm`) write a file of
+their own format with their results only. Both carry the `PeerRun` they ran as the root
+attribute `peer`, and `read_peer` reads either.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import h5py
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.store.files import LIBVER, RunFileError
+from app.store.schema import package_version
+from app.tasks.common import FORMAT
+from app.tasks.config import TaskRunConfig
+from app.tasks.fracnetics_arm import FracneticsSettings
+
+FRACNETICS_FORMAT = "gnp-lab-fracnetics-run"
+PeerBrain = Literal["gnp", "fracnetics"]
+
+
+class PeerRun(BaseModel):
+    """Everything one run of a task experiment depends on."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    brain: PeerBrain = "gnp"
+    run: TaskRunConfig = Field(description="seed, task, population, generations, cap (both)")
+    fracnetics: FracneticsSettings | None = None
+    test_seeds: tuple[int, ...] = Field(min_length=1, description="the elite's test episodes")
+
+
+@dataclass(frozen=True)
+class PeerResult:
+    """What a run file holds of its run (test_returns None until tested)."""
+
+    peer_json: str  # "" until a GNP run is tested
+    run: TaskRunConfig
+    generations_done: int
+    generations: int
+    best_curve: np.ndarray  # (generations_done,) best return per generation
+    test_returns: np.ndarray | None
+
+    @property
+    def finished(self) -> bool:
+        return self.generations_done >= self.generations and self.test_returns is not None
+
+
+def read_peer(path: str | Path) -> PeerResult:
+    """A task experiment's run file, either brain.
+
+    Raises:
+        RunFileError: unreadable, or not a task experiment's run file.
+    """
+    try:
+        handle = h5py.File(path, "r", locking=False)
+    except OSError as error:
+        raise RunFileError(f"cannot read {path}: {error}") from None
+    with handle:
+        if handle.attrs.get("format") not in (FORMAT, FRACNETICS_FORMAT):
+            raise RunFileError(f"{path} is not a task experiment's run file")
+        config = TaskRunConfig.model_validate_json(str(handle.attrs["config"]))
+        done = int(handle.attrs["generations_done"])
+        fitness = handle["history/fitness"][:done]
+        test = handle["test/returns"][()] if "test" in handle else None
+        return PeerResult(
+            peer_json=str(handle.attrs.get("peer", "")),
+            run=config,
+            generations_done=done,
+            generations=config.training.generations,
+            best_curve=fitness.max(axis=1) if done else np.zeros(0),
+            test_returns=test,
+        )
+
+
+def _write_test(path: Path, peer: PeerRun, returns: np.ndarray) -> None:
+    with h5py.File(path, "r+", locking=False) as handle:
+        handle.attrs["peer"] = peer.model_dump_json()
+        if "test" in handle:
+            del handle["test"]
+        group = handle.create_group("test")
+        group.attrs["unit"] = "episode return"
+        group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
+        group.create_dataset("returns", data=returns)
+
+
+def _write_fracnetics(path: Path, peer: PeerRun, fitness: np.ndarray, test: np.ndarray) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.unlink(missing_ok=True)
+    with h5py.File(tmp, "w-", libver=LIBVER, locking=False) as handle:
+        handle.attrs["format"] = FRACNETICS_FORMAT
+        handle.attrs["schema_version"] = 1
+        handle.attrs["package_version"] = package_version()
+        handle.attrs["seed"] = peer.run.seed
+        handle.attrs["task"] = peer.run.task.id
+        handle.attrs["config"] = peer.run.model_dump_json()
+        handle.attrs["peer"] = peer.model_dump_json()
+        handle.attrs["generations_done"] = fitness.shape[0]
+        history = handle.create_group("history")
+        history.create_dataset("fitness", data=fitness).attrs["unit"] = "episode return"
+        group = handle.create_group("test")
+        group.attrs["unit"] = "episode return"
+        group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
+        group.create_dataset("returns", data=test)
+    tmp.replace(path)  # whole or absent: a fracnetics run is not resumable
+
+
+def run_peer(
+    peer: PeerRun, path: str | Path, progress: Callable[[int], None] | None = None
+) -> PeerResult:
+    """Train (GNP: or resume) and test one run into `path`; a finished run is left as it is."""
+    from app.tasks.training import replay_episodes, resume_task, train_task
+
+    path = Path(path)
+    if path.exists():
+        done = read_peer(path)
+        if done.finished:
+            return done
+    if peer.brain == "fracnetics":
+        from app.tasks.fracnetics_arm import documented, train_fracnetics
+
+        t = peer.run.training
+        result = train_fracnetics(
+            peer.run.task.id,
+            peer.fracnetics or documented(peer.run.task.id),
+            t.population,
+            t.generations,
+            peer.run.seed,
+            t.steps,
+            peer.test_seeds,
+            progress=(lambda g, best: progress(g)) if progress is not None else None,
+        )
+        _write_fracnetics(path, peer, result.fitness, result.test_returns)
+        return read_peer(path)
+
+    def each(generation: object) -> None:
+        if progress is not None:
+            progress(int(generation.generation))  # type: ignore[attr-defined]
+
+    if not path.exists():
+        train_task(peer.run, path, progress=each)
+    elif read_peer(path).generations_done < peer.run.training.generations:
+        resume_task(path, progress=each)
+    lives = replay_episodes(path, seeds=peer.test_seeds)
+    _write_test(path, peer, np.asarray(lives.returns, dtype=np.float64))
+    return read_peer(path)
