@@ -124,7 +124,7 @@ def test_same_seed_same_lives() -> None:
     a, b = _batch(50.0, "observed"), _batch(50.0, "observed")
     first, second = rollout(a, T, 0.1, 0.1), rollout(b, T, 0.1, 0.1)
     assert np.array_equal(first.term_sums, second.term_sums)
-    assert np.array_equal(a.population.q_ss, b.population.q_ss)
+    assert np.array_equal(a.gnp_controllers.population.q_ss, b.gnp_controllers.population.q_ss)
     assert np.array_equal(a.world.poses, b.world.poses)
 
 
