@@ -24,7 +24,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
+from app.config import ImplementationSettings, RunConfig
 from app.experiments.planning import Task, plan
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
@@ -39,9 +41,21 @@ FORMAT = "gnp-lab experiment ledger"
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
 
 
+def _set(model: type[BaseModel], text: str) -> Any:
+    """The settings of `text` that differ from their defaults."""
+    return json.loads(model.model_validate_json(text).model_dump_json(exclude_defaults=True))
+
+
 def fingerprint(task: Task) -> str:
-    """A run's identity: its config and its conditions' settings, hashed."""
-    identity: dict[str, Any] = {"config": task.config_json, "conditions": task.conditions}
+    """A run's identity: its config and its conditions' settings that differ from their
+    defaults, hashed. A setting added later at a default that keeps the bits (a new physics, a
+    new noise stream) leaves every committed run's identity as it was; a changed default
+    changes the bits, and ENGINE_BITS says so."""
+    conditions = [(name, _set(ImplementationSettings, text)) for name, text in task.conditions]
+    identity: dict[str, Any] = {
+        "config": _set(RunConfig, task.config_json),
+        "conditions": conditions,
+    }
     if task.task_json:  # a task experiment's run: its brain, task and test seeds too
         identity["task"] = task.task_json
     text = json.dumps(identity)

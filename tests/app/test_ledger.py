@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -76,3 +78,26 @@ def test_a_ledger_of_another_config_or_engine_is_refused_in_one_line(
     (line,) = done.stderr.strip().splitlines()
     assert line.startswith("gnp-lab: error:") and "another config" in line
     assert not (tmp_path / "machine-3" / "experiments" / "tiny" / "smoke").exists()
+
+
+def test_a_setting_added_at_its_default_keeps_a_runs_identity() -> None:
+    from app.experiments.planning import plan
+    from app.experiments.spec import load_shipped
+
+    task = plan(load_shipped("ch3-bs-rl-decisive"), "thesis", "", 1)[0]
+    old = json.loads(task.config_json)
+    del old["training"]["noise_stream"]  # as a config written before the setting existed
+    before = dataclasses.replace(task, config_json=json.dumps(old))
+    assert ledger.fingerprint(before) == ledger.fingerprint(task)
+    old["training"]["noise_stream"] = "ziggurat-v1"  # another value: another run
+    other = dataclasses.replace(task, config_json=json.dumps(old))
+    assert ledger.fingerprint(other) != ledger.fingerprint(task)
+
+
+@pytest.mark.parametrize("folder", sorted(p.parent.name for p in ledger.DOCS.glob("*/ledger.json")))
+def test_every_committed_ledger_loads_on_this_checkout(folder: str) -> None:
+    from app.experiments.spec import load_shipped
+
+    name, scale = folder.rsplit("-", 1)
+    held = ledger.load(load_shipped(name), scale, ledger.DOCS / folder)
+    assert held.runs  # its runs count as finished here: the spec and the bits are the same
