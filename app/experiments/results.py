@@ -36,9 +36,13 @@ ClaimKind = Literal["question", "sanity"]
 # and never counted among the verdicts. Specs that say nothing put every claim in the family.
 Family = Literal["primary", "exploratory"]
 FAMILIES: tuple[Family, ...] = get_args(Family)
-# Simulated steps per second on one core of this machine, measured: ch3-bs-rl at thesis scale,
-# 3.9 G steps in 71 min on 2 cores (0.92 M/s). Prices the seeds an undecided claim needs.
-CORE_STEPS_PER_SECOND = 0.46e6
+# Simulated steps per CPU second of this machine, measured after the compiled loop (#31):
+# ch3-bs-rl-decisive at thesis scale, analytic physics, 7.8 G steps in 3,838 CPU s of every
+# process of the run (workers, scheduler, writes; 2.04 M/s). Prices the seeds an undecided
+# claim needs, and `experiment list`'s core time: future runs take the analytic physics (the
+# same bits as pymunk, physics-equivalence); pymunk runs cost about 4.4x more (0.46 M/s,
+# ch3-bs-rl at thesis, before #31).
+CORE_STEPS_PER_SECOND = 2.0e6
 CONVERGENCE_SHARE = 0.9  # convergence: the first generation at 90% of the run's final fitness
 
 
