@@ -190,8 +190,7 @@ def test_list_shows_sources_and_costs(capsys: pytest.CaptureFixture[str]) -> Non
     assert "small  20 runs × 100 generations × 300 individuals × 1000 steps = 600M" in out
     assert "thesis 20 runs × 1000 generations" in out
     # ch3-bs-rl at thesis: 6G robot-steps + 1.08G trial-steps, priced at the measured rate.
-    hours = (6e9 + 1.08e9) / CORE_STEPS_PER_SECOND / 3600
-    assert f"trial-steps; about {float(f'{hours:.2g}'):g} core-hours at" in out
+    assert f"trial-steps; about {_core_time((6e9 + 1.08e9) / CORE_STEPS_PER_SECOND)} at" in out
 
 
 @pytest.mark.parametrize(
