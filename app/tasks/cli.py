@@ -68,8 +68,13 @@ def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -
         train_task(task_config, path, _progress(args.quiet))
     except KeyboardInterrupt:
         return _interrupted(path)
+    return _finished(path)
+
+
+def _finished(path: Path) -> int:
+    """A task run trained to its last generation: one line with its best return."""
     run = read_task_run(path)
-    print(f"{path}: finished, best return {run.fitness.max():.1f} on {settings.id}")
+    print(f"{path}: finished, best return {run.fitness.max():.1f} on {run.config.task.id}")
     return 0
 
 
@@ -91,9 +96,7 @@ def resume(path: Path, quiet: bool) -> int:
         resume_task(path, _progress(quiet))
     except KeyboardInterrupt:
         return _interrupted(path)
-    run = read_task_run(path)
-    print(f"{path}: finished, best return {run.fitness.max():.1f} on {run.config.task.id}")
-    return 0
+    return _finished(path)
 
 
 def inspect(path: Path) -> int:
