@@ -63,7 +63,7 @@ def test_a_killed_implementation_leaves_no_worker_and_the_run_intact(
     shutil.copy(finished_run, tmp_path / "run.h5")
     before = file_digest(tmp_path / "run.h5")
     implement = ("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2")
-    process = gnp_lab(*implement, "--steps", "3000", "--repeats", "4")
+    process = gnp_lab(*implement, "--steps", "30000", "--repeats", "4")
     _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)  # into the trials
     assert process.poll() is None, finish(process)
@@ -82,9 +82,11 @@ def test_sigterm_ends_an_implementation_on_one_line_with_its_workers(
     shutil.copy(finished_run, tmp_path / "run.h5")
     before = file_digest(tmp_path / "run.h5")
     process = gnp_lab("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2",
-                      "--steps", "3000", "--repeats", "4")  # fmt: skip
+                      "--steps", "30000", "--repeats", "4")  # fmt: skip
     _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)
+    # Still in its trials: a signal after the command returned would meet Python's default.
+    assert process.poll() is None, finish(process)
     children = psutil.Process(process.pid).children(recursive=True)
     process.send_signal(signal.SIGTERM)
     status, err = finish(process, 30)
