@@ -23,7 +23,9 @@ import viser
 import gnp
 import sim
 from app import store
-from app.live import LiveSession, RobotSpec
+from app.brains.registry import family_of
+from app.phases.live import LiveSession, RobotSpec
+from app.settings.config import RunConfig, TrainingSettings
 from app.views.genome import genome_view
 from app.views.graph_counts import GRAPH_MODES
 from app.views.graph_view import GraphView
@@ -32,10 +34,10 @@ from app.views.graph_view import GraphView
 def robot_spec(run: Path | None) -> RobotSpec:
     if run is not None and run.exists():
         with store.RunReader(run) as reader:
-            cfg, population = reader.best_genome(-1)
-        return RobotSpec(run.stem, cfg, population)
-    cfg = gnp.GnpConfig(method="CS")
-    return RobotSpec("random", cfg, gnp.init_population(cfg, 1, np.random.default_rng(0)))
+            family = family_of(reader.config)
+            return RobotSpec(run.stem, family, family.best(reader))
+    family = family_of(RunConfig(training=TrainingSettings(population=2)))
+    return RobotSpec("random", family, family.take(family.first().individuals(), [0]))
 
 
 def main() -> None:
@@ -45,8 +47,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200)
     args = parser.parse_args()
     spec = robot_spec(args.run)
-    cfg, population = spec.cfg, spec.population
-    assert isinstance(cfg, gnp.GnpConfig) and isinstance(population, gnp.Population)  # GNP only
+    cfg, population = spec.family.graph_config, spec.population
+    assert cfg is not None and isinstance(population, gnp.Population)  # GNP only
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         graph = GraphView(server, (0.0, -1.0), 1.0, 0.62)

@@ -7,7 +7,7 @@ Both sides step the same robots from the same start poses and noise streams thro
 held, mostly forward commands (a third of the robots on walls at any time):
 - the vector env (`sim.gym_vector.WallFollowVectorEnv`, what ``gymnasium.make_vec(
   "GnpLab/WallFollow-v0", num_envs=N)`` gives): ``envs.step(actions)``;
-- the lab's step on a bare `sim.World` (`app.rollout.Batch.staged_step` without a
+- the lab's step on a bare `sim.World` (`app.loop.rollout.Batch.staged_step` without a
   controller): ``world.observe()``, ``world.step``, ``world.sense()``, ``sim.reward_table``.
 Figures are robot-steps per CPU second of this process (the machine may be shared), best of
 `--rounds` alternating rounds; issue #34's target is env cost / world cost ≤ 1.25.

@@ -12,12 +12,12 @@ training arena; then each stage replays its share of that life alone, on the rec
 - physics pymunk: `World.step` through the recorded commands (the same contacts);
 - controller: `gnp.step` (Sarsa on) on the recorded observations and rewards;
 - reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
-- loop: the lab's loop itself (`app.rollout.Batch.step`: all of the above, in turn), step by
+- loop: the lab's loop itself (`app.loop.rollout.Batch.step`: all of the above, in turn), step by
   step: in a pymunk world the stages one call at a time, in an analytic world ("loop analytic")
-  one compiled call a step (`app.fused`, watched as the dashboard and the recorder watch it);
-- rollout analytic: `app.rollout.rollout`, as training and implementation run the loop: k steps
-  in one compiled call, robots in blocks (`app.fused`); "rollout zig." the same with ziggurat-v1
-  noise (other draws, so another life than the one recorded: the same work per step).
+  one compiled call a step (`app.loop.fused`, watched as the dashboard and the recorder watch it);
+- rollout analytic: `app.loop.rollout.rollout`, as training and implementation run the loop: k steps
+  in one compiled call, robots in blocks (`app.loop.fused`); "rollout zig." the same with
+  ziggurat-v1 noise (other draws, so another life than the one recorded: the same work per step).
 Each repeat of a loop starts from the life's start (world reset, fresh controllers): it lives the
 recorded life. A loop's limit is what its stages add up to (1 / Σ 1/rate); loop / limit below 1
 is the loop's own overhead, above 1 what fusing the stages saves (one pass over the robots'
@@ -56,11 +56,12 @@ import numpy as np
 
 import gnp
 import sim
-from app.arenas import arena_of
-from app.config import RunConfig, build_config, load_preset
-from app.rollout import Batch, rollout
-from app.seeds import life_seeds
-from app.training import initial_population
+from app.brains.gnp_brain import initial_population
+from app.loop.rollout import Batch, rollout
+from app.loop.seeds import life_seeds
+from app.settings.arenas import arena_of
+from app.settings.config import RunConfig
+from app.settings.loading import build_config, load_preset
 from sim import kernels
 
 
@@ -226,8 +227,8 @@ def loop(life: Life, **options: Any) -> Timed:
 
 
 def rollout_life(life: Life, **options: Any) -> Timed:
-    """`app.rollout.rollout`: the loop as training and implementation run it (compiled, for
-    GNP controllers in an analytic world: `app.fused`)."""
+    """`app.loop.rollout.rollout`: the loop as training and implementation run it (compiled, for
+    GNP controllers in an analytic world: `app.loop.fused`)."""
     eps, alpha = life.config.training.epsilon, life.config.training.alpha
     world = life.world(**options)
 

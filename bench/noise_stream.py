@@ -4,7 +4,7 @@
 
 - noise stage: `sim.kernels.observe` (σ = 50, no fault) on 300 robots' readings for 500 steps,
   in this process, streams alternating, best of `--rounds` × 3; ns per robot-step;
-- training generation: `app.training.train` (thesis-ch3, σ = 50, analytic, 1 worker,
+- training generation: `app.phases.training.train` (thesis-ch3, σ = 50, analytic, 1 worker,
   `--population` × `--steps`), the second of three generations (as `bench/versus.py` times it),
   each measurement a fresh process, the streams alternating within each round; best of
   `--rounds`, CPU seconds (the process and its children).

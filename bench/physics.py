@@ -8,7 +8,7 @@ For each physics, alternating in rounds so that the machine's drifts hit both al
 - the bare world replaying the commands that generation-0 controllers of thesis-ch3 gave in the
   lab's loop (their contacts), timing `observe` (rays, noise) and `step` (physics) apart;
 - the training loop: thesis-ch3 (BS, σ = 50, 300 individuals × 1000 steps) through
-  `app.training.train` on 1 worker, in this process; CPU seconds per generation (median,
+  `app.phases.training.train` on 1 worker, in this process; CPU seconds per generation (median,
   the first generation excluded).
 Figures are robot-steps per CPU second of this process (the machine may be shared), best of
 `--rounds`, and each analytic figure's ratio to the pymunk one.
@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 
 import sim
-from app.config import build_config, load_preset
-from app.rollout import Batch
-from app.seeds import life_seeds
-from app.training import GenerationSummary, initial_population, train
+from app.brains.gnp_brain import initial_population
+from app.loop.rollout import Batch
+from app.loop.seeds import life_seeds
+from app.phases.training import GenerationSummary, train
+from app.settings.loading import build_config, load_preset
 
 
 def bare_world(physics: sim.Physics, robots: int, steps: int) -> float:

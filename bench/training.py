@@ -9,7 +9,7 @@ Measures, alternating in rounds so that the machine's drifts hit every figure al
   in the lab's loop: the same physics (contacts included) without the controllers, the reward
   and the loop, so its ratio to the loop in one process is what the loop adds to the world;
 - the full training loop: the thesis-ch3 config (BS, σ = 0, 300 individuals × 1000 steps), one
-  generation = evaluate + evolve + write, through `app.training.train` on 1 and 2 workers
+  generation = evaluate + evolve + write, through `app.phases.training.train` on 1 and 2 workers
   (worker start-up and the first generation excluded);
 - the implementation phase: the trained-config individual cloned into `--trials` trials of
   `--impl-steps` steps, on 1 and 2 workers.
@@ -30,11 +30,13 @@ from pathlib import Path
 import numpy as np
 
 import sim
-from app.config import build_config, load_preset
-from app.implementation import run_implementation
-from app.rollout import Batch
-from app.seeds import life_seeds
-from app.training import GenerationSummary, initial_population, train
+from app.brains.gnp_brain import initial_population
+from app.brains.registry import family_of
+from app.loop.rollout import Batch
+from app.loop.seeds import life_seeds
+from app.phases.implementation import run_implementation
+from app.phases.training import GenerationSummary, train
+from app.settings.loading import build_config, load_preset
 
 
 def bare_world(robots: int, steps: int) -> float:
@@ -113,7 +115,7 @@ def implementation_cpu(trials: int, steps: int, workers: int) -> tuple[float, fl
     cpu = time.process_time()
     began = time.perf_counter()
     run_implementation(
-        config.controller.gnp_config(),
+        family_of(config),
         individual,
         settings,
         seed=0,

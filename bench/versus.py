@@ -9,9 +9,9 @@ Every measurement is a fresh process of this venv whose PYTHONPATH is the tree m
 checkout or the baseline's), so both run on the same interpreter and packages; the two trees
 alternate within each round, so a busy machine's drifts hit both alike. Measured (thesis-ch3,
 σ = 50, analytic physics):
-- a training generation: `app.training.train`, `--population` × `--steps`, 1 worker; the second
-  of three generations' evaluate + evolve + write (the first pays for loading numba's caches,
-  the last for re-living the elite);
+- a training generation: `app.phases.training.train`, `--population` × `--steps`, 1 worker;
+  the second of three generations' evaluate + evolve + write (the first pays for loading
+  numba's caches, the last for re-living the elite);
 - an implementation block: `run_implementation`, `--trials` trials × `--impl-steps` steps (a
   dead sensor at step 500), on each of `--workers`.
 Reported: best of `--rounds` wall and CPU seconds (CPU: the process and its children), and the
@@ -35,7 +35,7 @@ HERE = Path(__file__).resolve().parents[1]
 
 
 def _config(population: int, steps: int) -> Any:
-    from app.config import build_config, load_preset
+    from app.settings.loading import build_config, load_preset
 
     return build_config(
         load_preset("thesis-ch3").model_dump(),
@@ -60,7 +60,7 @@ def _cpu() -> float:
 def generation(population: int, steps: int) -> tuple[float, float]:
     """(wall s, CPU s) of the second of three generations of a training run, 1 worker (the
     first loads numba's caches, the last re-lives the elite, recording it)."""
-    from app.training import train
+    from app.phases.training import train
 
     marks: list[tuple[float, float]] = [(time.perf_counter(), _cpu())]
     with tempfile.TemporaryDirectory() as folder:
@@ -76,8 +76,8 @@ def generation(population: int, steps: int) -> tuple[float, float]:
 
 def implementation(trials: int, steps: int, workers: int) -> tuple[float, float]:
     """(wall s, CPU s) of an implementation phase of a generation-0 individual."""
-    from app.implementation import run_implementation
-    from app.training import initial_population
+    from app.brains.gnp_brain import initial_population
+    from app.phases.implementation import run_implementation
 
     config = _config(2, 10)
     settings = config.implementation.model_copy(

@@ -73,7 +73,7 @@ def ours_side(robots: int, steps: int, repeats: int, stream: str) -> dict[str, f
     sys.path.insert(0, HERE)
     import limit
 
-    from app.config import build_config, load_preset
+    from app.settings.loading import build_config, load_preset
 
     config = build_config(
         load_preset("thesis-ch3").model_dump(), {"training": {"noise_sigma": 50.0}}

@@ -15,7 +15,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from app.config import ControllerSettings
+from app.settings.config import ControllerSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, replay_task, train_task
 from app.tasks.training import TaskGeneration
 from gnp import Schedule

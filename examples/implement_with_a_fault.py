@@ -9,8 +9,8 @@ arena; sensors 2 and 3 die at step t' and the robot keeps learning online (Sarsa
 import sys
 from pathlib import Path
 
-from app.config import ImplementationSettings
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.settings.config import ImplementationSettings
 from app.store import RunReader
 
 

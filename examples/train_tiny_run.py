@@ -8,8 +8,9 @@ The same config and seed give the same file data, whatever the number of workers
 import sys
 from pathlib import Path
 
-from app.config import build_config, preset_layer
-from app.training import GenerationSummary, train
+from app.phases.training import GenerationSummary, train
+from app.settings.config import preset_layer
+from app.settings.loading import build_config
 
 
 def main(out: Path) -> None:

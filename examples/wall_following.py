@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 import sim
-from app.config import ImplementationSettings
-from app.implementation import run_implementation
+from app.brains.registry import family_of
+from app.phases.implementation import run_implementation
+from app.settings.config import ImplementationSettings
 from app.store import RunReader
 
 NEAR_WALL = "reward/near_wall"  # C: 1 iff a wall is in range and the robot is not touching it
@@ -26,7 +27,8 @@ def main(run: Path, steps: int, plot: Path | None) -> None:
     with RunReader(run) as reader:
         config = reader.config
         generation = reader.generations_done - 1
-        cfg, elite = reader.best_genome(generation)
+        family = family_of(reader.config)
+        elite = family.best(reader, generation)
     print(f"run {run.name}: the best of generation {generation}, {steps} steps per trial")
     paths = {}
     for arena in ("training", "implementation"):
@@ -43,7 +45,7 @@ def main(run: Path, steps: int, plot: Path | None) -> None:
             }
         )
         result = run_implementation(
-            cfg,
+            family,
             elite,
             settings,
             seed=config.seed,

@@ -2,8 +2,8 @@
 
 The body is {"net": {...ElmanConfig or RecurrentConfig...}, "arrays": {name: nested lists,
 without the batch axis}}; the file around it (format, version, settings) is written and read by
-`app.controller_file`. Floats are written as Python's shortest round-trip repr, so the body gives
-back arrays equal bit for bit and a net that steps identically.
+`app.store.controller_file`. Floats are written as Python's shortest round-trip repr, so the
+body gives back arrays equal bit for bit and a net that steps identically.
 """
 
 from __future__ import annotations

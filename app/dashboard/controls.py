@@ -16,15 +16,9 @@ from pydantic import BaseModel, ValidationError
 
 import sim
 from app import store
-from app.config import (
-    PRESET_NAMES,
-    ConfigError,
-    RunConfig,
-    build_config,
-    describe_problems,
-    preset_layer,
-)
-from app.fields import nested
+from app.settings.config import PRESET_NAMES, ConfigError, RunConfig, preset_layer
+from app.settings.fields import nested
+from app.settings.loading import build_config, describe_problems
 
 NO_RUNS = "(none)"
 """What a list of runs offers when the runs dir holds none."""

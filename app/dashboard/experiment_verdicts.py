@@ -21,7 +21,6 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from app.config import describe_problems
 from app.dashboard.controls import DashboardInputError
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.report import (
@@ -36,6 +35,7 @@ from app.experiments.report import (
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import POWER, Design
 from app.experiments.spec import ScaleSpec
+from app.settings.loading import describe_problems
 
 KINDS = (("question", "The thesis's questions"), ("sanity", "Within one arm (sanity)"))
 CLAIM_HEADER = "claim: Δ [interval]"

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from app import store
-from app.config import RunConfig
 from app.dashboard.stage import run_robot
 from app.dashboard.training_job import JobState
-from app.live import RobotSpec
+from app.phases.live import RobotSpec
+from app.settings.config import RunConfig
 
 FINISHED_RETRIES = 5
 """Polls to retry reading a finished run's file before giving up on its last generations."""

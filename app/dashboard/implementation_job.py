@@ -1,6 +1,7 @@
-"""An implementation phase started from the dashboard, run in a worker process (`app.workers`).
+"""An implementation phase started from the dashboard, run in a worker process
+(`app.system.workers`).
 
-The child calls `app.implementation.implementation_of` on the run's final best individual (a
+The child calls `app.phases.implementation.implementation_of` on the run's final best individual (a
 GNP individual, or a neural run's net, which does not learn online) and returns the result;
 nothing is written to the run file (a run on show, the bundled demo included, stays as it was;
 `gnp-lab implement` is the way to store one).
@@ -12,11 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.config import ImplementationSettings
 from app.dashboard.controls import build
-from app.implementation import implementation_of
+from app.phases.implementation import implementation_of
+from app.settings.config import ImplementationSettings
 from app.store import Implementation, RunFileError, RunReader
-from app.workers import Count, Handler, WorkerPool
+from app.system.workers import Count, Handler, WorkerPool
 
 
 @dataclass(frozen=True)

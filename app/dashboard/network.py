@@ -15,7 +15,6 @@ import numpy as np
 
 import neuro
 import sim
-from app.live import brain_name
 
 INPUT, CONTEXT, HIDDEN, OUTPUT = 0, 1, 2, 3
 KIND_NAMES = ("IR in", "context t−1", "hidden", "wheels")
@@ -134,7 +133,7 @@ def network_layout(
     keep = weights != 0.0
     order = np.argsort(np.abs(weights[keep]), kind="stable")  # the strongest drawn on top
     return NetworkLayout(
-        brain_name(cfg),
+        "Elman" if isinstance(cfg, neuro.ElmanConfig) else "NEAT",
         kinds,
         index,
         positions,

@@ -25,7 +25,7 @@ from app.dashboard.network import (
     node_values,
     weight_colors,
 )
-from app.live import RobotSnapshot
+from app.phases.live import RobotSnapshot
 from app.views import geometry as geo
 from app.views.scene import add_node_discs
 

@@ -15,7 +15,7 @@ import viser
 from viser.uplot import Axis
 
 import sim
-from app.live import RobotSnapshot
+from app.phases.live import RobotSnapshot
 from app.views.arena_view import ROBOT_COLORS
 
 MAX_POINTS = 600

@@ -1,6 +1,6 @@
 """Viser controls built from the settings' models: bounds, step, default and hint come from the
-field (`app.fields.Setting`), so no range is typed again for the page. What a control holds is
-checked by building the model, never by a check of its own."""
+field (`app.settings.fields.Setting`), so no range is typed again for the page. What a control
+holds is checked by building the model, never by a check of its own."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from typing import Any
 import viser
 from pydantic import BaseModel
 
-from app.config import ImplementationSettings
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
-from app.fields import Setting, SettingError, check_field, settings_of, value_at
+from app.settings.config import ImplementationSettings
+from app.settings.fields import Setting, SettingError, check_field, settings_of, value_at
 
 Control = viser.GuiNumberHandle[Any] | viser.GuiDropdownHandle[Any] | viser.GuiCheckboxHandle
 

@@ -12,14 +12,12 @@ import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
-import gnp
 import sim
 from app import store
+from app.brains.registry import family_of
 from app.dashboard.controls import DashboardInputError
-from app.live import LearningSettings, LiveSession, RobotSpec, checked_noise
-from app.neural import best_individual
+from app.phases.live import LearningSettings, LiveSession, RobotSpec, checked_noise
+from app.settings.config import ControllerSettings, RunConfig, TrainingSettings
 
 MAX_STEPS_PER_ADVANCE = 50
 """A frame that comes late catches up at most this many steps (then the loop just slows)."""
@@ -39,19 +37,22 @@ class Show:
 
 
 def run_robot(reader: store.RunReader, generation: int = -1) -> RobotSpec:
-    """The best individual of a run's `generation` (negative: from the end), named after the run;
-    a GNP individual or a neural run's net."""
-    cfg, population = best_individual(reader, generation)
-    return RobotSpec(reader.path.stem, cfg, population)
+    """The best individual of a run's `generation` (negative: from the end), named after the
+    run, of whichever brain family it is."""
+    family = family_of(reader.config)
+    return RobotSpec(reader.path.stem, family, family.best(reader, generation))
 
 
 def random_show() -> Show:
     """An untrained random CS individual: what is on show when there is no run at all."""
-    cfg = gnp.GnpConfig(method="CS")
-    population = gnp.init_population(cfg, 1, np.random.default_rng(0))
+    config = RunConfig(
+        controller=ControllerSettings(method="CS"), training=TrainingSettings(population=2)
+    )
+    family = family_of(config)
+    individual = family.take(family.first().individuals(), [0])
     return Show(
         "an untrained random CS individual",
-        (RobotSpec("random", cfg, population),),
+        (RobotSpec("random", family, individual),),
         "training",
         0,
         life=1000,
@@ -165,7 +166,7 @@ class Stage:
         """Sensor noise σ, now and for every later show.
 
         Raises:
-            LiveError: σ out of the settings' range (`app.live.checked_noise`), nothing kept.
+            LiveError: σ out of the settings' range (`app.phases.live.checked_noise`), nothing kept.
         """
         sigma = checked_noise(sigma)
         if self.session is not None:

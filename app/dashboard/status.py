@@ -13,7 +13,7 @@ import neuro
 import sim
 from app import store
 from app.dashboard.controls import DashboardInputError
-from app.live import LiveError
+from app.phases.live import LiveError
 
 REFUSALS = (
     DashboardInputError,

@@ -9,12 +9,12 @@ from pathlib import Path
 import viser
 
 import sim
-from app.config import ImplementationSettings
 from app.dashboard.controls import NO_RUNS, open_run, parse_sensors
 from app.dashboard.setting_controls import add_choice, add_number, check, implementation_settings
 from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
+from app.settings.config import ImplementationSettings
 
 
 @dataclass

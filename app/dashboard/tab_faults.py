@@ -9,7 +9,6 @@ from dataclasses import dataclass, replace
 import viser
 
 import gnp
-from app.config import ImplementationSettings
 from app.dashboard.controls import build, parse_sensors
 from app.dashboard.setting_controls import (
     SettingControls,
@@ -21,7 +20,7 @@ from app.dashboard.setting_controls import (
 )
 from app.dashboard.stage import Stage
 from app.dashboard.status import Status
-from app.live import brain_name
+from app.settings.config import ImplementationSettings
 
 FIXED = "fixed"
 SCHEDULED = "scheduled from the fault (Eq. 4.3–4.4)"
@@ -100,9 +99,10 @@ class FaultsTab:
 
 def second_stage_words(stage: Stage, on: bool) -> str:
     """What the second-stage switch means for the robots on show, in words."""
-    methods = {brain_name(r.cfg) for r in stage.show.robots} if stage.show is not None else set()
-    nets = " (a neural net on show neither learns online nor has a second stage)"
-    net = nets if methods & {"Elman", "NEAT"} else ""
+    robots = stage.show.robots if stage.show is not None else ()
+    methods = {r.family.label for r in robots}
+    fixed = any(not r.family.learns_online for r in robots)
+    net = " (a brain on show that does not learn online has no second stage)" if fixed else ""
     if on:
         return "second stage on" + net
     parts = [f"{m} {gnp.TRAITS[m].ablated}" for m in sorted(gnp.METHODS) if m in methods]

@@ -14,8 +14,8 @@ import viser
 from app import store
 from app.dashboard import plots
 from app.dashboard.stage import Show
-from app.implementation import fault_text
-from app.live import RobotSnapshot
+from app.phases.implementation import fault_text
+from app.phases.live import RobotSnapshot
 
 
 @dataclass
@@ -96,7 +96,7 @@ def show_line(robots: Sequence[RobotSnapshot], noise_sigma: float) -> str:
     first = robots[0]
     rewards = " · ".join(f"{r.label}: reward/step {r.mean_reward:.3f}" for r in robots)
     sub = f" sub {first.visits[-1, 1]}" if len(first.visits) else ""
-    if len(first.activation):  # a net: no node, nothing learnt online
+    if not first.learns_online:  # a net, or another family: no node, nothing learnt online
         left, right = first.commands
         brain = f"wheels {left:+.1f} {right:+.1f} · no online learning"
     else:

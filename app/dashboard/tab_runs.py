@@ -11,11 +11,9 @@ from typing import Any
 
 import viser
 
-import gnp
-import neuro
 import sim
 from app import store
-from app.config import ImplementationSettings, RunConfig, TrainingSettings
+from app.brains.registry import family_of, run_kind
 from app.dashboard.controls import (
     NO_RUNS,
     DashboardInputError,
@@ -29,11 +27,12 @@ from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
-from app.fields import read_setting
+from app.settings.config import ImplementationSettings, TrainingSettings
+from app.settings.fields import read_setting
 from app.tasks.common import is_task_run
 
-NET_NOTE = (
-    "  \n<small>A neural net does not learn online: the implementation phase's ε, α and "
+FIXED_NOTE = (
+    "  \n<small>This brain does not learn online: the implementation phase's ε, α and "
     "schedule do not apply to it.</small>"
 )
 
@@ -47,16 +46,6 @@ def _most_generations() -> int:
 
 
 MOST_GENERATIONS = _most_generations()
-
-
-def run_brain(config: RunConfig) -> str:
-    """`CS fuzzy` of a GNP run; `cmaes: Elman net, 8 hidden` of a neural run."""
-    if config.neuro is None:
-        return f"{config.controller.method} {gnp.judgment_name(config.controller.fuzzy)}"
-    net = config.neuro.net_config()
-    if isinstance(net, neuro.ElmanConfig):
-        return f"{config.brain}: Elman net, {net.hidden} hidden"
-    return f"{config.brain}: NEAT net, ≤ {net.max_hidden} hidden nodes"
 
 
 @dataclass
@@ -122,16 +111,17 @@ class RunsTab:
         history = reader.history()
         self.plots.set_fitness(history.best_fitness, history.mean_fitness)
         config = reader.config
+        family = family_of(config)
         impls = reader.implementation_names()
         best = float(history.best_fitness.max()) if len(history.best_fitness) else 0.0
         self.summary.content = (
-            f"**{name}**: {run_brain(config)}, population "
+            f"**{name}**: {family.description}, population "
             f"{config.training.population}, {reader.generations_done}/"
             f"{config.training.generations} generations, T = {config.training.steps}, "
             f"σ = {config.training.noise_sigma:g}, seed {config.seed}  \n"
             f"best fitness {best:.4f}"
             f" · implementations: {', '.join(impls) or 'none'}"
-            + (NET_NOTE if config.neuro is not None else "")
+            + ("" if family.learns_online else FIXED_NOTE)
         )
         implementation = config.implementation  # the run's own fault, as a starting point
         sensors = implementation.broken_sensors
@@ -346,5 +336,5 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
-        rows.append(f"| {r.name} | {r.kind} | {done} | {r.best_fitness:.4f} |")
+        rows.append(f"| {r.name} | {run_kind(r)} | {done} | {r.best_fitness:.4f} |")
     return "\n".join(rows)

@@ -6,22 +6,19 @@ from dataclasses import dataclass
 
 import viser
 
-import gnp
 import sim
 from app.dashboard.controls import DashboardInputError, finite
 from app.dashboard.network import net_markdown
 from app.dashboard.network_view import NetworkView
 from app.dashboard.stage import Show, Stage
 from app.dashboard.status import Status, hex_color, set_value
-from app.live import brain_name, is_net
-from app.neural import BrainConfig
 from app.views.arena_view import ROBOT_COLORS
 from app.views.genome import genome_view, node_label, node_markdown
 from app.views.graph_counts import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
 from app.views.graph_view import TRANSITION_STYLES, GraphView
 
 MAX_SPEED = 200
-NO_NODES = "— a net has no GNP nodes"
+NO_NODES = "— no GNP nodes on show"
 
 
 @dataclass
@@ -43,32 +40,35 @@ class ShowTab:
     inspector: viser.GuiMarkdownHandle
 
     def staged(self, show: Show) -> None:
-        """A new show: its graph's nodes to inspect (a net: its network, and the GNP-only
-        controls off), the dropdowns and the description."""
+        """A new show: its graph's nodes to inspect (a net: its network; another family: no
+        drawing), the GNP-only controls off without a graph, the dropdowns and the
+        description."""
         first = show.robots[0]
-        net = is_net(first.cfg)
-        self.graph.visible, self.network.visible = not net, net
-        self.graph_mode.disabled = self.node.disabled = net
-        if isinstance(first.population, dict):
-            assert not isinstance(first.cfg, gnp.GnpConfig)
-            self.network.set_network(first.cfg, first.population)
-            self.node.options = (NO_NODES,)
-        else:
-            assert isinstance(first.cfg, gnp.GnpConfig)
-            self.graph.set_genome(genome_view(first.cfg, first.population))
+        cfg, net = first.family.graph_config, first.family.network_config
+        self.graph.visible, self.network.visible = cfg is not None, net is not None
+        self.graph_mode.disabled = self.node.disabled = cfg is None
+        if cfg is not None:
+            self.graph.set_genome(genome_view(cfg, first.population))
             self.node.options = tuple(
-                node_label(first.cfg, first.population, i) for i in range(first.cfg.n_nodes)
+                node_label(cfg, first.population, i) for i in range(cfg.n_nodes)
             )
+        else:
+            self.node.options = (NO_NODES,)
+        if net is not None:
+            self.network.set_network(net, first.population)
         # Echo the show in the dropdowns; their callbacks then find nothing to change.
         set_value(self.arena, show.arena)
         set_value(self.start, str(show.start))
         self.description.content = describe(show)
-        if net:
+        if cfg is not None:
+            self.inspect(self.graph.selected or 0)
+            return
+        if net is not None:
             assert self.network.layout is not None
             self.inspector.content = net_markdown(self.network.layout)
-            self.describe_graph()
         else:
-            self.inspect(self.graph.selected or 0)
+            self.inspector.content = f"A {first.family.description} brain: nothing to draw."
+        self.describe_graph()
 
     def set_speed(self, value: float) -> None:
         self.stage.speed = finite(value, "steps per second", 1, MAX_SPEED)
@@ -78,9 +78,10 @@ class ShowTab:
         show = self.stage.show
         if show is None:
             return
-        cfg = show.robots[0].cfg
-        if not isinstance(cfg, gnp.GnpConfig):
-            raise DashboardInputError("a neural net has no GNP nodes: its network is drawn")
+        family = show.robots[0].family
+        cfg = family.graph_config
+        if cfg is None:
+            raise DashboardInputError(f"a {family.description} brain has no GNP nodes to inspect")
         n_nodes = cfg.n_nodes
         if not 0 <= node < n_nodes:
             raise DashboardInputError(f"node must be in 0..{n_nodes - 1}, got {node}")
@@ -109,6 +110,9 @@ class ShowTab:
             if text != self.graph_info.content:
                 self.graph_info.content = text
             return
+        if not self.graph.visible:
+            self.graph_info.content = "no graph: this brain has none to draw"
+            return
         drawn = self.graph.drawn()
         genome = self.graph.genome
         total = len(genome.kinds) if genome is not None else 0
@@ -133,11 +137,12 @@ class ShowTab:
         if session is None or node is None:
             return
         robot = session.robots[0]
-        if not isinstance(robot.cfg, gnp.GnpConfig) or isinstance(robot.population, dict):
-            self.describe_graph()  # a net: nothing learns, its inspector stays as staged
+        cfg = robot.family.graph_config
+        if cfg is None:
+            self.describe_graph()  # no nodes: its inspector stays as staged
             return
         with session.lock:
-            text = node_markdown(robot.cfg, robot.population, node)
+            text = node_markdown(cfg, robot.population, node)
         self.inspector.content = text + "\n\n<small>live: Q values update as it learns</small>"
         self.describe_graph()
 
@@ -202,7 +207,7 @@ def describe(show: Show) -> str:
     """The Show tab's description of a show: title, robots (in their colours), arena, fault."""
     robots = ", ".join(
         f"<span style='color:{hex_color(ROBOT_COLORS[i])}'>●</span> {r.label} "
-        f"({brain_words(r.cfg)})"
+        f"({r.family.description})"
         for i, r in enumerate(show.robots)
     )
     fault = ""
@@ -213,13 +218,6 @@ def describe(show: Show) -> str:
         f"**On show:** {show.title}  \n{robots}  \n{show.arena} arena, start pose "
         f"{show.start}{fault}"
     )
-
-
-def brain_words(cfg: BrainConfig) -> str:
-    """`CS, fuzzy` of a GNP individual, `Elman net` of a net."""
-    if isinstance(cfg, gnp.GnpConfig):
-        return f"{cfg.method}, {cfg.judgment}"
-    return f"{brain_name(cfg)} net"
 
 
 def legend() -> str:

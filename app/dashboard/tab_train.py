@@ -1,6 +1,6 @@
 """The Train tab: a run's settings, Start / Pause / Resume / Stop, and its progress.
 
-The settings' controls are built from the models (`app.config.train_settings`): the common
+The settings' controls are built from the models (`app.settings.loading.train_settings`): the common
 ones first, every other one in a folder, so a new field of a model shows up here by itself.
 The values are checked once, by building the `RunConfig` that `TrainingJob` is given.
 Training runs the CLI's loop in a thread of this process, its lives on the worker pool
@@ -19,8 +19,7 @@ from pathlib import Path
 import numpy as np
 import viser
 
-import gnp
-from app.config import PRESET_NAMES, RunConfig, load_preset, train_settings
+from app.brains.registry import family_of
 from app.dashboard.controls import DashboardInputError, training_config
 from app.dashboard.follower import TrainingFollower
 from app.dashboard.setting_controls import SettingControls, add_controls
@@ -28,6 +27,8 @@ from app.dashboard.stage import Stage
 from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.dashboard.training_job import JobState, TrainingJob
+from app.settings.config import PRESET_NAMES, RunConfig
+from app.settings.loading import load_preset, train_settings
 
 FIRST = (
     "controller.method",
@@ -189,11 +190,10 @@ def populate_train_tab(
 
 
 def new_run_path(runs_dir: Path, config: RunConfig) -> Path:
-    """`<method>-<judgment>-<time>.h5` in `runs_dir`, numbered if that name is taken."""
+    """`<brain's stem>-<time>.h5` in `runs_dir` (`CS-fuzzy-…`), numbered if that name is
+    taken."""
     runs_dir.mkdir(parents=True, exist_ok=True)
-    controller = config.controller
-    judgment = gnp.judgment_name(controller.fuzzy)
-    stem = f"{controller.method}-{judgment}-{time.strftime('%Y%m%d-%H%M%S')}"
+    stem = f"{family_of(config).file_stem}-{time.strftime('%Y%m%d-%H%M%S')}"
     out = runs_dir / f"{stem}.h5"
     suffix = 1
     while out.exists():

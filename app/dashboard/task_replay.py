@@ -21,7 +21,7 @@ import numpy as np
 import gnp
 from app.dashboard.stage import MAX_STEPS_PER_ADVANCE
 from app.dashboard.task_frame import task_frame
-from app.live import Ring, RobotSnapshot
+from app.phases.live import Ring, RobotSnapshot
 from app.tasks.common import TaskError
 from app.tasks.config import make_env
 from app.tasks.faults import ObservationFault, ObservationFaults

@@ -1,7 +1,7 @@
 """Training started from the dashboard: the lab's generation loop in a thread of this process.
 
-The loop is the CLI's (`app.training.train`, so the run file is the same). The robots' lives,
-nearly all of its work, go to the lab's worker pool (`app.workers`), never to this process;
+The loop is the CLI's (`app.phases.training.train`, so the run file is the same). The robots' lives,
+nearly all of its work, go to the lab's worker pool (`app.system.workers`), never to this process;
 what runs here, in the job's thread, is the rest of each generation: the evolution (or the
 optimiser's step), the HDF5 writes, and at the end the final elite's replay (one robot's
 life). The page stays responsive. Pause and resume take effect between generations, stop at
@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 from typing import Literal
 
-from app.config import RunConfig
-from app.training import Control, Interrupted, train
-from app.workers import default_workers
+from app.phases.training import Control, Interrupted, train
+from app.settings.config import RunConfig
+from app.system.workers import default_workers
 
 JobState = Literal["running", "paused", "stopping", "finished", "failed", "stopped"]
 """A job's state; "stopping": asked to stop, its thread not ended yet (nothing can act)."""

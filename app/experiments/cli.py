@@ -15,8 +15,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from app.cli_options import add_quiet, add_runs_dir
-from app.exit_codes import EXIT_INTERRUPTED
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
 from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
@@ -29,6 +27,8 @@ from app.experiments.spec import (
     load_shipped,
     shipped_names,
 )
+from app.settings.cli_options import add_quiet, add_runs_dir
+from app.system.exit_codes import EXIT_INTERRUPTED
 
 DEFAULT_SCALE = "small"
 
@@ -339,7 +339,7 @@ def _scheduler_client(address: str | None) -> Iterator[Any]:
     """A client of the --scheduler asked for (checked and contacted even when every run is
     done, so a wrong address is never silently ignored), or None for a local cluster."""
     from app.experiments import cluster
-    from app.security import AddressError, check_scheduler_address, plain_tcp_warning
+    from app.system.security import AddressError, check_scheduler_address, plain_tcp_warning
 
     if address is None:
         yield None

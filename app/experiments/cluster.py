@@ -11,8 +11,8 @@ from typing import Any
 
 from app.experiments.planning import Task
 from app.experiments.spec import ExperimentError
-from app.security import local_cluster_security
-from app.workers import default_workers, handling
+from app.system.security import local_cluster_security
+from app.system.workers import default_workers, handling
 
 
 def warm_numba(tasks: list[Task], client: Any = None) -> None:

@@ -12,10 +12,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from app.config import ImplementationSettings
 from app.experiments.cluster import warm_numba
 from app.experiments.planning import Task, inspect
 from app.experiments.progress import TOPIC, Echo, Progress, Watch, outcome_line
+from app.settings.config import ImplementationSettings
 from app.store import RunReader
 
 
@@ -34,8 +34,8 @@ def run_task(task: Task) -> dict[str, Any]:
 
     Returns the run's final best fitness and each condition's means (plain floats).
     """
-    from app.implementation import implement
-    from app.training import resume, train
+    from app.phases.implementation import implement
+    from app.phases.training import resume, train
 
     emit = _emitter(task)
     if task.task_json:

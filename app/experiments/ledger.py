@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from app.config import ImplementationSettings, RunConfig
 from app.experiments.planning import Task, plan
 from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.experiments.values import read_values_csv
+from app.settings.config import ImplementationSettings, RunConfig
 
 #: The version of the bits a run produces. Bump it with any change that alters a run's values
 #: (the engine, the world, the controller, a default); the tests that pin committed values to the

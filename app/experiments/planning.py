@@ -11,9 +11,9 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.config import ImplementationSettings, RunConfig
 from app.experiments.layout import experiment_dir
 from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.settings.config import ImplementationSettings, RunConfig
 from app.store import RunFileError, RunReader
 
 

@@ -24,15 +24,6 @@ from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from app.config import (
-    PRESET_NAMES,
-    ConfigError,
-    ImplementationSettings,
-    RunConfig,
-    build_config,
-    describe_problems,
-    preset_layer,
-)
 from app.experiments.results import (
     METRICS,
     TASK_METRICS,
@@ -45,6 +36,14 @@ from app.experiments.results import (
     MarginForm,
     ThesisValue,
 )
+from app.settings.config import (
+    PRESET_NAMES,
+    ConfigError,
+    ImplementationSettings,
+    RunConfig,
+    preset_layer,
+)
+from app.settings.loading import build_config, describe_problems
 
 Scale = Literal["smoke", "small", "thesis"]
 SCALES: tuple[Scale, ...] = get_args(Scale)

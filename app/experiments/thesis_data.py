@@ -25,7 +25,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from app.config import describe_problems
+from app.settings.loading import describe_problems
 
 Statistic = Literal["mean", "sd", "p_one_tailed"]
 Relation = Literal["higher", "converges faster", "as large as", "better"]

@@ -10,26 +10,27 @@ live a tiny run of each controller at start, so no task pays for it.
 from __future__ import annotations
 
 import hashlib
+import json
 import tempfile
 from pathlib import Path
 from typing import Any
 
 from distributed import WorkerPlugin
 
-from app.config import RunConfig, build_config
+from app.brains.registry import family_of
+from app.settings.config import RunConfig
+from app.settings.loading import build_config
 
 
 def warm_up(configs: list[RunConfig]) -> None:
     """Train and implement a tiny run of each config's controller in this process: every
     kernel the lab's tasks call gets compiled (or loaded from numba's cache)."""
-    from app.implementation import implement
-    from app.training import train
+    from app.phases.implementation import implement
+    from app.phases.training import train
 
     with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
         for i, config in enumerate(configs):
-            brain: dict[str, Any] = {"controller": config.controller.model_dump()}
-            if config.neuro is not None:
-                brain["neuro"] = config.neuro.model_dump()
+            brain = config.model_dump(include={"controller", "neuro", "family"})
             tiny = build_config(
                 brain,
                 {"training": {"population": 4, "generations": 1, "steps": 2, "noise_sigma": 1,
@@ -42,9 +43,9 @@ def warm_up(configs: list[RunConfig]) -> None:
 
 
 def _kernels(config: RunConfig) -> str:
-    """What decides which kernels a run calls: its brain and its physics."""
-    neuro = config.neuro.model_dump_json() if config.neuro is not None else ""
-    return config.controller.model_dump_json() + neuro + config.training.physics
+    """What decides which kernels a run calls: its brain (`BrainFamily.warm_key`) and its
+    physics."""
+    return json.dumps(family_of(config).warm_key(), sort_keys=True) + config.training.physics
 
 
 def controllers(configs: list[RunConfig]) -> list[RunConfig]:

@@ -14,6 +14,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+from app.brains.registry import family_of
 from app.export.controller import write_controller
 from app.export.graph import graph_dot, transition_counts
 from app.export.tables import write_fitness, write_implementations
@@ -81,10 +82,12 @@ def _publish(out: Path, fill: Callable[[Path], object]) -> Path:
 def write_exports(reader: RunReader, generation: int, folder: Path) -> list[Path]:
     """Write controller.json, graph.dot, fitness.csv and the implementation tables into `folder`."""
     paths = [write_controller(reader, generation, folder / "controller.json")]
-    if reader.config.neuro is not None:  # a net: no GNP graph
+    family = family_of(reader.config)
+    cfg = family.graph_config
+    if cfg is None:  # no node graph to draw
         paths.append(write_fitness(reader, folder / "fitness.csv"))
         return paths + write_implementations(reader, folder)
-    cfg, individual = reader.best_genome(generation)
+    individual = family.best(reader, generation)
     final = generation == reader.generations_done - 1
     elite = reader.elite() if final else None
     transitions = (
@@ -127,8 +130,12 @@ def export_replay(run_path: Path, out: Path, generation: int | None = None) -> P
 
     with RunReader(run_path) as reader:
         final = check_run(reader, None)
-        if reader.config.neuro is not None:
-            raise ExportError(f"{reader.path.name} is a neural run; replays show GNP runs only")
+        family = family_of(reader.config)
+        if family.graph_config is None:
+            raise ExportError(
+                f"{reader.path.name} is a {family.name} run; replays show runs with a node "
+                "graph (GNP) only"
+            )
         if generation is not None and check_run(reader, generation) != final:
             raise ExportError(
                 f"only the final elite's life (generation {final}) is recorded in "

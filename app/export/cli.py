@@ -7,9 +7,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.cli_options import add_run_name, add_runs_dir
-from app.exit_codes import EXIT_ERROR
+from app.settings.cli_options import add_run_name, add_runs_dir
 from app.store import resolve_run
+from app.system.exit_codes import EXIT_ERROR
 from app.tasks.common import is_task_run
 
 

@@ -19,10 +19,10 @@ import viser
 
 import gnp
 import sim
-from app.arenas import arena_of
-from app.implementation import fault_text, faults
-from app.live import RobotSnapshot
-from app.recording import Trajectory
+from app.loop.recording import Trajectory
+from app.phases.implementation import fault_text, faults
+from app.phases.live import RobotSnapshot
+from app.settings.arenas import arena_of
 from app.store import Implementation, RunReader
 from app.views.arena_view import ArenaView
 from app.views.genome import genome_view

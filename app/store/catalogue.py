@@ -10,32 +10,26 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-import gnp
-from app.config import RunConfig
+from app.settings.config import RunConfig
 from app.store.files import TASK_RUN_FORMAT, RunFileError
 from app.store.reader import RunReader
 
 SUFFIX = ".h5"
 
 
-def run_name(config: RunConfig, now: datetime) -> str:
-    """The default name of a run started at `now`: method, judgment, seed and UTC time.
+def run_name(stem: str, seed: int, now: datetime) -> str:
+    """The default name of a run started at `now`: its brain's stem (`family.file_stem`), seed
+    and UTC time.
 
     E.g. "CS-fuzzy-seed7-20260102T030405Z". A naive `now` is taken as local time.
     """
-    controller = config.controller
-    kind = (
-        f"{controller.method}-{gnp.judgment_name(controller.fuzzy)}"
-        if config.neuro is None
-        else config.brain
-    )
     stamp = now.astimezone(UTC).strftime("%Y%m%dT%H%M%SZ")
-    return f"{kind}-seed{config.seed}-{stamp}"
+    return f"{stem}-seed{seed}-{stamp}"
 
 
-def new_run_path(runs_dir: str | Path, config: RunConfig, now: datetime) -> Path:
+def new_run_path(runs_dir: str | Path, stem: str, seed: int, now: datetime) -> Path:
     """A free path for a new run in `runs_dir`: `run_name`, with "-2", "-3", ... if taken."""
-    name = run_name(config, now)
+    name = run_name(stem, seed, now)
     path = Path(runs_dir) / (name + SUFFIX)
     copy = 1
     while path.exists():
@@ -65,25 +59,19 @@ class RunSummary:
 
     name: str
     path: Path
-    method: str = ""
-    fuzzy: bool = True
+    config: RunConfig | None = None  # a robot run's (None: a task run, or unreadable)
     generations_done: int = 0
     generations: int = 0
     finished: bool = False
     best_fitness: float = float("nan")
     implementations: tuple[str, ...] = ()
     error: str | None = None
-    brain: str = "gnp"  # or the neural optimiser (then `method` and `fuzzy` do not apply)
     task: str = ""  # a task run's Gymnasium id (app.tasks); "" for the robot's runs
 
     @property
-    def kind(self) -> str:
-        """`CS fuzzy`, a neural optimiser (`cmaes`), or `task CartPole-v1`."""
-        if self.task:
-            return f"task {self.task}"
-        return (
-            f"{self.method} {gnp.judgment_name(self.fuzzy)}" if self.brain == "gnp" else self.brain
-        )
+    def brain(self) -> str:
+        """The name of the run's brain family (`RunConfig.brain`); "" for a task run."""
+        return self.config.brain if self.config is not None else ""
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:
@@ -106,14 +94,12 @@ def _summary(path: Path) -> RunSummary:
             return RunSummary(
                 name=name,
                 path=path,
-                method=run.config.controller.method,
-                fuzzy=run.config.controller.fuzzy,
+                config=run.config,
                 generations_done=len(history.best_fitness),
                 generations=run.config.training.generations,
                 finished=run.finished,
                 best_fitness=best,
                 implementations=tuple(run.implementation_names()),
-                brain=run.config.brain,
             )
     except RunFileError as error:
         return RunSummary(name=name, path=path, error=str(error))
@@ -134,15 +120,12 @@ def _task_summary(path: Path, name: str) -> RunSummary | None:
             config = json.loads(str(handle.attrs["config"]))
             done = int(handle.attrs["generations_done"])
             fitness = handle["history/fitness"][:done]
-            controller = config.get("controller", {})
             generations = int(config["training"]["generations"])
         except (KeyError, ValueError, TypeError, OSError) as error:
             return RunSummary(name=name, path=path, task=task, error=f"task run: {error}")
         return RunSummary(
             name=name,
             path=path,
-            method=str(controller.get("method", "CS")),
-            fuzzy=bool(controller.get("fuzzy", True)),
             generations_done=done,
             generations=generations,
             finished=done >= generations,

@@ -14,8 +14,9 @@ import numpy as np
 from pydantic import ValidationError
 
 import gnp
-from app.config import ImplementationSettings, describe_problems, stored_config
-from app.recording import Trajectory
+from app.loop.recording import Trajectory
+from app.settings.config import ImplementationSettings
+from app.settings.loading import describe_problems, stored_config
 from app.store.files import RunFileError, open_for_read
 from app.store.schema import FORMAT, SCHEMA_VERSION
 

@@ -18,7 +18,7 @@ from types import EllipsisType
 import h5py
 import numpy as np
 
-from app.config import RunConfig
+from app.settings.config import RunConfig
 from sim import IR_MAX, TERM_NAMES
 
 FORMAT = "gnp-lab-run"

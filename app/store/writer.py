@@ -14,7 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from app.recording import Trajectory
+from app.loop.recording import Trajectory
 from app.store.files import RunFileError, WriterLock, atomic_file, create_file
 from app.store.reader import Implementation, RunReader
 from app.store.schema import (

@@ -10,10 +10,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from app.config import ConfigError, RunConfig
-from app.controller_file import GnpController, save_controller
-from app.exit_codes import EXIT_INTERRUPTED
+from app.settings.config import ConfigError, RunConfig
 from app.store import RunFileError, resolve_run
+from app.store.controller_file import GnpController, save_controller
+from app.system.exit_codes import EXIT_INTERRUPTED
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
 from app.tasks.store import read_task_run

@@ -10,7 +10,7 @@ from typing import Any
 
 import h5py
 
-from app.cli_options import add_run_name, add_runs_dir
+from app.settings.cli_options import add_run_name, add_runs_dir
 from app.store.files import TASK_RUN_FORMAT
 from sim import FAULT_MODES
 

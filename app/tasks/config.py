@@ -13,7 +13,7 @@ import gymnasium as gym
 from pydantic import BaseModel, ConfigDict, Field
 
 import gnp
-from app.config import ControllerSettings, RunConfig
+from app.settings.config import ControllerSettings, RunConfig
 from app.tasks.common import TaskError
 from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import EvolutionConfig, Schedule

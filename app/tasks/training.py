@@ -1,9 +1,9 @@
 """Training GNP on a Gymnasium task, and replaying a trained individual.
 
-The same generation as the robot's (`app.training`): generation 0 drawn from (seed, init),
+The same generation as the robot's (`app.phases.training`): generation 0 drawn from (seed, init),
 lives that learn online with ε and α fixed or scheduled, the learned population evolved by
 `gnp.evolve` with the Generator of (seed, generation), every life's random inputs keyed by
-(seed, generation, individual) (`app.seeds.life_seeds`). A run is a function of its config
+(seed, generation, individual) (`app.loop.seeds.life_seeds`). A run is a function of its config
 and seed, and a resumed run matches one never interrupted.
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import gnp
-from app.seeds import evolution_rng, init_rng, life_seeds
+from app.loop.seeds import evolution_rng, init_rng, life_seeds
 from app.tasks.config import TaskRunConfig
 from app.tasks.faults import ObservationFault
 from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, live

@@ -11,7 +11,7 @@ import numpy as np
 import viser
 
 import sim
-from app.live import RobotSnapshot
+from app.phases.live import RobotSnapshot
 from app.views import geometry as geo
 from sim.sensors import ir_distances
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import viser
 
-from app.live import RobotSnapshot
+from app.phases.live import RobotSnapshot
 from app.views import geometry as geo
 from app.views.genome import GenomeView
 from app.views.graph_counts import (

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import settings
 from lab_fixtures import tiny_config
 
-from app.training import train
+from app.phases.training import train
 
 # Properties are checked by what they assert, never by how long an example takes: a loaded
 # 2-core CI machine must not turn a slow example into a failure.

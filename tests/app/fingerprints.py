@@ -16,10 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from app.config import ImplementationSettings, RunConfig, build_config
-from app.implementation import run_implementation
+from app.brains.registry import family_of
+from app.phases.implementation import run_implementation
+from app.phases.training import train
+from app.settings.config import ImplementationSettings, RunConfig
+from app.settings.loading import build_config
 from app.store import RunReader
-from app.training import train
 from sim import Physics
 
 
@@ -99,9 +101,10 @@ def implementation_digests(workers: int = 1, physics: Physics = "pymunk") -> dic
             Path(folder) / "run.h5",
         )
         with RunReader(path) as run:
-            cfg, individual = run.best_genome(0)
+            family = family_of(run.config)
+            individual = family.best(run, 0)
     result = run_implementation(
-        cfg,
+        family,
         individual,
         IMPLEMENTATION,
         seed=7,

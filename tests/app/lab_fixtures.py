@@ -17,7 +17,8 @@ import numpy as np
 import psutil
 import pytest
 
-from app.config import RunConfig, build_config
+from app.settings.config import RunConfig
+from app.settings.loading import build_config
 
 
 def tiny_config(**training: Any) -> RunConfig:

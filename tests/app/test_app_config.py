@@ -10,16 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.cli import build_parser, config_from_args
-from app.config import (
-    PRESET_NAMES,
-    ConfigError,
-    RunConfig,
-    build_config,
-    load_config,
-    load_preset,
-    to_toml,
-)
+from app.cli.parser import build_parser
+from app.cli.train import config_from_args
+from app.settings.config import PRESET_NAMES, ConfigError, RunConfig
+from app.settings.loading import build_config, load_config, load_preset, to_toml
 
 
 def test_defaults_are_the_thesis_table_2_4() -> None:
@@ -157,7 +151,8 @@ def test_cli_layers_preset_then_file_then_options(tmp_path: Path) -> None:
 
 
 def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> None:
-    from app.config import RunConfig, stored_config
+    from app.settings.config import RunConfig
+    from app.settings.loading import stored_config
 
     new = RunConfig()
     assert new.training.schedule_progress == "last-generation-min"
@@ -173,8 +168,8 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
 @pytest.mark.parametrize("name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma"])
 def test_the_controllers_settings_are_gnps_own(name: str) -> None:
     import gnp
-    from app.config import ControllerSettings
-    from app.fields import read_setting
+    from app.settings.config import ControllerSettings
+    from app.settings.fields import read_setting
 
     lab, brain = read_setting(ControllerSettings, name), read_setting(gnp.GnpConfig, name)
     assert lab is not None and brain is not None

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import gnp
-from app.config import ImplementationSettings
-from app.implementation import (
+from app.brains.registry import family_of
+from app.phases.implementation import (
     ImplementationError,
     check_name,
     default_name,
@@ -18,6 +18,7 @@ from app.implementation import (
     implement,
     run_implementation,
 )
+from app.settings.config import ImplementationSettings
 from app.store import RunFileError, RunReader
 
 
@@ -88,10 +89,11 @@ def test_dead_sensors_and_stored_results(tmp_path: Path, finished_run: Path) -> 
 
 def test_trials_do_not_depend_on_the_batch(finished_run: Path) -> None:
     with RunReader(finished_run) as run:
-        cfg, individual = run.best_genome()
+        family = family_of(run.config)
+        individual = family.best(run)
     common = {"seed": 5, "control_period": 0.064, "name": "x", "generation": 2}
-    one = run_implementation(cfg, individual, _settings(repeats=1), **common)  # type: ignore[arg-type]
-    two = run_implementation(cfg, individual, _settings(repeats=2), **common)  # type: ignore[arg-type]
+    one = run_implementation(family, individual, _settings(repeats=1), **common)  # type: ignore[arg-type]
+    two = run_implementation(family, individual, _settings(repeats=2), **common)  # type: ignore[arg-type]
     assert np.array_equal(one.trial_mean_reward, two.trial_mean_reward[:10])
     assert np.array_equal(one.trials.poses, two.trials.poses)
 
@@ -125,17 +127,18 @@ def test_an_open_reader_sees_a_new_implementation_after_refresh(
 def test_results_are_identical_for_any_number_of_workers(
     finished_run: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import app.implementation as phase
+    import app.phases.implementation as phase
 
     monkeypatch.setattr(phase, "TRIALS_PER_WORLD", 6)  # 30 trials: 1 recorded + 5 worlds
     with RunReader(finished_run) as run:
-        cfg, individual = run.best_genome()
+        family = family_of(run.config)
+        individual = family.best(run)
     settings = _settings(repeats=3, recorded_trials=1, break_count=2, broken_sensors=())
     common = {"seed": 5, "control_period": 0.064, "name": "x", "generation": 2}
     seen: list[tuple[int, int]] = []
-    one = run_implementation(cfg, individual, settings, workers=1, **common)  # type: ignore[arg-type]
+    one = run_implementation(family, individual, settings, workers=1, **common)  # type: ignore[arg-type]
     two = run_implementation(
-        cfg,
+        family,
         individual,
         settings,
         workers=2,
@@ -154,10 +157,12 @@ def test_k_random_sensors_break_per_trial_the_same_for_every_individual(
     finished_run: Path,
 ) -> None:
     with RunReader(finished_run) as run:
-        cfg, individual = run.best_genome()
+        family = family_of(run.config)
+        individual = family.best(run)
+        cfg = family.graph_config
     settings = _settings(repeats=2, recorded_trials=20, break_count=3, broken_sensors=())
     result = run_implementation(
-        cfg, individual, settings, seed=11, control_period=0.064, name="x", generation=2
+        family, individual, settings, seed=11, control_period=0.064, name="x", generation=2
     )
     dead_after = np.all(result.trials.observations[:, 61:] == 0, axis=1)  # (trials, 8)
     draws = phase_draws(11, 20, 3)
@@ -170,13 +175,13 @@ def test_k_random_sensors_break_per_trial_the_same_for_every_individual(
     # Another individual (another arm of an experiment) meets the same broken sensors.
     other = gnp.init_population(cfg, 1, np.random.default_rng(99))
     again = run_implementation(
-        cfg, other, settings, seed=11, control_period=0.064, name="y", generation=0
+        family, other, settings, seed=11, control_period=0.064, name="y", generation=0
     )
     assert np.all(np.all(again.trials.observations[:, 61:] == 0, axis=1)[expected])
 
 
 def phase_draws(seed: int, trials: int, k: int) -> np.ndarray:
-    from app.seeds import broken_sensor_draws
+    from app.loop.seeds import broken_sensor_draws
 
     return broken_sensor_draws(seed, np.arange(trials), k, 8)
 

@@ -16,6 +16,9 @@ from hypothesis import strategies as st
 from lab_fixtures import file_digest, tiny_config
 
 import gnp
+from app.brains.gnp_brain import initial_population
+from app.brains.registry import family_of
+from app.settings.config import NeuroSettings
 from app.store import (
     SCHEMA_VERSION,
     RunFileError,
@@ -26,7 +29,6 @@ from app.store import (
     resolve_run,
     run_name,
 )
-from app.training import initial_population, run_template
 from sim import TERM_NAMES
 
 
@@ -66,7 +68,7 @@ def test_half_written_checkpoint_is_never_used(tmp_path: Path) -> None:
     other = {name: values.copy() for name, values in pop.items()}
     other["speed"][:] = 3
     path = tmp_path / "run.h5"
-    writer = RunWriter.create(path, run_template(config))
+    writer = RunWriter.create(path, family_of(config).run_template())
     writer.write_checkpoint(1, pop)
     writer.write_checkpoint(2, other)
     with RunReader(path) as run:
@@ -85,7 +87,7 @@ def test_half_written_checkpoint_is_never_used(tmp_path: Path) -> None:
 def test_create_refuses_an_existing_file(finished_run: Path) -> None:
     before = file_digest(finished_run)
     with pytest.raises(RunFileError, match="already exists"):
-        RunWriter.create(finished_run, run_template(tiny_config()))
+        RunWriter.create(finished_run, family_of(tiny_config()).run_template())
     assert file_digest(finished_run) == before
 
 
@@ -158,28 +160,28 @@ def test_list_and_resolve(tmp_path: Path, finished_run: Path) -> None:
     assert list_runs(tmp_path / "nowhere") == []
 
 
-def test_run_names_hold_method_judgment_seed_and_utc_time(tmp_path: Path) -> None:
+def test_run_names_hold_the_brains_stem_seed_and_utc_time(tmp_path: Path) -> None:
     config = tiny_config()  # CS, fuzzy, seed 7
+    stem = family_of(config).file_stem
     now = datetime(2026, 1, 2, 3, 4, 5, tzinfo=UTC)
-    assert run_name(config, now) == "CS-fuzzy-seed7-20260102T030405Z"
+    assert run_name(stem, config.seed, now) == "CS-fuzzy-seed7-20260102T030405Z"
     # 23:04:05 on New Year's Eve at UTC−5 is 04:04:05 UTC the next day (and year).
     new_york = datetime(2025, 12, 31, 23, 4, 5, tzinfo=timezone(timedelta(hours=-5)))
-    assert run_name(config, new_york) == "CS-fuzzy-seed7-20260101T040405Z"
+    assert run_name(stem, config.seed, new_york) == "CS-fuzzy-seed7-20260101T040405Z"
     crisp = config.model_copy(
-        update={
-            "seed": 12,
-            "controller": config.controller.model_copy(update={"method": "BS", "fuzzy": False}),
-        }
+        update={"controller": config.controller.model_copy(update={"method": "BS", "fuzzy": False})}
     )
-    assert run_name(crisp, now) == "BS-crisp-seed12-20260102T030405Z"
+    assert run_name(family_of(crisp).file_stem, 12, now) == "BS-crisp-seed12-20260102T030405Z"
+    neat = config.model_copy(update={"neuro": NeuroSettings(optimiser="neat")})
+    assert run_name(family_of(neat).file_stem, 7, now) == "neat-seed7-20260102T030405Z"
     # A name already taken gets the first free copy number.
-    first = new_run_path(tmp_path, config, now)
+    first = new_run_path(tmp_path, stem, 7, now)
     assert first == tmp_path / "CS-fuzzy-seed7-20260102T030405Z.h5"
     first.touch()
-    second = new_run_path(tmp_path, config, now)
+    second = new_run_path(tmp_path, stem, 7, now)
     assert second == tmp_path / "CS-fuzzy-seed7-20260102T030405Z-2.h5"
     second.touch()
-    assert new_run_path(tmp_path, config, now).name == "CS-fuzzy-seed7-20260102T030405Z-3.h5"
+    assert new_run_path(tmp_path, stem, 7, now).name == "CS-fuzzy-seed7-20260102T030405Z-3.h5"
 
 
 @given(

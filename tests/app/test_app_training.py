@@ -18,12 +18,13 @@ from hypothesis import strategies as st
 from lab_fixtures import assert_same_data, datasets, file_digest, tiny_config
 
 import sim
-from app.config import ImplementationSettings, build_config, to_toml
-from app.implementation import implement
-from app.lives import shards
-from app.seeds import life_seeds, n_segments
+from app.loop.seeds import life_seeds, n_segments
+from app.phases.implementation import implement
+from app.phases.lives import shards
+from app.phases.training import resume, train
+from app.settings.config import ImplementationSettings
+from app.settings.loading import build_config, to_toml
 from app.store import RunFileError, RunReader
-from app.training import resume, train
 
 
 @given(st.sets(st.integers(0, 500), min_size=1, max_size=20), st.integers(0, 3))
@@ -237,7 +238,7 @@ def test_sigterm_stops_cleanly_and_resumes(tmp_path: Path, long_config: tuple[Pa
 
 
 def test_a_stop_wins_over_a_pause() -> None:
-    from app.training import Control
+    from app.phases.training import Control
 
     control = Control()
     control.stop()
@@ -256,8 +257,8 @@ def test_a_stop_wins_over_a_pause() -> None:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_and_sigterm_leave_the_same_stop_request(sig: int) -> None:
-    from app.generations import stop_on_signals
-    from app.training import Control
+    from app.phases.generations import stop_on_signals
+    from app.phases.training import Control
 
     control = Control()
     before = signal.getsignal(sig)
@@ -270,7 +271,7 @@ def test_ctrl_c_and_sigterm_leave_the_same_stop_request(sig: int) -> None:
 def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path) -> None:
     """SIGTERM during numba's compilation can lose its KeyboardInterrupt inside llvmlite; the
     request it left stops the run at the next generation, resumable."""
-    import app.training as training
+    import app.phases.training as training
 
     out = tmp_path / "stopped.h5"
 

@@ -21,7 +21,8 @@ import pytest
 from fingerprints import implementation_digests, training_digests
 
 import sim
-from app.implementation import run_implementation
+from app.brains.registry import family_of
+from app.phases.implementation import run_implementation
 from app.store import RunReader
 
 DEMO = Path(__file__).parents[2] / "saved_runs" / "demo.h5"
@@ -41,13 +42,14 @@ def test_the_demo_stores_implementations_to_replay() -> None:
 def test_demo_implementation_trials_replay_to_the_bit(name: str) -> None:
     with RunReader(DEMO) as run:
         stored = run.implementation(name)
-        cfg, individual = run.best_genome(stored.generation)
+        family = family_of(run.config)
+        individual = family.best(run, stored.generation)
         seed = stored.settings.seed if stored.settings.seed is not None else run.seed
         control_period = run.config.training.control_period
     steps = min(STEPS, stored.settings.steps)
     settings = stored.settings.model_copy(update={"repeats": 1, "steps": steps})
     again = run_implementation(
-        cfg,
+        family,
         individual,
         settings,
         seed=seed,
@@ -65,7 +67,7 @@ def test_demo_implementation_trials_replay_to_the_bit(name: str) -> None:
 
 
 # The analytic world's poses are pymunk's bit for bit, and GNP controllers in it run the compiled
-# loop (app.fused): the same digests pin that loop to the code before the speed work too.
+# loop (app.loop.fused): the same digests pin that loop to the code before the speed work too.
 PHYSICS = ["pymunk", "analytic"]
 
 

@@ -8,14 +8,15 @@ import tomllib
 import pytest
 from pydantic import BaseModel, Field
 
-from app.cli import build_parser, main
-from app.cli_options import (
+from app.cli import main
+from app.cli.parser import build_parser
+from app.settings.cli_options import (
     OPTION_NAMES,
     add_setting_options,
     given_settings,
 )
-from app.config import implement_settings, train_settings
-from app.fields import Setting, about, settings_of
+from app.settings.fields import Setting, about, settings_of
+from app.settings.loading import implement_settings, train_settings
 
 
 def _flag(setting: Setting) -> str:

@@ -11,7 +11,7 @@ import pytest
 
 import gnp
 import neuro
-from app.controller_file import (
+from app.store.controller_file import (
     ControllerFileError,
     GnpController,
     NetController,

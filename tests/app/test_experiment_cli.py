@@ -11,15 +11,15 @@ from experiment_fixtures import TINY_TOML, tiny_data, to_toml, write_tiny
 from lab_fixtures import file_digest, one_error_line, tiny_config
 
 from app.cli import main
-from app.config import build_config
 from app.experiments.cli import _core_time
 from app.experiments.planning import plan
 from app.experiments.results import CORE_STEPS_PER_SECOND, VERDICTS
 from app.experiments.spec import load_file
 from app.experiments.summary import read_summary
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.loading import build_config
 from app.store import RunReader
-from app.training import train
 
 
 def _files(folder: Path) -> dict[Path, str]:

@@ -15,13 +15,13 @@ import pytest
 
 import gnp
 from app.cli import main
-from app.config import ImplementationSettings
-from app.controller_file import GnpController, load_controller
 from app.export import ExportError, export_run
 from app.export.graph import graph_dot, transition_counts, visit_sequence
 from app.export.replay import CLIENT_BUILD, PLAY_RECORDING
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.settings.config import ImplementationSettings
 from app.store import RunReader
+from app.store.controller_file import GnpController, load_controller
 
 EDGE = re.compile(r"^\s*n(\d+) -> n(\d+) \[(.*)\];$")
 NODE = re.compile(r'^\s*n(\d+) \[label="([^"]*)"')

@@ -18,12 +18,12 @@ from experiment_fixtures import write_tiny
 from lab_fixtures import assert_same_data, file_digest, finish, gnp_lab, tiny_config
 
 from app.cli import main
-from app.config import to_toml
 from app.experiments.planning import plan
 from app.experiments.spec import load_file
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.loading import to_toml
 from app.store import RunReader
-from app.training import train
 
 MOMENTS = 10
 RNG_SEED = 21  # the kill moments are drawn from this seed: the same moments on every run
@@ -364,7 +364,7 @@ def test_an_old_run_file_naming_shipped_arenas_loads_them_inline(
     shipped arenas, so the config equals the one a new run of it stores."""
     import h5py
 
-    from app.arenas import shipped_spec
+    from app.settings.arenas import shipped_spec
 
     path = tmp_path / "old.h5"
     shutil.copy(finished_run, path)

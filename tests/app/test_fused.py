@@ -1,4 +1,5 @@
-"""The compiled loop (app.fused) steps a batch exactly as its stages one at a time do, bit for bit.
+"""The compiled loop (app.loop.fused) steps a batch exactly as its stages one at a time do, bit
+for bit.
 
 Copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing during
 the steps, episodes redrawn): one stepped by `Batch.staged_step` (the stages called one by one
@@ -18,10 +19,10 @@ import pytest
 
 import gnp
 import sim
-from app import fused
-from app.config import CFrom
-from app.recording import TrajectoryRecorder
-from app.rollout import Batch, rollout
+from app.loop import fused
+from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.loop.rollout import Batch, rollout
+from app.settings.config import CFrom
 
 N = 10  # more than a block of 3: the compiled loop splits the batch
 FAULTS = (
@@ -155,8 +156,8 @@ def test_a_compiled_rollout_is_the_per_step_rollout_to_the_bit(
     alpha = np.linspace(0.0, 0.2, steps)
     starts = np.random.default_rng(5).integers(0, 10, (N, 3))
     each, compiled, recorded = (_batch(method, fuzzy, c_from) for _ in range(3))
-    recorder = TrajectoryRecorder(N, steps, each.gnp_controllers.cfg)
-    expected = TrajectoryRecorder(N, steps, each.gnp_controllers.cfg)
+    recorder = TrajectoryRecorder(N, steps, gnp_trace(each.gnp_controllers.cfg))
+    expected = TrajectoryRecorder(N, steps, gnp_trace(each.gnp_controllers.cfg))
     sums = np.zeros((N, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
     poses = each.world.arena.start_poses

@@ -10,9 +10,9 @@ import h5py
 import numpy as np
 from lab_fixtures import datasets, tiny_config
 
-from app.arenas import shipped_spec
-from app.implementation import implement
-from app.training import train
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.arenas import shipped_spec
 from sim.arena import ArenaSpec
 
 #: sha256 of a tiny CS run's datasets and config, trained and implemented by the code before

@@ -3,13 +3,20 @@
 Every `import` and `from … import` in sim/, gnp/, neuro/ and app/ is read with `ast` (those inside
 functions too: a lazy import is still a dependency). Layers, lowest first:
 
-0. `sim`, `gnp`, `neuro`: the world and the brains; none imports another nor anything above.
-1. the lab core: app's own modules (`app/*.py`) with `app/store/` and `app/presets/`.
-2. `app.views` (what the dashboard and the export both draw) and `app.tasks` (GNP on
+0. `sim`, `gnp`, `neuro`: the world and the brains' arithmetic; none imports another nor anything
+   above.
+1. `app.settings` (the run configuration, its fields, presets, arenas, CLI options) and
+   `app.system` (worker processes, safe names, exit codes); `app` itself (its `__init__`).
+2. `app.loop`: the one loop (`rollout`), its compiled form, recording, random streams.
+3. `app.store`: run files and controller files.
+4. `app.brains`: the brain contract, its registry and the families behind it.
+5. `app.phases`: training, implementation and live robots, each a use of the loop through the
+   contract.
+6. `app.views` (what the dashboard and the export both draw) and `app.tasks` (GNP on
    Gymnasium tasks).
-3. `app.experiments` (which runs task experiments through `app.tasks.peer`) and `app.export`.
-4. `app.dashboard`.
-5. `app.cli`, which wires everything into `gnp-lab`.
+7. `app.experiments` (which runs task experiments through `app.tasks.peer`) and `app.export`.
+8. `app.dashboard`.
+9. `app.cli`, which wires everything into `gnp-lab`.
 
 A folder may import its own modules and any folder of a lower layer, never one of its own layer
 or above, so the folders cannot import each other in a loop.
@@ -31,12 +38,18 @@ LAYER = {
     "gnp": 0,
     "neuro": 0,
     CORE: 1,
-    "app.experiments": 3,
-    "app.views": 2,
-    "app.tasks": 2,
-    "app.export": 3,
-    "app.dashboard": 4,
-    "app.cli": 5,
+    "app.settings": 1,
+    "app.system": 1,
+    "app.loop": 2,
+    "app.store": 3,
+    "app.brains": 4,
+    "app.phases": 5,
+    "app.views": 6,
+    "app.tasks": 6,
+    "app.experiments": 7,
+    "app.export": 7,
+    "app.dashboard": 8,
+    "app.cli": 9,
 }
 
 
@@ -72,7 +85,7 @@ def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
 
 def folder(module: str) -> str:
     """The layer-bearing folder of a module: `sim.world` → `sim`, `app.views.scene` →
-    `app.views`, `app.config` and `app.store.reader` → the core."""
+    `app.views`, `app.store.reader` → `app.store`, `app/__init__.py` → the core."""
     parts = module.split(".")
     if parts[0] != "app":
         return parts[0]
@@ -156,15 +169,16 @@ def test_the_checks_catch_what_they_are_for() -> None:
         "app.dashboard.stage": {"app.views.scene"},
         "sim.world": {"gnp.engine"},  # sim and gnp never import each other
         "gnp.engine": set(),
-        "app.config": {"app.store.reader"},  # the core with its store: one layer, fine
-        "app.store.reader": set(),
+        "app.store.reader": {"app.settings.config"},  # the store reads settings: downwards, fine
+        "app.settings.config": set(),
     }
     assert layer_violations(bad) == [
-        "app.views.scene (layer 2) imports app.dashboard.stage (layer 4)",
+        "app.views.scene (layer 6) imports app.dashboard.stage (layer 8)",
         "sim.world (layer 0) imports gnp.engine (layer 0)",
     ]
     assert cycles(bad) == [frozenset({"app.views.scene", "app.dashboard.stage"})]
-    assert folder("app.store.reader") == folder("app.config") == CORE
+    assert folder("app.store.reader") == "app.store"
+    assert folder("app") == CORE
     assert folder("app.views.graph_view") == "app.views"
 
 

@@ -6,9 +6,9 @@ import numpy as np
 
 import neuro
 import sim
-from app.neural import NeuralControllers, trace_layout
-from app.recording import TrajectoryRecorder
-from app.rollout import Batch, rollout
+from app.brains.nets import NeuralControllers, trace_layout
+from app.loop.recording import TrajectoryRecorder
+from app.loop.rollout import Batch, rollout
 
 NET = neuro.ElmanConfig(hidden=3)
 

@@ -16,17 +16,19 @@ import numpy as np
 import pytest
 from lab_fixtures import assert_same_data, datasets, tiny_config
 
-import app.training as training
+import app.phases.training as training
 import sim
-from app.arenas import arena_of
-from app.config import ImplementationSettings, RunConfig, build_config, to_toml
-from app.controller_file import NetController, load_controller
+from app.brains.registry import family_of
 from app.export import ExportError, export_replay, export_run
-from app.implementation import implement
-from app.lives import live_nets
-from app.seeds import life_seeds
+from app.loop.seeds import life_seeds
+from app.phases.implementation import implement
+from app.phases.lives import live
+from app.phases.training import resume, train
+from app.settings.arenas import arena_of
+from app.settings.config import ImplementationSettings, RunConfig
+from app.settings.loading import build_config, to_toml
 from app.store import RunFileError, RunReader, list_runs
-from app.training import resume, train
+from app.store.controller_file import NetController, load_controller
 
 OPTIMISERS = ("cmaes", "neat")
 
@@ -179,11 +181,13 @@ def test_an_exported_net_is_loaded_bit_identical_and_lives_the_elites_life(
         seed=config.seed,
         noise_sigma=training_settings.noise_sigma,
     )
-    _, life = live_nets(world, net, arrays, seeds, training_settings.steps, 0, record=True)
+    family = family_of(config)
+    assert family.network_config == net
+    _, life = live(world, family, arrays, seeds, training_settings.steps, 0, 0.0, 0.0, record=True)
     assert life is not None
     assert np.array_equal(life.poses, elite.poses)
     assert np.array_equal(life.trace["activation"], elite.trace["activation"])
-    with pytest.raises(ExportError, match="neural run"):
+    with pytest.raises(ExportError, match="is a neat run"):
         export_replay(neat_run, tmp_path / "replay")
 
 
@@ -199,22 +203,19 @@ def test_the_cli_trains_a_brain_and_lists_it(tmp_path: Path) -> None:
         text=True,
     ).stdout
     (line,) = listing.splitlines()[1:]
-    assert line.startswith("cmaes-seed0-") and " cmaes " in line and "finished" in line
+    assert line.startswith("cmaes-seed0-") and " cmaes: Elman net, 3 hidden " in line
+    assert "finished" in line
     with RunReader(next(tmp_path.glob("*.h5"))) as run:
         assert run.config.neuro is not None and run.config.neuro.hidden == 3
 
 
 def test_the_workers_send_learned_gnp_back_but_not_the_unchanged_nets() -> None:
-    from app.generations import Evaluator
-    from app.neuro_training import make_optimiser
-    from app.training import initial_population
+    from app.brains.registry import family_of
+    from app.phases.generations import Evaluator
 
     everyone = np.arange(10)
     for config in (neural_config("cmaes"), tiny_config(population=10)):
-        if config.neuro is not None:
-            individuals: object = make_optimiser(config).arrays()
-        else:
-            individuals = initial_population(config)
+        individuals = family_of(config).first().individuals()
         starts = len(arena_of(config.training.arena).start_poses)
         seeds = life_seeds(config.seed, 0, everyone, 1, starts)
         with Evaluator(config, 2, local=False) as pool:  # two workers, one shard each or more

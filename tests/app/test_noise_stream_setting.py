@@ -12,12 +12,14 @@ import pytest
 from lab_fixtures import datasets, tiny_config
 
 import sim
-from app.cli import build_parser, config_from_args
-from app.config import ConfigError, RunConfig, build_config, stored_config
+from app.cli.parser import build_parser
+from app.cli.train import config_from_args
 from app.experiments.spec import load_shipped
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.config import ConfigError, RunConfig
+from app.settings.loading import build_config, stored_config
 from app.store import RunReader
-from app.training import train
 
 
 def test_the_default_is_box_muller_and_old_run_files_read_as_it() -> None:

@@ -12,12 +12,14 @@ import pytest
 from lab_fixtures import assert_same_data, tiny_config
 
 import sim
-from app.cli import build_parser, config_from_args
-from app.config import ConfigError, RunConfig, build_config, stored_config
+from app.cli.parser import build_parser
+from app.cli.train import config_from_args
 from app.experiments.spec import load_shipped, parse
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.config import ConfigError, RunConfig
+from app.settings.loading import build_config, stored_config
 from app.store import RunReader
-from app.training import train
 
 
 def test_the_default_is_pymunk_and_old_run_files_read_as_pymunk() -> None:
@@ -104,7 +106,7 @@ def test_the_dashboards_implementation_phase_keeps_the_runs_physics(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """It ran in pymunk whatever the run's physics (issue #33); it reads the run's worlds as
-    `implement` does (`app.implementation.implementation_of`), and gives its numbers."""
+    `implement` does (`app.phases.implementation.implementation_of`), and gives its numbers."""
     from app.dashboard.implementation_job import ImplementationRequest, implement_run
 
     path = tmp_path / "analytic.h5"

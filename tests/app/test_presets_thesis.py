@@ -12,8 +12,9 @@ from typing import Any
 
 import pytest
 
-from app.arenas import shipped_spec
-from app.config import RunConfig, build_config, load_preset
+from app.settings.arenas import shipped_spec
+from app.settings.config import RunConfig
+from app.settings.loading import build_config, load_preset
 
 # Rows shared by every chapter: Tables 2.4 (l. 595-603), 3.1 (l. 846-858), 4.1 (l. 1011-1021)
 # and 5.1 (l. 1276-1287) repeat them.
@@ -231,7 +232,7 @@ def test_baselines_are_the_thesis_arms() -> None:
 
 
 def test_ch4_learning_rates_follow_table_4_1_in_both_phases() -> None:
-    import app.training as training
+    import app.brains.gnp_brain as training
 
     ch4 = load_preset("thesis-ch4")
     # Eq. 4.1-4.2, n = 1: the first generation uses max, the 1000th (g = 999) min (§4.3.1).

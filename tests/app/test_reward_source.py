@@ -13,13 +13,15 @@ from lab_fixtures import assert_same_data, tiny_config
 
 import gnp
 import sim
-from app.cli import build_parser, config_from_args
-from app.config import CFrom, ConfigError, RunConfig, build_config, stored_config
-from app.implementation import implement
-from app.recording import TrajectoryRecorder
-from app.rollout import Batch, rollout
+from app.cli.parser import build_parser
+from app.cli.train import config_from_args
+from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.loop.rollout import Batch, rollout
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.config import CFrom, ConfigError, RunConfig
+from app.settings.loading import build_config, stored_config
 from app.store import RunReader
-from app.training import train
 
 CFG = gnp.GnpConfig(method="RL", n_sub=2, fuzzy=False)
 N, T = 6, 100
@@ -73,7 +75,7 @@ def _batch(noise: float, c_from: CFrom, faults: Sequence[sim.Fault] = (), n: int
 
 def _live(batch: Batch, steps: int = T) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(true readings after each step, what the controllers see after each step, C paid)."""
-    recorder = TrajectoryRecorder(batch.size, steps, CFG)
+    recorder = TrajectoryRecorder(batch.size, steps, gnp_trace(CFG))
     rollout(batch, steps, 0.1, 0.1, recorder=recorder)
     life = recorder.trajectory(np.zeros(batch.size, np.int64))
     # What the controllers saw before step t + 1 is what they see after step t (same draws).

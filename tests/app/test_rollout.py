@@ -7,8 +7,8 @@ import pytest
 
 import gnp
 import sim
-from app.recording import TrajectoryRecorder
-from app.rollout import Batch, rollout
+from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.loop.rollout import Batch, rollout
 
 CFG = gnp.GnpConfig(method="BS", n_sub=2, n_branch=2)
 
@@ -52,7 +52,7 @@ def test_blocks_of_steps_continue_one_life() -> None:
 
 def test_the_returned_sums_are_the_recorded_rewards() -> None:
     batch = _batch(4)
-    recorder = TrajectoryRecorder(4, 25, CFG)
+    recorder = TrajectoryRecorder(4, 25, gnp_trace(CFG))
     outcome = rollout(batch, 25, 0.1, 0.1, recorder=recorder)
     life = recorder.trajectory(np.zeros(4, np.int64))
     for column, name in enumerate(sim.TERM_NAMES):
@@ -86,7 +86,7 @@ def test_offline_steps_leave_q_tables_alone() -> None:
 def test_episodes_move_robots_to_their_next_start_pose() -> None:
     batch = _batch(2, noise=0.0)
     starts = np.array([[0, 4], [1, 7]])
-    recorder = TrajectoryRecorder(2, 20, CFG)
+    recorder = TrajectoryRecorder(2, 20, gnp_trace(CFG))
     rollout(batch, 20, 0.1, 0.1, recorder=recorder, episode_starts=starts, redraw_every=10)
     poses = recorder.trajectory(starts[:, 0]).poses
     arena_poses = batch.world.arena.start_poses

@@ -1,4 +1,4 @@
-"""`app.workers`: share_out's results in call order whoever computes them, its progress as it
+"""`app.system.workers`: share_out's results in call order whoever computes them, its progress as it
 goes, errors surface with the worker's traceback; the pool's waits end."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from app.workers import Count, Handler, WorkerDied, WorkerPool, share_out, start_method
+from app.system.workers import Count, Handler, WorkerDied, WorkerPool, share_out, start_method
 
 PARENT = os.getpid()  # a forked child inherits this value and knows it is not the parent
 

@@ -12,6 +12,8 @@ from lab_fixtures import file_digest, tiny_config
 from test_store_schema import an_implementation
 
 import gnp
+from app.brains.gnp_brain import initial_population
+from app.brains.registry import family_of
 from app.store import (
     Implementation,
     RunFileError,
@@ -21,7 +23,6 @@ from app.store import (
     writer,
 )
 from app.store.files import atomic_file
-from app.training import initial_population, run_template
 
 
 class Crash(Exception):
@@ -90,7 +91,7 @@ def test_a_resume_that_fails_half_way_leaves_the_run_intact(
 ) -> None:
     config = tiny_config()
     path = tmp_path / "run.h5"
-    with RunWriter.create(path, run_template(config)) as run:
+    with RunWriter.create(path, family_of(config).run_template()) as run:
         run.write_checkpoint(1, gnp.population_to_arrays(initial_population(config)))
     before = file_digest(path)
 
@@ -120,10 +121,10 @@ def test_a_create_that_fails_half_way_leaves_no_file(
 
     monkeypatch.setattr(writer, "build_run_layout", crash)
     with pytest.raises(Crash):
-        RunWriter.create(path, run_template(tiny_config()))
+        RunWriter.create(path, family_of(tiny_config()).run_template())
     assert not path.exists()
     assert _leftovers(tmp_path) == []
     monkeypatch.undo()
-    RunWriter.create(path, run_template(tiny_config())).close()  # the lock was released
+    RunWriter.create(path, family_of(tiny_config()).run_template()).close()  # the lock was released
     with pytest.raises(RunFileError, match="already exists"):
-        RunWriter.create(path, run_template(tiny_config()))
+        RunWriter.create(path, family_of(tiny_config()).run_template())

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 from lab_fixtures import tiny_config
 
-from app.config import ImplementationSettings
-from app.recording import Trajectory
+from app.brains.registry import family_of
+from app.loop.recording import Trajectory
+from app.settings.config import ImplementationSettings
 from app.store import Implementation, RunReader, RunTemplate, RunWriter, add_implementation, schema
 from app.store.schema import (
     IMPLEMENTATION_LAYOUT,
@@ -24,7 +25,6 @@ from app.store.schema import (
     implementation_dims,
     place,
 )
-from app.training import run_template
 from sim import TERM_NAMES
 
 DEMO = Path(__file__).parents[2] / "saved_runs" / "demo.h5"
@@ -58,7 +58,7 @@ def _assert_matches(group: h5py.Group, expected: list[Placed]) -> None:
 
 
 def test_a_new_run_file_holds_exactly_the_table(tmp_path: Path) -> None:
-    template = run_template(tiny_config())
+    template = family_of(tiny_config()).run_template()
     path = tmp_path / "run.h5"
     RunWriter.create(path, template).close()
     with h5py.File(path, "r") as handle:
@@ -81,7 +81,7 @@ def test_a_new_run_file_holds_exactly_the_table(tmp_path: Path) -> None:
 def test_the_units_attribute_comes_from_the_table(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    template = run_template(tiny_config())
+    template = family_of(tiny_config()).run_template()
     RunWriter.create(tmp_path / "run.h5", template).close()
     with h5py.File(tmp_path / "run.h5", "r") as handle:
         units = json.loads(handle.attrs["units"])

@@ -1,4 +1,4 @@
-"""`app.workers` and the lab's processes when their parent is killed: `kill -9` of a gnp-lab
+"""`app.system.workers` and the lab's processes when their parent is killed: `kill -9` of a gnp-lab
 process that started workers (training's pool, the implementation's, a Dask LocalCluster's
 nannies and workers) leaves no process of it running 3 s later, and what it was writing is
 kept (the run resumes); SIGTERM ends a command on one line, its workers with it."""
@@ -14,7 +14,7 @@ import pytest
 from experiment_fixtures import write_tiny
 from lab_fixtures import children_of, file_digest, finish, gnp_lab, kill_alone, tiny_config
 
-from app.config import to_toml
+from app.settings.loading import to_toml
 from app.store import RunReader
 
 

@@ -9,9 +9,10 @@ from typing import Any
 
 import pytest
 
-from app.config import RunConfig, build_config
 from app.dashboard.headless import CHROMIUM_ARGS, start_dashboard, stop_dashboard
-from app.training import train
+from app.phases.training import train
+from app.settings.config import RunConfig
+from app.settings.loading import build_config
 
 REPO = Path(__file__).resolve().parents[2]
 SCREENSHOTS = REPO / "test-output" / "dashboard"

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 import gnp
 import sim
-from app.live import LiveSession, RobotSpec
+from app.brains.gnp_brain import GnpFamily
+from app.phases.live import LiveSession, RobotSpec
 from app.views import geometry as geo
 from sim.sensors import ir_distances
 
@@ -82,7 +83,8 @@ def test_the_drawn_rays_stop_at_the_walls(server: object) -> None:
 
     cfg = gnp.GnpConfig(method="RL")
     session = LiveSession(
-        ARENA, [RobotSpec("r", cfg, gnp.init_population(cfg, 1, np.random.default_rng(0)))]
+        ARENA,
+        [RobotSpec("r", GnpFamily.of(cfg), gnp.init_population(cfg, 1, np.random.default_rng(0)))],
     )
     snapshot = session.snapshot()[0]
     view = ArenaView(server, ARENA, max_robots=1)  # type: ignore[arg-type]

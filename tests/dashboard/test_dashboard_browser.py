@@ -81,7 +81,7 @@ def test_page_shows_a_run_that_moves(page: Any, screenshots: Path) -> None:
     from playwright.sync_api import expect
 
     first = int(wait_for(page, r"on show: step ([1-9]\d*)").group(1))
-    expect(on_show(page)).to_contain_text("cs (CS, fuzzy)", timeout=TIMEOUT_MS)
+    expect(on_show(page)).to_contain_text("cs (CS fuzzy)", timeout=TIMEOUT_MS)
     # Moving on (a new life from the next start pose after T steps also counts).
     later_step(page, first)
     wait_for(page, r"fitness plot: 2 generations")

@@ -12,7 +12,6 @@ from page_helpers import dashboard_in_process, until
 
 import gnp
 from app import store
-from app.config import build_config, load_preset
 from app.dashboard.controls import (
     DashboardInputError,
     finite,
@@ -21,6 +20,7 @@ from app.dashboard.controls import (
     whole,
 )
 from app.dashboard.training_job import TrainingJob
+from app.settings.loading import build_config, load_preset
 from app.views.genome import genome_view, node_label, node_markdown
 
 
@@ -274,7 +274,7 @@ def test_training_buttons_follow_the_jobs_state(state: str | None, enabled: set[
 
 
 def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
-    from app.config import train_settings
+    from app.settings.loading import train_settings
 
     with dashboard_in_process(tmp_path) as dashboard:
         train = dashboard.train
@@ -309,7 +309,7 @@ def test_the_train_tab_is_built_from_the_models(tmp_path: Path) -> None:
 def test_the_runs_and_compare_tabs_take_their_bounds_from_the_implementation_model(
     runs_dir: Path,
 ) -> None:
-    from app.config import ImplementationSettings
+    from app.settings.config import ImplementationSettings
 
     fields = ImplementationSettings.model_fields
     with dashboard_in_process(runs_dir, "cs") as dashboard:

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from app import store
-from app.config import RunConfig, build_config
 from app.dashboard.follower import FINISHED_RETRIES, TrainingFollower
-from app.training import GenerationSummary, train
+from app.phases.training import GenerationSummary, train
+from app.settings.config import RunConfig
+from app.settings.loading import build_config
 
 GENERATIONS = 3
 

@@ -99,7 +99,7 @@ def test_the_simplified_graph_draws_less_and_still_marks_the_walk(
     sent(page, switch.uncheck, "false")
     until(lambda: not dashboard.stage.learning.second_stage)
     assert session.learning.second_stage is False
-    method = dashboard.stage.show.robots[0].cfg.method
+    method = dashboard.stage.show.robots[0].family.label
     words = {"BS": "BS takes its greedy", "CS": "CS never takes", "RL": "RL has none"}[method]
     page.get_by_text(re.compile(words)).first.wait_for()
     sent(page, switch.check, "true")

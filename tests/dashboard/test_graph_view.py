@@ -11,8 +11,9 @@ from page_helpers import dashboard_in_process
 
 import gnp
 import sim
+from app.brains.gnp_brain import GnpFamily
 from app.dashboard.status import set_value
-from app.live import LiveSession, RobotSpec
+from app.phases.live import LiveSession, RobotSpec
 from app.views.graph_counts import FULL, SIMPLIFIED, edge_shades, graph_counts
 
 
@@ -74,7 +75,9 @@ def server() -> Iterator[object]:
 def live_robot(method: str, steps: int) -> LiveSession:
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
     population = gnp.init_population(cfg, 1, np.random.default_rng(4))
-    session = LiveSession(sim.load_arena("training"), [RobotSpec("r", cfg, population)])
+    session = LiveSession(
+        sim.load_arena("training"), [RobotSpec("r", GnpFamily.of(cfg), population)]
+    )
     session.step(steps)
     return session
 
@@ -86,16 +89,16 @@ def test_the_simplified_graph_draws_what_the_robot_runs(server: object) -> None:
     graph = GraphView(server, (0.0, -1.0), 1.0, 0.6)  # type: ignore[arg-type]
     session = live_robot("CS", 150)
     robot = session.robots[0]
-    graph.set_genome(genome_view(robot.cfg, robot.population))
+    graph.set_genome(genome_view(robot.family.graph_config, robot.population))
     snapshot = session.snapshot()[0]
     graph.update(snapshot)
     full = graph.drawn()
-    assert (full.mode, full.nodes) == (FULL, robot.cfg.n_nodes)
+    assert (full.mode, full.nodes) == (FULL, robot.family.graph_config.n_nodes)
     graph.set_mode(SIMPLIFIED)
     simple = graph.drawn()
     visited = np.flatnonzero(snapshot.node_visits)
     assert simple.nodes == len(visited) < full.nodes
-    taken = graph_counts(snapshot.visits, robot.cfg.n_nodes)
+    taken = graph_counts(snapshot.visits, robot.family.graph_config.n_nodes)
     assert simple.edges == len(taken.edges) < full.edges
     assert simple.segments < full.segments
     # Still marked: the current node (ringed), the last transition (the newest arrow).
@@ -108,7 +111,7 @@ def test_the_simplified_graph_draws_what_the_robot_runs(server: object) -> None:
     assert abs(dx * ey - dy * ex) < 1e-4 and dx * ex + dy * ey >= 0  # along it, same way
     assert {last_from, last_to} <= set(graph._shown_nodes.tolist())
     # Only drawn nodes answer a click; the full view is one switch away.
-    hidden = next(i for i in range(robot.cfg.n_nodes) if i not in set(visited))
+    hidden = next(i for i in range(robot.family.graph_config.n_nodes) if i not in set(visited))
     assert graph.node_at(positions[hidden]) is None
     assert graph.node_at(positions[visited[-1]]) == visited[-1]
     graph.set_mode(FULL)
@@ -131,7 +134,9 @@ def show_random(board: object, method: str) -> LiveSession:
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
     population = gnp.init_population(cfg, 1, np.random.default_rng(1))
     with board.lock:
-        return board.stage.swap_in(f"random {method}", RobotSpec(method, cfg, population))
+        return board.stage.swap_in(
+            f"random {method}", RobotSpec(method, GnpFamily.of(cfg), population)
+        )
 
 
 def switch_second_stage(board: object, on: bool) -> None:
@@ -193,7 +198,7 @@ def test_second_stage_off_a_bs_robot_takes_the_greedy_branch(dashboard: object) 
 @pytest.mark.parametrize("method", ["BS", "CS"])
 def test_rollout_carries_the_second_stage_switch(method: str) -> None:
     """`rollout(..., second_stage=False)` steps the batch as `gnp.step` does with it off."""
-    from app.rollout import Batch, rollout
+    from app.loop.rollout import Batch, rollout
 
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
     arena = sim.load_arena("training")

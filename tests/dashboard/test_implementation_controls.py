@@ -10,9 +10,9 @@ import pytest
 from page_helpers import dashboard_in_process
 
 import sim
-from app.config import ImplementationSettings, ScheduleKind
 from app.dashboard import tab_runs
 from app.dashboard.implementation_job import ImplementationRequest
+from app.settings.config import ImplementationSettings, ScheduleKind
 
 
 def test_fault_modes_and_schedules_are_the_models_choices(runs_dir: Path) -> None:

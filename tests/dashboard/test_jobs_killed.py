@@ -17,7 +17,7 @@ from app.store import RunReader
 TRAINING_JOB = """
 import sys, time
 from pathlib import Path
-from app.config import RunConfig
+from app.settings.config import RunConfig
 from app.dashboard.training_job import TrainingJob
 
 config = RunConfig.model_validate_json(Path(sys.argv[1]).read_text())

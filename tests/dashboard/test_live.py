@@ -9,9 +9,10 @@ import pytest
 
 import gnp
 import sim
-from app.config import ImplementationSettings
-from app.fields import read_setting
-from app.live import LearningSettings, LiveError, LiveSession, Ring, RobotSpec
+from app.brains.gnp_brain import VISIT_CAPACITY, GnpFamily
+from app.phases.live import LearningSettings, LiveError, LiveSession, Ring, RobotSpec
+from app.settings.config import ImplementationSettings
+from app.settings.fields import read_setting
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +22,9 @@ def arena() -> sim.Arena:
 
 def individual(method: str, seed: int = 1) -> RobotSpec:
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
-    return RobotSpec(method, cfg, gnp.init_population(cfg, 1, np.random.default_rng(seed)))
+    return RobotSpec(
+        method, GnpFamily.of(cfg), gnp.init_population(cfg, 1, np.random.default_rng(seed))
+    )
 
 
 def test_same_seed_same_run_and_the_callers_genome_is_untouched(arena: sim.Arena) -> None:
@@ -58,7 +61,7 @@ def test_visits_name_real_nodes_and_follow_the_trace(arena: sim.Arena) -> None:
     session.step(40)
     snap = session.snapshot()[0]
     nodes = snap.visits[:, 0]
-    assert np.all((nodes >= 0) & (nodes < spec.cfg.n_nodes))
+    assert np.all((nodes >= 0) & (nodes < spec.family.graph_config.n_nodes))
     assert snap.current_node == nodes[-1]
     assert set(np.unique(snap.visits[:, 4])) <= {0, 1}
 
@@ -174,7 +177,7 @@ def test_histories_stay_bounded(arena: sim.Arena) -> None:
     snap = session.snapshot()[0]
     assert len(snap.rewards) == robot.history_capacity
     assert len(snap.trajectory) == robot.trajectory_capacity
-    assert len(snap.visits) == robot.visit_capacity
+    assert len(snap.visits) == VISIT_CAPACITY
     assert snap.reward_steps[-1] == snap.t and snap.reward_steps[0] == snap.t - 999
 
 

@@ -14,6 +14,8 @@ from hypothesis import strategies as st
 import neuro
 import sim
 from app import store
+from app.brains.nets import NetFamily
+from app.brains.registry import family_of
 from app.dashboard.implementation_job import ImplementationRequest, implement_run
 from app.dashboard.network import (
     CONTEXT,
@@ -33,8 +35,8 @@ from app.dashboard.stage import Show, Stage, run_robot
 from app.dashboard.tab_faults import second_stage_words
 from app.dashboard.tab_plots import show_line
 from app.dashboard.tab_runs import runs_table
-from app.implementation import run_implementation
-from app.live import LiveSession, RobotSpec
+from app.phases.implementation import run_implementation
+from app.phases.live import LiveSession, RobotSpec
 
 
 def elman(hidden: int, seed: int = 0) -> tuple[neuro.ElmanConfig, dict[str, np.ndarray]]:
@@ -152,7 +154,9 @@ def test_every_edge_runs_left_to_right_and_every_nonzero_weight_is_one(
 def test_a_live_net_shows_the_values_its_net_computed(which: str) -> None:
     cfg, arrays = elman(3, seed=5) if which == "elman" else neat_net()
     kept = {k: v.copy() for k, v in arrays.items()}
-    session = LiveSession(sim.load_arena("training"), [RobotSpec("net", cfg, arrays)], seed=2)
+    session = LiveSession(
+        sim.load_arena("training"), [RobotSpec("net", NetFamily.of(cfg), arrays)], seed=2
+    )
     state = neuro.init_state(cfg, 1)
     for _ in range(25):
         session.step(1)
@@ -184,7 +188,7 @@ def test_a_neural_runs_best_goes_on_stage_in_either_arena(
     with store.RunReader(net_runs_dir / "elman.h5") as reader:
         stored = reader.best_genome_arrays(-1)
         first = run_robot(reader, 0)
-    assert (net.label, net.cfg) == ("elman", neuro.ElmanConfig(hidden=6))
+    assert (net.label, net.family.network_config) == ("elman", neuro.ElmanConfig(hidden=6))
     assert isinstance(net.population, dict) and isinstance(first.population, dict)
     for name, values in stored.items():
         np.testing.assert_array_equal(net.population[name], values)
@@ -197,8 +201,8 @@ def test_a_neural_runs_best_goes_on_stage_in_either_arena(
         )
         stage.speed = 100.0
         assert stage.advance(0.2) == 20 and session.snapshot()[0].t == 20
-    assert "a neural net on show neither learns online" in second_stage_words(stage, on=False)
-    assert "a neural net on show neither learns online" in second_stage_words(stage, on=True)
+    assert "does not learn online has no second stage" in second_stage_words(stage, on=False)
+    assert "does not learn online has no second stage" in second_stage_words(stage, on=True)
 
 
 def test_a_neural_runs_implementation_phase_runs_its_last_best(net_runs_dir: Path) -> None:
@@ -207,12 +211,10 @@ def test_a_neural_runs_implementation_phase_runs_its_last_best(net_runs_dir: Pat
     result = implement_run(request)
     with store.RunReader(path) as reader:
         config = reader.config
-        cfg = config.neuro.net_config() if config.neuro is not None else None
-        assert cfg is not None
-        arrays = reader.best_genome_arrays(-1)
+        family = family_of(config)
         expected = run_implementation(
-            cfg,
-            arrays,
+            family,
+            family.best(reader),
             request.settings(config.implementation),
             seed=config.seed,
             control_period=config.training.control_period,
@@ -224,7 +226,7 @@ def test_a_neural_runs_implementation_phase_runs_its_last_best(net_runs_dir: Pat
     assert result.settings.broken_sensors == (2, 3) and result.settings.fault_step == 40
     np.testing.assert_array_equal(result.reward_per_step, expected.reward_per_step)
     table = runs_table(summaries, net_runs_dir)
-    assert "| elman | cmaes | 2/2 |" in table
+    assert "| elman | cmaes: Elman net, 6 hidden | 2/2 |" in table
 
 
 def test_the_network_view_draws_the_weights_and_recolours_the_nodes_live() -> None:
@@ -251,7 +253,9 @@ def test_the_network_view_draws_the_weights_and_recolours_the_nodes_live() -> No
         assert np.array_equal(view._edges.colors[:, 0], weight_colors(layout.weights))
         assert np.all(view.node_colors == NEUTRAL)  # nothing computed yet
 
-        session = LiveSession(sim.load_arena("training"), [RobotSpec("net", cfg, arrays)])
+        session = LiveSession(
+            sim.load_arena("training"), [RobotSpec("net", NetFamily.of(cfg), arrays)]
+        )
         session.step(30)
         robot = session.snapshot()[0]
         view.update(robot)

@@ -70,7 +70,9 @@ def test_a_neural_run_on_the_stage_shows_its_network(
     )
     assert network.visible and not graph.visible
     show = dashboard.stage.show
-    assert show.arena == "implementation" and show.robots[0].cfg == neuro.ElmanConfig(hidden=6)
+    assert show.arena == "implementation" and show.robots[
+        0
+    ].family.network_config == neuro.ElmanConfig(hidden=6)
     assert network._edges.points.shape == (96, 2, 3)
     assert field(page, "Inspect node").is_disabled() and field(page, "Graph").is_disabled()
     page.get_by_text(re.compile("^Elman net: 8 IR readings")).first.wait_for()

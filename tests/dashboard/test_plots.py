@@ -10,8 +10,9 @@ import viser
 
 import gnp
 import sim
+from app.brains.gnp_brain import GnpFamily
 from app.dashboard import plots
-from app.live import LiveSession, RobotSpec
+from app.phases.live import LiveSession, RobotSpec
 
 
 def test_blocks_are_aligned_on_whole_multiples() -> None:
@@ -24,7 +25,7 @@ def test_the_chart_gets_block_means_the_smooth_mean_and_the_broken_count() -> No
     cfg = gnp.GnpConfig(method="RL")
     session = LiveSession(
         sim.load_arena("training"),
-        [RobotSpec("r", cfg, gnp.init_population(cfg, 1, np.random.default_rng(0)))],
+        [RobotSpec("r", GnpFamily.of(cfg), gnp.init_population(cfg, 1, np.random.default_rng(0)))],
     )
     steps = np.arange(8, 28)
     rewards = (steps % 2 == 0).astype(np.float64)  # 1 on even steps

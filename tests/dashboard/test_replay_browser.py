@@ -12,12 +12,12 @@ from typing import Any
 
 import pytest
 
-from app.config import build_config
 from app.dashboard.headless import free_port
 from app.export import export_replay
-from app.implementation import implement
+from app.phases.implementation import implement
+from app.phases.training import train
+from app.settings.loading import build_config
 from app.store import RunReader
-from app.training import train
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("replay-browser")]
 TIMEOUT_MS = 60_000

@@ -12,7 +12,7 @@ import sim
 from app import store
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.stage import Show, Stage, random_show, run_robot
-from app.live import LearningSettings, LiveError, LiveSession, RobotSpec
+from app.phases.live import LearningSettings, LiveError, LiveSession, RobotSpec
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_the_best_of_a_run_is_its_last_generations_best(runs_dir: Path) -> None:
     with store.RunReader(runs_dir / "bs.h5") as reader:
         last, first = run_robot(reader), run_robot(reader, 0)
         _, stored = reader.best_genome(1)
-    assert (last.label, last.cfg.method) == ("bs", "BS")
+    assert (last.label, last.family.label) == ("bs", "BS")
     np.testing.assert_array_equal(last.population.conn, stored.conn)
     assert not np.array_equal(first.population.q_ss, last.population.q_ss)
 
@@ -186,4 +186,4 @@ def test_with_no_run_an_untrained_individual_is_shown() -> None:
     show = random_show()
     session = Stage().present(show)
     assert session.robots[0].label == "random" and show.life == 1000
-    assert show.robots[0].cfg.method == "CS"
+    assert show.robots[0].family.label == "CS"

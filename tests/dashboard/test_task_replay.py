@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import gnp
-from app.config import ControllerSettings
+from app.brains.registry import run_kind
 from app.dashboard.task_frame import cartpole_sketch
 from app.dashboard.task_replay import (
     TaskReplay,
@@ -17,6 +17,7 @@ from app.dashboard.task_replay import (
     action_captions,
     feature_captions,
 )
+from app.settings.config import ControllerSettings
 from app.store import RunFileError, list_runs
 from app.tasks import (
     ObservationFault,
@@ -143,7 +144,7 @@ def test_a_corrupt_or_foreign_file_is_one_line(task_run: Path, tmp_path: Path) -
 def test_the_catalogue_lists_a_task_run(task_run: Path) -> None:
     (summary,) = [s for s in list_runs(task_run.parent) if s.name == "cartpole"]
     assert summary.error is None and summary.task == "CartPole-v1"
-    assert summary.kind == "task CartPole-v1"
+    assert run_kind(summary) == "task CartPole-v1"
     assert (summary.generations_done, summary.generations, summary.finished) == (3, 3, True)
     with h5py.File(task_run, "r") as handle:
         assert summary.best_fitness == handle["history/fitness"][()].max()

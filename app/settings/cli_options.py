@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from app.fields import Setting
+from app.settings.fields import Setting
 
 OPTION_NAMES = {
     "training.noise_sigma": "--noise",

@@ -33,19 +33,24 @@ class Trajectory:
         return self.terms["reward"]
 
 
-#: What a step's trace holds when it is not GNP's: field -> (shape per controller, dtype).
+#: What a step's trace holds: field -> (shape per controller, dtype).
 TraceLayout = Mapping[str, tuple[tuple[int, ...], Any]]
+
+
+def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
+    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
+    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
 
 
 class TrajectoryRecorder:
     """Fills a `Trajectory` of the first k robots of a batch, one step at a time.
 
     Both phases record lives this way, so a stored elite and stored implementation trials have
-    the same arrays, dtypes and shapes. The trace's fields are `gnp.StepTrace`'s for a GNP
-    config, else the given layout's (read off the step's trace object by name).
+    the same arrays, dtypes and shapes. The trace's fields are the layout's (read off the
+    step's trace object by name; a brain family gives its own, `BrainFamily.trace_layout`).
     """
 
-    def __init__(self, k: int, steps: int, cfg: gnp.GnpConfig | TraceLayout) -> None:
+    def __init__(self, k: int, steps: int, layout: TraceLayout) -> None:
         self.k = k
         self._t = 0  # the next step to record
         self._arrays = {
@@ -55,11 +60,6 @@ class TrajectoryRecorder:
             "commands": np.zeros((k, steps, 2)),
             "terms": np.zeros((k, steps, len(sim.TERM_NAMES))),
         }
-        layout = (
-            {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
-            if isinstance(cfg, gnp.GnpConfig)
-            else cfg
-        )
         self._trace = {
             field: np.zeros((k, steps, *shape), dtype) for field, (shape, dtype) in layout.items()
         }

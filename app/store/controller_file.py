@@ -65,8 +65,8 @@ _NET = _Format("gnp-lab-neural-controller", 1, "net", "arrays")
 FORMATS = {form.name: form for form in (_GNP, _NET)}
 
 
-def save_controller(path: str | Path, controller: Controller) -> Path:
-    """Write `controller` as `path` (JSON, one line a value).
+def controller_document(controller: Controller) -> dict[str, Any]:
+    """`controller` as its JSON document (the envelope around its family's body).
 
     Raises:
         ControllerFileError: the controller is not one individual or net (named).
@@ -80,16 +80,29 @@ def save_controller(path: str | Path, controller: Controller) -> Path:
             form, (config, body) = _NET, neuro.net_body(controller.net, controller.arrays)
     except (gnp.GnpError, neuro.NeuroError) as error:
         raise ControllerFileError(str(error)) from None
-    document = {
+    return {
         "format": form.name,
         "version": form.version,
         form.config_key: config,
         "settings": controller.settings,
         form.body_key: body,
     }
+
+
+def save_document(path: str | Path, document: dict[str, Any]) -> Path:
+    """Write a controller document as `path` (JSON, one line a value)."""
     path = Path(path)
     path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     return path
+
+
+def save_controller(path: str | Path, controller: Controller) -> Path:
+    """Write `controller` as `path` (JSON, one line a value).
+
+    Raises:
+        ControllerFileError: the controller is not one individual or net (named).
+    """
+    return save_document(path, controller_document(controller))
 
 
 def load_controller(path: str | Path) -> Controller:

@@ -12,18 +12,17 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
 import gnp
-import neuro
 import sim
-from app.arenas import new_world
-from app.config import ImplementationSettings, LearningSettings
-from app.fields import SettingError, check_field
-from app.neural import BrainConfig, Individual, NeuralControllers, NeuralTrace
-from app.rollout import Batch
+from app.brains.contract import BrainFamily
+from app.loop.rollout import Batch
+from app.settings.arenas import new_world
+from app.settings.config import ImplementationSettings, LearningSettings
+from app.settings.fields import SettingError, check_field
 from sim import CONTROL_PERIOD_S, FaultMode
 
 
@@ -80,7 +79,7 @@ class RobotSnapshot:
     """What one robot on show looks like now; arrays are copies, safe to read from any thread."""
 
     label: str
-    method: str  # GNP's method, or `brain_name` of a net
+    method: str  # the family's label: GNP's method, `Elman`, `NEAT`, …
     fuzzy: bool
     t: int
     pose: np.ndarray  # (3,) x mm, y mm, heading rad
@@ -94,45 +93,35 @@ class RobotSnapshot:
     rewards: np.ndarray  # (H,) reward per step
     broken_counts: np.ndarray  # (H,) number of broken sensors at each step
     fault_steps: tuple[int, ...]  # steps at which sensors broke (within the history)
-    visits: np.ndarray  # (V, 5) int: the `gnp.VISIT_FIELDS` of each visit; oldest first
-    current_node: int
     epsilon: float
     alpha: float
     mean_reward: float  # over the reward history
+    # What the family's tracer fills (`BrainFamily.tracer`); empty for a family without it.
+    visits: np.ndarray = field(default_factory=lambda: np.zeros((0, len(gnp.VISIT_FIELDS)), int))
+    # (V, 5) int: the `gnp.VISIT_FIELDS` of each visit; oldest first
+    current_node: int = 0
     node_visits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     # (n_nodes,) visits to each node in this life (the simplified graph hides the others)
     commands: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) of the last step
+    learns_online: bool = True  # its family's: else ε and α mean nothing to it
     activation: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # a net's (units,) state after the last step (GNP: empty)
     context: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # a net's (units,) state before it: what its recurrent weights read (GNP: empty)
 
 
-def is_net(cfg: BrainConfig) -> bool:
-    """Whether a brain is a neural net (else GNP)."""
-    return not isinstance(cfg, gnp.GnpConfig)
-
-
-def brain_name(cfg: BrainConfig) -> str:
-    """GNP's method (`CS`), or a net's family (`Elman`, `NEAT`)."""
-    if isinstance(cfg, gnp.GnpConfig):
-        return cfg.method
-    return "Elman" if isinstance(cfg, neuro.ElmanConfig) else "NEAT"
-
-
 @dataclass
 class LiveRobot:
-    """One robot on show and its controller; `population` holds one individual (a GNP
-    population, or a net's arrays with a leading axis of 1)."""
+    """One robot on show and its controller; `population` holds one individual of `family`
+    (with a leading axis of 1)."""
 
     label: str
-    cfg: BrainConfig
-    population: Individual
+    family: BrainFamily
+    population: Any
     world: sim.World
     seed: int
     trajectory_capacity: int = 600
     history_capacity: int = 1000
-    visit_capacity: int = 256
     _batch: Batch = field(init=False)
     _seen: np.ndarray = field(init=False)
     _fault_steps: list[int] = field(init=False, default_factory=list)
@@ -145,24 +134,13 @@ class LiveRobot:
         self._reward_steps = Ring(self.history_capacity, (), np.int64)
         self._rewards = Ring(self.history_capacity)
         self._broken_counts = Ring(self.history_capacity, (), np.int64)
-        self._visits = Ring(self.visit_capacity, (len(gnp.VISIT_FIELDS),), np.int64)
-        if isinstance(self.cfg, gnp.GnpConfig):
-            assert isinstance(self.population, gnp.Population)
-            self._batch = Batch(self.world, self.cfg, self.population, np.array([self.seed]))
-            self._node_visits = np.zeros(self.cfg.n_nodes, np.int64)
-            units = 0
-        else:  # a net: no nodes visited; its activations are drawn instead
-            assert isinstance(self.population, dict)
-            nets = NeuralControllers(self.cfg, self.population)
-            self._batch = Batch.driven_by(self.world, nets)
-            self._node_visits = np.zeros(0, np.int64)
-            units = self.cfg.n_units
-        self._activation, self._context = np.zeros(units), np.zeros(units)
+        controllers = self.family.controllers(self.population, np.array([self.seed]))
+        self._batch = Batch.driven_by(self.world, controllers)
+        self._tracer = self.family.tracer()
         self._commands = np.zeros(2)
         self._seen = self.world.sense().copy()
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(0.0)
-        self._current_node = 0
 
     @property
     def t(self) -> int:
@@ -184,24 +162,12 @@ class LiveRobot:
         reward = float(record.reward[0])
         self._seen = record.observations
         self._commands = record.commands[0].copy()
-        self._record_trace(record.trace)
+        self._tracer.record(record.trace)
         self._trajectory.append(self.world.poses[0, :2])
         self._trajectory_reward.append(reward)
         self._reward_steps.append(self.t)
         self._rewards.append(reward)
         self._broken_counts.append(int(np.count_nonzero(self.world.broken[0])))
-
-    def _record_trace(self, trace: gnp.StepTrace | NeuralTrace) -> None:
-        if isinstance(trace, NeuralTrace):
-            self._context, self._activation = self._activation, trace.activation[0].copy()
-            return
-        count = int(trace.count[0])
-        columns = [getattr(trace, f) for f in gnp.VISIT_FIELDS]
-        for k in range(count):
-            self._visits.append([int(column[0, k]) for column in columns])
-        if count:
-            self._current_node = int(trace.node[0, count - 1])
-            np.add.at(self._node_visits, trace.node[0, :count], 1)
 
     def break_sensors(self, sensors: Sequence[int], mode: FaultMode) -> None:
         self.world.break_sensors(list(sensors), mode=mode)
@@ -218,8 +184,8 @@ class LiveRobot:
         oldest = int(steps[0]) if len(steps) else self.t
         return RobotSnapshot(
             label=self.label,
-            method=brain_name(self.cfg),
-            fuzzy=bool(getattr(self.cfg, "fuzzy", False)),
+            method=self.family.label,
+            fuzzy=self.family.fuzzy,
             t=self.t,
             pose=self.world.poses[0].copy(),
             true_readings=self.world.sense()[0].copy(),
@@ -232,26 +198,23 @@ class LiveRobot:
             rewards=rewards,
             broken_counts=self._broken_counts.values(),
             fault_steps=tuple(s for s in self._fault_steps if s >= oldest),
-            visits=self._visits.values(),
-            current_node=self._current_node,
             epsilon=self._rates[0],
             alpha=self._rates[1],
             mean_reward=float(rewards.mean()) if len(rewards) else 0.0,
-            node_visits=self._node_visits.copy(),
             commands=self._commands.copy(),
-            activation=self._activation.copy(),
-            context=self._context.copy(),
+            learns_online=self.family.learns_online,
+            **self._tracer.view(),
         )
 
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """What to put on show: a label, a controller config and its one individual (a GNP
-    population, or a net's arrays, each with a leading axis of 1)."""
+    """What to put on show: a label, a brain family and one individual of it (with a leading
+    axis of 1)."""
 
     label: str
-    cfg: BrainConfig
-    population: Individual
+    family: BrainFamily
+    population: Any
 
 
 class LiveSession:
@@ -299,13 +262,9 @@ class LiveSession:
                 arena, n=1, seed=seed, noise_sigma=noise_sigma, control_period=control_period
             )
             world.reset(arena.start_poses[start : start + 1])
-            # Copy: online learning mutates Q tables, the caller's individual stays as loaded.
-            population: Individual = (
-                gnp.take(spec.population, np.array([0]))
-                if isinstance(spec.population, gnp.Population)
-                else neuro.take(spec.population, [0])
-            )
-            self._robots.append(LiveRobot(spec.label, spec.cfg, population, world, seed))
+            # Copy: online learning changes the individual, the caller's stays as loaded.
+            population = spec.family.copies(spec.population, 1)
+            self._robots.append(LiveRobot(spec.label, spec.family, population, world, seed))
 
     @property
     def lock(self) -> threading.Lock:

@@ -1,6 +1,6 @@
 """The lab's loop compiled: k steps of a batch of GNP controllers in an analytic world, one call.
 
-When the controllers are GNP and the physics analytic, every stage of `app.rollout.Batch.step`
+When the controllers are GNP and the physics analytic, every stage of `app.loop.rollout.Batch.step`
 is a numba function (`sim.loop` for the world, `gnp.kernel.step_kernel` for the controllers),
 and `steps` here runs k steps of them in one compiled call, on the world's and the controllers'
 own arrays, in `Batch.step`'s order: the same kernels on the same arrays, so the same bits
@@ -34,7 +34,7 @@ overlap)."""
 
 @dataclass(frozen=True)
 class Watched:
-    """What k watched steps did; arrays (k, N, ...), as `app.rollout.StepRecord`'s per step."""
+    """What k watched steps did; arrays (k, N, ...), as `app.loop.rollout.StepRecord`'s per step."""
 
     poses: np.ndarray  # (k, N, 3) after each step, headings in [-π, π)
     observations: np.ndarray  # (k, N, 8)

@@ -3,10 +3,10 @@
 Each generation lives the population (`Evaluator`: in this process, or split over the worker
 pool by fixed shards), writes its fitness and best genome, then asks the brain for the next
 generation (GNP evolves the learned population; an optimiser is told the fitness) and
-checkpoints it. What differs by family sits behind `Brain`; the file, the checkpoints, the
-resume, the elite's replay, the stop and pause are here, once.
+checkpoints it. What differs by family sits behind the brain contract (`app.brains`); the file,
+the checkpoints, the resume, the elite's replay, the stop and pause are here, once.
 
-Every random draw of an individual's life comes from `app.seeds.life_seeds` (run seed,
+Every random draw of an individual's life comes from `app.loop.seeds.life_seeds` (run seed,
 generation, individual), and individual i always lives at the same place of the same world, so
 a run gives bit-identical results on any number of workers, and a resumed run matches one never
 interrupted.
@@ -21,17 +21,19 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 import sim
-from app.arenas import arena_of
-from app.config import RunConfig
-from app.lives import Lives, ShardLives, concat, concat_lives, owned, shard_lives, shards, take
-from app.seeds import LifeSeeds, life_seeds, n_segments
+from app.brains.contract import Evolution
+from app.brains.registry import family_of
+from app.loop.seeds import LifeSeeds, life_seeds, n_segments
+from app.phases.lives import Lives, ShardLives, concat_lives, owned, shards
+from app.settings.arenas import arena_of
+from app.settings.config import RunConfig
 from app.store import RunFileError, RunReader, RunTemplate, RunWriter
-from app.workers import Handler, WorkerDied, WorkerPool, handling
+from app.system.workers import Handler, WorkerDied, WorkerPool, handling
 
 
 class TrainingError(RuntimeError):
@@ -58,27 +60,6 @@ class GenerationSummary:
 
 
 ProgressCallback = Callable[[GenerationSummary], None]
-
-
-class Brain(Protocol):
-    """What the loop needs of a brain family, for one run."""
-
-    def epsilon_alpha(self, generation: int) -> tuple[float, float]:
-        """(ε, α) of a generation's lives, as the file records them."""
-        ...
-
-    def individuals(self) -> Any:
-        """The generation to live: a population with a leading individual axis."""
-        ...
-
-    def arrays(self, individuals: Any) -> dict[str, np.ndarray]:
-        """Individuals as the run file stores genomes."""
-        ...
-
-    def advance(self, learned: Any, fitness: np.ndarray, generation: int) -> dict[str, np.ndarray]:
-        """Move on to the next generation, given this one's individuals after their lives and
-        fitness; returns the next generation as a checkpoint's arrays."""
-        ...
 
 
 # --- stop and pause -------------------------------------------------------------------------
@@ -147,7 +128,7 @@ def stop_on_signals(control: Control) -> Iterator[None]:
 
 def _shard_worker(config_json: str) -> Handler:
     """A pool worker's state: the lives of its shards, in one persistent world."""
-    lives = shard_lives(RunConfig.model_validate_json(config_json))
+    lives = ShardLives(RunConfig.model_validate_json(config_json))
 
     def handle(job: tuple[Any, LifeSeeds, float, float], count: Any) -> tuple[Lives, Any]:
         individuals, seeds, epsilon, alpha = job
@@ -175,9 +156,10 @@ class Evaluator:
         self._local: ShardLives | None = None
         self._pool: WorkerPool | None = None
         self._stopping = stopping
+        self.family = family_of(config)
         workers = max(1, min(workers, len(shards(config.training))))
         if workers == 1 and local:
-            self._local = shard_lives(config)
+            self._local = ShardLives(config)
             return
         self._owned = owned(config.training, workers)
         self._pool = WorkerPool(workers, _shard_worker, (config.model_dump_json(),))
@@ -190,17 +172,19 @@ class Evaluator:
             lives, after, _ = self._local.run(individuals, seeds, epsilon, alpha, False)
             return lives, after
         assert self._pool is not None
+        family = self.family
         jobs = [
-            (take(individuals, np.arange(part.start, part.stop)), seeds.take(part), epsilon, alpha)
+            (family.take(individuals, np.arange(part.start, part.stop)), seeds.take(part),
+             epsilon, alpha)
             for part in self._owned
-        ]
+        ]  # fmt: skip
         stopping = self._stopping
         try:
             results = self._pool.map(jobs, stopping.is_set if stopping is not None else None)
         except WorkerDied as error:
             raise TrainingError(str(error)) from None
         afters = [r[1] for r in results]
-        after = individuals if afters[0] is None else concat(afters)  # None: unchanged (nets)
+        after = individuals if afters[0] is None else family.concat(afters)  # None: unchanged
         return concat_lives([r[0] for r in results]), after
 
     def close(self) -> None:
@@ -223,16 +207,17 @@ def _elite(
     """Live the best individual's evaluation again, recording it. Alone in a world of its own
     it lives the same life as in its worker's world, bit for bit (lives do not depend on
     their world's other robots)."""
-    alone = shard_lives(config)
+    alone = ShardLives(config)
     one = slice(best, best + 1)
-    _, _, trajectory = alone.run(take(individuals, [best]), seeds.take(one), epsilon, alpha, True)
+    the_best = alone.family.take(individuals, [best])
+    _, _, trajectory = alone.run(the_best, seeds.take(one), epsilon, alpha, True)
     assert trajectory is not None
     return trajectory
 
 
 def run_generations(
     writer: RunWriter,
-    brain: Brain,
+    brain: Evolution,
     start: int,
     evaluator: Evaluator,
     progress: ProgressCallback | None,
@@ -268,7 +253,7 @@ def run_generations(
                     mean_terms=dict(zip(sim.TERM_NAMES, lives.terms.mean(axis=0), strict=True)),
                     epsilon=epsilon,
                     alpha=alpha,
-                    best_genome=brain.arrays(take(after, [best])),
+                    best_genome=brain.arrays(evaluator.family.take(after, [best])),
                 )
                 last = generation + 1 == training.generations
                 if last:
@@ -301,14 +286,14 @@ def start_run(
     config: RunConfig,
     out: str | Path,
     template: RunTemplate,
-    first: Callable[[RunConfig], Brain],
+    first: Callable[[], Evolution],
     workers: int,
     local: bool,
     progress: ProgressCallback | None,
     control: Control | None = None,
 ) -> Path:
-    """A new run file `out` of `config`: generation 0 from `first(config)`, then every
-    generation (see `app.training.train`)."""
+    """A new run file `out` of `config`: generation 0 from `first()`, then every
+    generation (see `app.phases.training.train`)."""
     arena_of(config.training.arena)  # fail on a bad arena before creating the file
     control = control or Control()
     # Ctrl-C and SIGTERM stop training from the start: a stop before generation 0's checkpoint is in
@@ -319,7 +304,7 @@ def start_run(
         stop_on_signals(control),
         Evaluator(config, workers, local, control.stopping) as evaluator,
     ):
-        brain = first(config)
+        brain = first()
         writer = RunWriter.create(out, template)
         try:
             writer.write_checkpoint(0, brain.arrays(brain.individuals()))
@@ -332,9 +317,9 @@ def start_run(
     return writer.path
 
 
-Rebuild = Callable[[RunConfig, int, dict[str, np.ndarray], np.ndarray], Brain]
-"""A brain from a checkpoint: (config, generation, its arrays, the fitness of the generations
-before it) → the brain at that generation. Raises RunFileError when it cannot be rebuilt."""
+Rebuild = Callable[[int, dict[str, np.ndarray], np.ndarray], Evolution]
+"""A population from a checkpoint: (generation, its arrays, the fitness of the generations
+before it) → the population at that generation. Raises RunFileError when it cannot be rebuilt."""
 
 
 def resume_run(
@@ -345,7 +330,7 @@ def resume_run(
     progress: ProgressCallback | None,
     control: Control | None = None,
 ) -> Path:
-    """Continue `path` from its last checkpoint (see `app.training.resume`)."""
+    """Continue `path` from its last checkpoint (see `app.phases.training.resume`)."""
     control = control or Control()
     with RunReader(path) as run:
         config, fitness = run.config, run.history().fitness
@@ -355,7 +340,7 @@ def resume_run(
     ):
         writer, generation, arrays = RunWriter.resume(path)
         try:
-            brain = rebuild(writer.config, generation, arrays, fitness[:generation])
+            brain = rebuild(generation, arrays, fitness[:generation])
         except KeyboardInterrupt:
             writer.close()
             raise Interrupted(generation) from None

@@ -3,8 +3,8 @@
 Every phase steps robots through this one loop: training lives, the implementation phase, the
 dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
 with N controllers (`Controllers`: a `gnp.Population` and its engine state, or neural nets, see
-`app.neural`); `rollout` advances it T steps with ε/α given per step, optionally recording the
-first robots' lives.
+`app.brains`); `rollout` advances it T steps with ε/α given per step, optionally recording
+the first robots' lives.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import numpy as np
 
 import gnp
 import sim
-from app import fused
-from app.config import CFrom
-from app.recording import TrajectoryRecorder
+from app.loop import fused
+from app.loop.recording import TrajectoryRecorder
+from app.settings.config import CFrom
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class StepRecord:
     commands: np.ndarray  # (N, 2) left, right wheel commands
     readings: np.ndarray  # (N, 8) true readings after the step
     term_table: np.ndarray  # (N, len(sim.TERM_NAMES)) reward terms, columns as TERM_NAMES
-    trace: Any  # what each controller did (gnp.StepTrace, app.neural.NeuralTrace), when traced
+    trace: Any  # what each controller did (its family's trace), when traced
 
     @property
     def terms(self) -> dict[str, np.ndarray]:
@@ -168,7 +168,7 @@ class Batch:
         self.reward = np.zeros(self.size)
 
     def compiled(self, second_stage: bool = True) -> bool:
-        """Whether `step` and `rollout` may run this batch in compiled calls (`app.fused`):
+        """Whether `step` and `rollout` may run this batch in compiled calls (`app.loop.fused`):
         GNP controllers, analytic physics, the method's second stage on (or none)."""
         controllers = self.controllers
         return (
@@ -303,7 +303,7 @@ def rollout(
             assert episode_starts is not None
             batch.new_episode(poses[episode_starts[:, t // redraw_every]])
         run = compiled_steps(batch.world, t, steps, redraw_every) if compiled else 0
-        if run > 0 and recorder is None:  # `run` steps in one compiled call (see app.fused)
+        if run > 0 and recorder is None:  # `run` steps in one compiled call (see app.loop.fused)
             each, _ = batch.run_compiled(eps[t : t + run], alp[t : t + run], learn, sums)
             step_sums[t : t + run] = each.sum(axis=1)
             t += run

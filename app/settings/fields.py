@@ -1,9 +1,9 @@
 """What the settings' models say about each setting: kind, default, range, unit and description.
 
-The pydantic models (app/config.py, and gnp's `EvolutionConfig`) are the only place a setting's
-facts are written. The CLI's options (app/cli_options.py) and the dashboard's controls
-(app/dashboard/setting_controls.py) are built from this reading of their `model_fields`, so a
-new field of a model shows up in both without another line.
+The pydantic models (app/settings/config.py, and gnp's `EvolutionConfig`) are the only place a
+setting's facts are written. The CLI's options (app/settings/cli_options.py) and the
+dashboard's controls (app/dashboard/setting_controls.py) are built from this reading of their
+`model_fields`, so a new field of a model shows up in both without another line.
 """
 
 from __future__ import annotations

@@ -6,20 +6,16 @@ value raises `ConfigError` naming the field and what it allows.
 
 from __future__ import annotations
 
-import json
 import tomllib
-from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
     SerializerFunctionWrapHandler,
-    ValidationError,
     field_validator,
     model_serializer,
     model_validator,
@@ -27,8 +23,8 @@ from pydantic import (
 
 import gnp
 import neuro
-from app.arenas import inline_arena, read_arena_paths, toml_arena
-from app.fields import Setting, read_setting, sections, setting, settings_of
+from app.settings.arenas import inline_arena
+from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
 from neuro.neat_evolution import NeatParams
@@ -53,7 +49,9 @@ def preset_layer(name: str) -> dict[str, Any]:
     """The raw settings of a shipped preset (see `PRESET_NAMES`)."""
     if name not in PRESET_NAMES:
         raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESET_NAMES)}")
-    text = resources.files("app.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    text = (
+        resources.files("app.settings.presets").joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    )
     return tomllib.loads(text)
 
 
@@ -77,7 +75,7 @@ def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
 
 def _noise_sigma() -> Any:
     """The sensor noise σ field of both phases (Eq. 2.6), its range written here once: the
-    live noise of the dashboard is checked against it too (`app.live.checked_noise`)."""
+    live noise of the dashboard is checked against it too (`app.phases.live.checked_noise`)."""
     return setting(0.0, "sensor noise σ", "reading", label="Noise σ", ge=0.0, le=IR_MAX)
 
 
@@ -398,9 +396,10 @@ class RewardSettings(_Frozen):
 
 
 Optimiser = Literal["cmaes", "neat"]
-#: What drives the robots: GNP (the thesis), or a neural net evolved by CMA-ES or NEAT.
-Brain = Literal["gnp", "cmaes", "neat"]
-BRAINS: tuple[Brain, ...] = get_args(Brain)
+
+
+DEFAULT_BRAIN = "gnp"
+"""The brain family of a config that names none: GNP, the thesis's."""
 
 
 class NeuroSettings(_Frozen):
@@ -412,11 +411,24 @@ class NeuroSettings(_Frozen):
     sigma0: float = setting(0.5, "CMA-ES initial step size, from weights 0", "1", gt=0.0, le=10.0)
     neat: NeatParams = NeatParams()
 
+    @property
+    def name(self) -> str:
+        """The brain family this section selects: its optimiser's."""
+        return self.optimiser
+
     def net_config(self) -> neuro.NetConfig:
         """The nets this optimiser evolves."""
         if self.optimiser == "cmaes":
             return neuro.ElmanConfig(hidden=self.hidden)
         return self.neat.net_config()
+
+
+class FamilySettings(BaseModel):
+    """A brain family registered from outside the lab (`app.brains.register`): its name and
+    its own settings, which the family checks with a model of its own when the run starts."""
+
+    model_config = ConfigDict(frozen=True, extra="allow")
+    name: str = Field(description="the family's registered name")
 
 
 class RunConfig(_Frozen):
@@ -431,170 +443,28 @@ class RunConfig(_Frozen):
     neuro: NeuroSettings | None = Field(
         default=None, description="a neural controller instead of GNP; unset = GNP"
     )
+    family: FamilySettings | None = Field(
+        default=None, description="a brain family registered from outside the lab; unset = GNP"
+    )
+
+    @model_validator(mode="after")
+    def _one_brain(self) -> RunConfig:
+        if self.neuro is not None and self.family is not None:
+            raise ValueError("a run has one brain: set `neuro` or `family`, not both")
+        return self
 
     @property
-    def brain(self) -> Brain:
-        """ "gnp", or the neural optimiser."""
-        return "gnp" if self.neuro is None else self.neuro.optimiser
+    def brain(self) -> str:
+        """The name of the brain family (`app.brains`) that runs: the section that names one,
+        else GNP."""
+        section = self.neuro or self.family
+        return section.name if section is not None else DEFAULT_BRAIN
 
     @model_serializer(mode="wrap")
     def _gnp_as_before(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        # A GNP run's stored config stays what it was before neural brains existed.
+        # A run's stored config keeps the layout it had before other brains existed.
         data: dict[str, Any] = handler(self)
-        if self.neuro is None:
-            data.pop("neuro", None)
+        for section in ("neuro", "family"):
+            if getattr(self, section) is None:
+                data.pop(section, None)
         return data
-
-
-def describe_problems(error: ValidationError, limit: int | None = None) -> str:
-    """A pydantic error as one line: `field: problem (got value)`, joined by "; ", the first
-    `limit` of them and a count of the rest."""
-    problems = []
-    items = error.errors()
-    for item in items[:limit]:
-        field = ".".join(str(part) for part in item["loc"])
-        message = str(item["msg"]).removeprefix("Value error, ")
-        if item["type"] == "extra_forbidden":
-            message = "unknown setting"
-        given = item.get("input")
-        shown = not isinstance(given, Mapping | list | tuple) and given is not None
-        where = f"{field}: " if field else ""  # a model's own check names its fields
-        problems.append(f"{where}{message}" + (f" (got {given!r})" if shown else ""))
-    more = len(items) - len(problems)
-    return ("; ".join(problems) + (f" (and {more} more)" if more else "")).replace("\n", " ")
-
-
-def _format_errors(error: ValidationError, source: str) -> str:
-    return f"invalid configuration in {source}: " + describe_problems(error)
-
-
-def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
-    merged = dict(base)
-    for key, value in overrides.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
-            merged[key] = _merge(dict(merged[key]), value)
-        else:
-            merged[key] = value
-    return merged
-
-
-LEGACY_DEFAULTS: dict[tuple[str, str], Any] = {
-    ("training", "schedule_progress"): "g-over-G",
-    ("evolution", "judgment_pair"): "independent",
-}
-"""Settings added when their default changed, with the behaviour that files which do not name
-them ran with: a stored config is read with these, so a resumed old run goes on as it began."""
-
-
-def stored_config(text: str) -> RunConfig:
-    """A `RunConfig` as stored in a file (JSON), settings it predates taking LEGACY_DEFAULTS.
-
-    Raises:
-        ValueError: not JSON, or an invalid config.
-    """
-    data = json.loads(text)
-    if not isinstance(data, dict):
-        raise ValueError("a stored config is a JSON object")
-    for (section, key), value in LEGACY_DEFAULTS.items():
-        part = data.setdefault(section, {})
-        if isinstance(part, dict):
-            part.setdefault(key, value)
-    return RunConfig.model_validate(data)
-
-
-def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> RunConfig:
-    """Validate nested dicts merged left to right (later layers win) into a `RunConfig`.
-
-    Raises:
-        ConfigError: naming every bad field, its problem and the value given.
-    """
-    merged: dict[str, Any] = {}
-    for layer in layers:
-        merged = _merge(merged, layer)
-    merged = read_arena_paths(merged)  # user input: arena files are read here, and only here
-    try:
-        return RunConfig.model_validate(merged)
-    except ValidationError as error:
-        raise ConfigError(_format_errors(error, source)) from None
-
-
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file into a dict, with a clear error for a missing or malformed file."""
-    path = Path(path)
-    try:
-        with path.open("rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise ConfigError(f"config file not found: {path}") from None
-    except IsADirectoryError:
-        raise ConfigError(f"config path is a directory: {path}") from None
-    except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"config file {path} is not valid TOML: {error}") from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"config file {path} is not UTF-8 text") from None
-
-
-def load_preset(name: str) -> RunConfig:
-    """A shipped preset as a validated `RunConfig`."""
-    return build_config(preset_layer(name), source=f"preset {name!r}")
-
-
-def load_config(path: str | Path) -> RunConfig:
-    """A TOML config file (missing settings take the thesis's defaults)."""
-    return build_config(read_toml(path), source=str(path))
-
-
-def to_toml(config: RunConfig) -> str:
-    """Render a config as TOML (unset optional values are left out), readable by `load_config`."""
-    lines = [f"seed = {config.seed}"]
-    for section, model in config:
-        if isinstance(model, BaseModel):
-            values = model.model_dump()
-            if "arena" in values:  # a shipped arena's name, else an inline table
-                values["arena"] = _Rendered(toml_arena(model.arena))  # type: ignore[attr-defined]
-            _toml_table(lines, section, values)
-    return "\n".join(lines) + "\n"
-
-
-class _Rendered(str):
-    """A value already written as TOML."""
-
-
-def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
-    lines.append(f"\n[{name}]")
-    tables = []
-    for key, value in values.items():
-        if isinstance(value, dict):  # a nested model: its own table after this one's keys
-            tables.append((key, value))
-            continue
-        if value is None:
-            continue
-        if isinstance(value, _Rendered):
-            rendered = str(value)
-        elif isinstance(value, bool):
-            rendered = "true" if value else "false"
-        elif isinstance(value, str):
-            rendered = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-        elif isinstance(value, tuple | list):
-            rendered = "[" + ", ".join(str(v) for v in value) + "]"
-        else:
-            rendered = repr(value)
-        lines.append(f"{key} = {rendered}")
-    for key, value in tables:
-        _toml_table(lines, f"{name}.{key}", value)
-
-
-def train_settings() -> tuple[Setting, ...]:
-    """What `gnp-lab train` and the dashboard's Train tab set, read from the models: the seed
-    and every section's scalar settings, the implementation phase's excepted (`implement`
-    sets those) and the optional neural controller's (`--brain`)."""
-    found = list(settings_of(RunConfig))
-    for name, model in sections(RunConfig):
-        if name != "implementation":
-            found += settings_of(model, (name,))
-    return tuple(found)
-
-
-def implement_settings() -> tuple[Setting, ...]:
-    """The implementation phase's scalar settings, for `gnp-lab implement`."""
-    return settings_of(ImplementationSettings, ("implementation",))

@@ -18,23 +18,25 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 import sim
-from app.arenas import arena_of, new_world
-from app.config import CFrom, ImplementationSettings
-from app.neural import BrainConfig, Individual, best_individual, copies, recorded_trace
-from app.recording import Trajectory, TrajectoryRecorder
-from app.rollout import rollout
-from app.seeds import broken_sensor_draws, trial_seeds
+from app.brains.contract import BrainFamily
+from app.brains.registry import family_of
+from app.loop.recording import Trajectory, TrajectoryRecorder
+from app.loop.rollout import Batch, rollout
+from app.loop.seeds import broken_sensor_draws, trial_seeds
+from app.settings.arenas import arena_of, new_world
+from app.settings.config import CFrom, ImplementationSettings
 from app.store import (
     Implementation,
     RunFileError,
     RunReader,
     add_implementation,
 )
-from app.workers import share_out
+from app.system.workers import share_out
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
 TRIALS_PER_WORLD = 500
@@ -138,8 +140,8 @@ class _Part:
 
 
 def _live_trials(
-    cfg: BrainConfig,
-    individual: Individual,
+    family: BrainFamily,
+    individual: Any,
     settings: ImplementationSettings,
     seed: int,
     control_period: float,
@@ -166,9 +168,10 @@ def _live_trials(
     )
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
-    batch = copies(world, cfg, individual, engine_seeds, c_from)
+    controllers = family.controllers(family.copies(individual, len(trials)), engine_seeds)
+    batch = Batch.driven_by(world, controllers, c_from)
     steps = settings.steps
-    recorder = TrajectoryRecorder(len(trials), steps, recorded_trace(cfg)) if record else None
+    recorder = TrajectoryRecorder(len(trials), steps, family.trace_layout) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)
     fault_step = min(settings.fault_step, steps)
     bounds = sorted({*range(0, steps, _PROGRESS_EVERY), fault_step, steps})
@@ -188,8 +191,8 @@ def _live_trials(
 
 
 def run_implementation(
-    cfg: BrainConfig,
-    individual: Individual,
+    family: BrainFamily,
+    individual: Any,
     settings: ImplementationSettings,
     *,
     seed: int,
@@ -202,7 +205,8 @@ def run_implementation(
     physics: sim.Physics = "pymunk",
     noise_stream: sim.NoiseStream = "box-muller-v1",
 ) -> Implementation:
-    """Implement a 1-individual population; returns the results (nothing is written).
+    """Implement one individual of `family` (with a leading axis of 1); returns the results
+    (nothing is written).
 
     `workers` > 1 shares the trial worlds out over that many processes (not from a daemon
     process, such as a Dask worker); results are identical for any count. `c_from`: the
@@ -217,7 +221,7 @@ def run_implementation(
     report = progress or (lambda done, total: None)
     total = parts[-1].stop * settings.steps
     calls = [
-        (cfg, individual, settings, seed, control_period, physics, noise_stream, c_from, part,
+        (family, individual, settings, seed, control_period, physics, noise_stream, c_from, part,
          part.start == 0 and recorded > 0)
         for part in parts
     ]  # fmt: skip
@@ -237,7 +241,7 @@ def run_implementation(
         per_step += result.step_reward_sums
     trajectory = results[0].trajectory if recorded else None
     if trajectory is None:
-        trajectory = TrajectoryRecorder(0, steps, recorded_trace(cfg)).trajectory(
+        trajectory = TrajectoryRecorder(0, steps, family.trace_layout).trajectory(
             np.zeros(0, np.int64)
         )
     return Implementation(
@@ -298,12 +302,12 @@ def implementation_of(
     control period, physics, noise stream and reward's C, read from the run's config here only (for
     `implement` and the dashboard alike). Call it once the file is closed (`workers`,
     `progress` may be given then)."""
-    cfg, individual = best_individual(run, generation)
     config = run.config
+    family = family_of(config)
     return partial(
         run_implementation,
-        cfg,
-        individual,
+        family,
+        family.best(run, generation),
         settings,
         seed=seed,
         control_period=config.training.control_period,

@@ -1,0 +1,224 @@
+"""The brain contract: everything the lab asks of a brain family, in one base class.
+
+A family (GNP with RL/BS/CS, an Elman net with CMA-ES, NEAT, or one registered from outside, see
+`app.brains.registry`) is one subclass of `BrainFamily`, bound to a run's config. Training,
+implementation, the live robots, the store's catalogue, export, the experiments and the
+dashboard call these methods only; none of them asks which family it holds. Modelled on
+evosax's `Strategy` (a population asked for and told its fitness) and on Gymnasium's
+`register`/`make` (a family found by name).
+
+Individuals are whatever the family chooses (a `gnp.Population`, a dict of arrays) with a
+leading individual axis; the lab only passes them back to the family. What the run file stores
+of them is a dict of arrays (`arrays`), the same layout as the family's run template.
+"""
+
+from __future__ import annotations
+
+import copy
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+import gnp
+import neuro
+from app.loop.recording import TraceLayout
+from app.loop.rollout import Controllers
+from app.settings.config import ConfigError, RunConfig
+from app.settings.loading import describe_problems
+from app.store import RunReader, RunTemplate
+
+
+class Evolution(Protocol):
+    """One run's population as generations go by: asked for individuals, told their fitness."""
+
+    def epsilon_alpha(self, generation: int) -> tuple[float, float]:
+        """(ε, α) of a generation's lives, as the file records them (NaN: no online learning)."""
+        ...
+
+    def individuals(self) -> Any:
+        """The generation to live: individuals with a leading axis."""
+        ...
+
+    def arrays(self, individuals: Any) -> dict[str, np.ndarray]:
+        """Individuals as the run file stores genomes."""
+        ...
+
+    def advance(self, learned: Any, fitness: np.ndarray, generation: int) -> dict[str, np.ndarray]:
+        """Move on to the next generation, given this one's individuals after their lives and
+        fitness; returns the next generation as a checkpoint's arrays."""
+        ...
+
+
+class Tracer(Protocol):
+    """What a live robot keeps of its controller's traced steps, for the dashboard's panels."""
+
+    def record(self, trace: Any) -> None:
+        """Take one step's trace (of a batch of one robot)."""
+        ...
+
+    def view(self) -> dict[str, Any]:
+        """The `RobotSnapshot` fields this family fills (copies): GNP's visits and nodes, a
+        net's activations; nothing for a family without such a view."""
+        ...
+
+
+class NoTracer:
+    """The tracer of a family whose steps the dashboard does not draw."""
+
+    def record(self, trace: Any) -> None:
+        pass
+
+    def view(self) -> dict[str, Any]:
+        return {}
+
+
+class BrainFamily(ABC):
+    """One brain family, bound to a run's config. Subclass it, set `name`, implement the
+    abstract methods, and `app.brains.register` it; the rest has defaults.
+
+    Capabilities are declared, not asked by type: `learns_online` (ε/α and Sarsa matter),
+    `graph_config` (a GNP node graph the views draw), `network_config` (a net the dashboard
+    draws as a network). A family with none of them still trains, adapts, exports and shows.
+    """
+
+    name: ClassVar[str] = ""
+    """The family's registered name: `config.brain` of its runs."""
+    settings_model: ClassVar[type[BaseModel] | None] = None
+    """A family registered from outside: the model its `family` config section must fit (the
+    section's `name` included); the checked section is `self.settings`."""
+    learns_online: ClassVar[bool] = False
+    """Whether lives learn online (ε, α, the second stage); else the file records NaN for them."""
+
+    def __init__(self, config: RunConfig) -> None:
+        """Bind the family to `config`.
+
+        Raises:
+            ConfigError: the `family` section does not fit `settings_model` (named, on one line).
+        """
+        self.config = config
+        self.settings: Any = None
+        if self.settings_model is not None and config.family is not None:
+            try:
+                self.settings = self.settings_model.model_validate(config.family.model_dump())
+            except ValidationError as error:
+                raise ConfigError(
+                    f"invalid settings of brain family {self.name!r}: {describe_problems(error)}"
+                ) from None
+
+    @classmethod
+    def selection(cls) -> dict[str, Any]:
+        """The config sections that select this family (`gnp-lab train --brain NAME`): by
+        default a `family` section naming it."""
+        return {"neuro": None, "family": {"name": cls.name}}
+
+    # --- what the family is called and offers -------------------------------------------------
+
+    @property
+    def label(self) -> str:
+        """A short name for one robot on show (GNP's method, `Elman`, …)."""
+        return self.name
+
+    @property
+    def description(self) -> str:
+        """One line for run lists: `CS fuzzy`, `cmaes: Elman net, 8 hidden`."""
+        return self.name
+
+    @property
+    def file_stem(self) -> str:
+        """How a new run file's default name starts (`CS-fuzzy`, `cmaes`)."""
+        return self.name
+
+    @property
+    def fuzzy(self) -> bool:
+        """Whether its judgments are fuzzy (GNP's setting; False elsewhere)."""
+        return False
+
+    @property
+    def graph_config(self) -> gnp.GnpConfig | None:
+        """The GNP config whose node graph the views draw, if the family has one."""
+        return None
+
+    @property
+    def network_config(self) -> neuro.NetConfig | None:
+        """The net the dashboard draws as a network, if the family is one."""
+        return None
+
+    def warm_key(self) -> dict[str, Any]:
+        """What of the config decides which compiled code its lives need (the experiments
+        warm each distinct key once per worker)."""
+        return {"brain": self.name}
+
+    # --- evolution ----------------------------------------------------------------------------
+
+    @abstractmethod
+    def run_template(self) -> RunTemplate:
+        """The run file's shapes: one individual's arrays, one step's trace of one controller."""
+
+    @abstractmethod
+    def first(self) -> Evolution:
+        """Generation 0, drawn from the config's seed."""
+
+    @abstractmethod
+    def rebuild(
+        self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
+    ) -> Evolution:
+        """The population at a checkpoint: `arrays` of generation `generation`, `fitness` of
+        the generations before it. Raises `app.store.RunFileError` when it cannot be rebuilt."""
+
+    # --- individuals --------------------------------------------------------------------------
+
+    @abstractmethod
+    def take(self, individuals: Any, rows: np.ndarray | list[int]) -> Any:
+        """The individuals at `rows` (copies)."""
+
+    @abstractmethod
+    def concat(self, parts: list[Any]) -> Any:
+        """Individuals one after the other."""
+
+    @abstractmethod
+    def from_arrays(self, arrays: dict[str, np.ndarray]) -> Any:
+        """Individuals from what the run file stores (`arrays` of the run template's layout)."""
+
+    def best(self, run: RunReader, generation: int = -1) -> Any:
+        """A generation's best of `run` (one individual; negative generations from the end),
+        with what it learned in its life."""
+        return self.from_arrays(run.best_genome_arrays(generation))
+
+    def for_life(self, individuals: Any) -> Any:
+        """The individuals a generation's lives may change: a copy if the family learns
+        online (the population evolves from what it learned), else `individuals` themselves."""
+        return copy.deepcopy(individuals) if self.learns_online else individuals
+
+    def copies(self, individual: Any, n: int) -> Any:
+        """`n` copies of one individual (each learns apart)."""
+        return self.take(individual, np.zeros(n, np.int64))
+
+    # --- lives --------------------------------------------------------------------------------
+
+    @abstractmethod
+    def controllers(self, individuals: Any, engine_seeds: np.ndarray) -> Controllers:
+        """Controllers driving `individuals`, one per robot; those that learn online change
+        `individuals` in place. `engine_seeds` (N,) seed each controller's own stream."""
+
+    @property
+    @abstractmethod
+    def trace_layout(self) -> TraceLayout:
+        """What `app.loop.recording.TrajectoryRecorder` records of one controller's step."""
+
+    def tracer(self) -> Tracer:
+        """A fresh tracer of one live robot (see `Tracer`)."""
+        return NoTracer()
+
+    # --- export -------------------------------------------------------------------------------
+
+    def export_settings(self) -> dict[str, Any]:
+        """What a controller file's `settings` say of the family (GNP: method and judgment)."""
+        return {"brain": self.name}
+
+    @abstractmethod
+    def controller_document(self, individual: Any, settings: dict[str, Any]) -> dict[str, Any]:
+        """One individual as a controller file's JSON document (`app.store.controller_file`'s
+        envelope: format, version, settings, the family's body). `settings`: what the lab ran
+        it with (run, generation, seed, control period, fitness, ε/α …)."""

@@ -1,0 +1,216 @@
+"""GNP, the thesis's brain (GNP-RL, Fuzzy GNP-RL, Fuzzy GNP-TSRL BS and CS), behind the contract.
+
+Generation 0 is drawn from (seed, init); lives learn online by Sarsa with ε and α fixed or
+scheduled (Eq. 4.1-4.2); evolution draws from (seed, generation). The run file stores the
+population's arrays (`gnp.population_to_arrays`), Q tables included.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+import gnp
+from app.brains.contract import BrainFamily
+from app.loop.recording import TraceLayout, gnp_trace
+from app.loop.rollout import GnpControllers
+from app.loop.seeds import evolution_rng, init_rng
+from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig, TrainingSettings
+from app.store import RunTemplate
+from app.store.controller_file import GnpController, controller_document
+
+
+def initial_population(config: RunConfig) -> gnp.Population:
+    """Generation 0, drawn from (seed, init)."""
+    return gnp.init_population(
+        config.controller.gnp_config(), config.training.population, init_rng(config.seed)
+    )
+
+
+def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tuple[float, float]:
+    """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
+    eps_schedule, alpha_schedule = training.schedules()
+    return gnp.epsilon_alpha_over_generations(
+        eps_schedule, alpha_schedule, generation, training.generations, training.schedule_progress
+    )
+
+
+class GnpEvolution:
+    """A GNP population as generations go by: evolved from its learned self each generation."""
+
+    def __init__(self, config: RunConfig, pop: gnp.Population) -> None:
+        self._config = config
+        self._cfg = config.controller.gnp_config()
+        self._pop = pop
+
+    def epsilon_alpha(self, generation: int) -> tuple[float, float]:
+        return generation_epsilon_alpha(self._config.training, generation)
+
+    def individuals(self) -> gnp.Population:
+        return self._pop
+
+    def arrays(self, individuals: gnp.Population) -> dict[str, np.ndarray]:
+        return gnp.population_to_arrays(individuals)
+
+    def advance(
+        self, learned: gnp.Population, fitness: np.ndarray, generation: int
+    ) -> dict[str, np.ndarray]:
+        training = self._config.training
+        self._pop = gnp.evolve(
+            self._cfg,
+            learned,
+            fitness,
+            generation,
+            training.generations,
+            evolution_rng(self._config.seed, generation),
+            self._config.evolution,
+        )
+        return gnp.population_to_arrays(self._pop)
+
+
+VISIT_CAPACITY = 256
+"""Node visits a live GNP robot keeps (the graph's recent transitions)."""
+
+
+class GraphTracer:
+    """What a live GNP robot keeps of its steps: recent node visits, visits per node, the
+    current node (the node-transition graph's live layer)."""
+
+    def __init__(self, cfg: gnp.GnpConfig, capacity: int = VISIT_CAPACITY) -> None:
+        self._visits = np.zeros((capacity, len(gnp.VISIT_FIELDS)), np.int64)
+        self._next = self._size = 0
+        self._node_visits = np.zeros(cfg.n_nodes, np.int64)
+        self._current_node = 0
+
+    def record(self, trace: gnp.StepTrace) -> None:
+        count = int(trace.count[0])
+        columns = [getattr(trace, f) for f in gnp.VISIT_FIELDS]
+        capacity = len(self._visits)
+        for k in range(count):
+            self._visits[self._next] = [int(column[0, k]) for column in columns]
+            self._next = (self._next + 1) % capacity
+            self._size = min(self._size + 1, capacity)
+        if count:
+            self._current_node = int(trace.node[0, count - 1])
+            np.add.at(self._node_visits, trace.node[0, :count], 1)
+
+    def view(self) -> dict[str, Any]:
+        if self._size < len(self._visits):
+            visits = self._visits[: self._size].copy()
+        else:
+            visits = np.concatenate([self._visits[self._next :], self._visits[: self._next]])
+        return {
+            "visits": visits,
+            "current_node": self._current_node,
+            "node_visits": self._node_visits.copy(),
+        }
+
+
+class GnpFamily(BrainFamily):
+    """GNP with the config's method (RL, BS, CS) and judgment (crisp, fuzzy)."""
+
+    name = DEFAULT_BRAIN
+    learns_online = True
+
+    def __init__(self, config: RunConfig) -> None:
+        super().__init__(config)
+        self.cfg = config.controller.gnp_config()
+
+    @classmethod
+    def of(cls, cfg: gnp.GnpConfig) -> GnpFamily:
+        """The family of a bare GNP config (a run's other settings at their defaults): for a
+        controller file's individual, or one drawn by hand, on show.
+
+        Raises:
+            ValueError: `cfg` is not a robot controller's (its inputs or outputs differ).
+        """
+        controller = ControllerSettings(
+            method=cfg.method,
+            fuzzy=cfg.fuzzy,
+            n_judgment=cfg.n_judgment,
+            n_processing=cfg.n_processing,
+            n_sub=cfg.n_sub,
+            n_branch=cfg.n_branch,
+            gamma=cfg.gamma,
+        )
+        family = cls(RunConfig(controller=controller))
+        if family.cfg != cfg:
+            raise ValueError(f"not a robot's GNP config: {cfg}")
+        return family
+
+    @classmethod
+    def selection(cls) -> dict[str, Any]:
+        return {"neuro": None, "family": None}
+
+    @property
+    def label(self) -> str:
+        return self.cfg.method
+
+    @property
+    def description(self) -> str:
+        return f"{self.cfg.method} {gnp.judgment_name(self.cfg.fuzzy)}"
+
+    @property
+    def file_stem(self) -> str:
+        return f"{self.cfg.method}-{gnp.judgment_name(self.cfg.fuzzy)}"
+
+    @property
+    def fuzzy(self) -> bool:
+        return bool(self.cfg.fuzzy)
+
+    @property
+    def graph_config(self) -> gnp.GnpConfig:
+        return self.cfg
+
+    def warm_key(self) -> dict[str, Any]:
+        return {"brain": self.name, "controller": self.config.controller.model_dump(mode="json")}
+
+    def run_template(self) -> RunTemplate:
+        genome = {
+            name: np.zeros((1, *shape), gnp.field_dtype(name))
+            for name, shape in gnp.field_shapes(self.cfg).items()
+        }
+        trace = {
+            name: np.zeros((1, *shape), gnp.TRACE_DTYPE)
+            for name, shape in gnp.trace_shapes(self.cfg).items()
+        }
+        return RunTemplate(config=self.config, genome=genome, trace=trace)
+
+    def first(self) -> GnpEvolution:
+        return GnpEvolution(self.config, initial_population(self.config))
+
+    def rebuild(
+        self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
+    ) -> GnpEvolution:
+        return GnpEvolution(self.config, self.from_arrays(arrays))
+
+    def take(self, individuals: gnp.Population, rows: np.ndarray | list[int]) -> gnp.Population:
+        return gnp.take(individuals, rows)
+
+    def concat(self, parts: list[gnp.Population]) -> gnp.Population:
+        return gnp.concat(parts)
+
+    def for_life(self, individuals: gnp.Population) -> gnp.Population:
+        return individuals.copy()
+
+    def from_arrays(self, arrays: dict[str, np.ndarray]) -> gnp.Population:
+        return gnp.population_from_arrays(self.cfg, arrays)
+
+    def controllers(self, individuals: gnp.Population, engine_seeds: np.ndarray) -> GnpControllers:
+        return GnpControllers(self.cfg, individuals, engine_seeds)
+
+    @property
+    def trace_layout(self) -> TraceLayout:
+        return gnp_trace(self.cfg)
+
+    def tracer(self) -> GraphTracer:
+        return GraphTracer(self.cfg)
+
+    def export_settings(self) -> dict[str, Any]:
+        return {"method": self.cfg.method, "fuzzy": self.cfg.fuzzy}
+
+    def controller_document(
+        self, individual: gnp.Population, settings: dict[str, Any]
+    ) -> dict[str, Any]:
+        return controller_document(GnpController(self.cfg, individual, settings))

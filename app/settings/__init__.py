@@ -1,0 +1,1 @@
+"""Settings: the frozen run configuration, its fields, presets, arenas and CLI options."""

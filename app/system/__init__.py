@@ -1,0 +1,1 @@
+"""The lab's plumbing: worker processes, safe file names, exit codes."""
