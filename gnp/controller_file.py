@@ -1,7 +1,7 @@
 """One controller's genome and Q tables as the body of a controller document, and back.
 
 The schema (version 1) is in docs/controller-format.md; the file around the body (format,
-version, settings) is written and read by `app.controller_file`. Every gene and Q value of the
+version, settings) is written and read by `app.store.controller_file`. Every gene and Q value of the
 individual is written, unused parts included, so the body gives back a population that steps
 bit-identically to the original.
 """

@@ -3,7 +3,7 @@
 One Khepera I robot in a `sim.World`; the observation is what the robot's controller sees (the
 8 IR readings after the noise of Eq. 2.6 and any sensor fault), the action the (left, right)
 wheel commands, the reward Eq. 2.7 with its terms in ``info`` under `sim.TERM_NAMES`. A step is
-the lab's own step (`app.rollout.Batch.staged_step`): the world advances, the reward is judged
+the lab's own step (`app.loop.rollout.Batch.staged_step`): the world advances, the reward is judged
 from the readings after it, and the next observation is drawn there.
 
     import gymnasium

@@ -2,7 +2,7 @@
 
 `World.arrays` hands out the world's arrays (views, not copies) as a `WorldArrays`; `sense`,
 `observe` and `step` here do what `World.sense`, `World.observe` and `World.step` do, by the
-same kernels in the same order, so a loop compiled around them (`app.fused`) gives the world's
+same kernels in the same order, so a loop compiled around them (`app.loop.fused`) gives the world's
 bits. The analytic physics only (pymunk steps in C, outside numba), and no fault fires inside:
 the caller steps the world by `World.step` where one does (see `World.fault_steps`), and tells
 the world how many steps it took (`World.stepped`).
