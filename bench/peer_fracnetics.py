@@ -42,8 +42,8 @@ def _ours(population: int, generations: int, seed: int, folder: Path) -> dict[st
     best = [0.0]
 
     def progress(g: object) -> None:
-        steps[0] += g.env_steps  # type: ignore[attr-defined]
-        best[0] = g.best_return  # type: ignore[attr-defined]
+        steps[0] += g.steps  # type: ignore[attr-defined]
+        best[0] = g.best_fitness  # type: ignore[attr-defined]
 
     wall, cpu = time.perf_counter(), time.process_time()
     train_task(config(generations), folder / "ours.h5", progress=progress)

@@ -87,7 +87,8 @@ def gnp_run(cfg: TaskRunConfig) -> tuple[int, float, float]:
     began = time.process_time()
     try:
         for g in range(training.generations):
-            lives = generation_lives(cfg, pop, g, env)
+            epsilon, alpha = training.epsilon_alpha(g)
+            lives = generation_lives(cfg, pop, g, epsilon, alpha, env)
             steps += int(lives.lengths.sum())
             pop = gnp.evolve(
                 gcfg, lives.learned, lives.returns, g, training.generations,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from app.settings.config import ControllerSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, replay_task, train_task
-from app.tasks.training import TaskGeneration
+from app.tasks.training import GenerationSummary
 from gnp import Schedule
 
 
@@ -40,10 +40,10 @@ def main() -> None:
         ),
     )
 
-    def progress(g: TaskGeneration) -> None:
+    def progress(g: GenerationSummary) -> None:
         print(
-            f"generation {g.generation}: best return {g.best_return:.1f}, "
-            f"mean return {g.mean_return:.1f} ({g.env_steps / g.seconds:,.0f} env-steps/s)"
+            f"generation {g.generation}: best return {g.best_fitness:.1f}, "
+            f"mean return {g.mean_fitness:.1f} ({g.steps / g.seconds:,.0f} env-steps/s)"
         )
 
     with tempfile.TemporaryDirectory() as folder:

@@ -7,6 +7,8 @@ population's arrays (`gnp.population_to_arrays`), Q tables included.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -37,15 +39,26 @@ def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tup
 
 
 class GnpEvolution:
-    """A GNP population as generations go by: evolved from its learned self each generation."""
+    """A GNP population as generations go by: evolved from its learned self each generation by
+    `gnp.evolve` with the Generator of (seed, generation); ε and α of a generation from `rates`.
+    The robot's runs and the Gymnasium tasks' (`app.tasks`) both evolve this way."""
 
-    def __init__(self, config: RunConfig, pop: gnp.Population) -> None:
-        self._config = config
-        self._cfg = config.controller.gnp_config()
-        self._pop = pop
+    def __init__(
+        self,
+        cfg: gnp.GnpConfig,
+        pop: gnp.Population,
+        *,
+        seed: int,
+        generations: int,
+        evolution: gnp.EvolutionConfig,
+        rates: Callable[[int], tuple[float, float]],
+    ) -> None:
+        self._cfg, self._pop = cfg, pop
+        self._seed, self._generations = seed, generations
+        self._evolution, self._rates = evolution, rates
 
     def epsilon_alpha(self, generation: int) -> tuple[float, float]:
-        return generation_epsilon_alpha(self._config.training, generation)
+        return self._rates(generation)
 
     def individuals(self) -> gnp.Population:
         return self._pop
@@ -56,15 +69,14 @@ class GnpEvolution:
     def advance(
         self, learned: gnp.Population, fitness: np.ndarray, generation: int
     ) -> dict[str, np.ndarray]:
-        training = self._config.training
         self._pop = gnp.evolve(
             self._cfg,
             learned,
             fitness,
             generation,
-            training.generations,
-            evolution_rng(self._config.seed, generation),
-            self._config.evolution,
+            self._generations,
+            evolution_rng(self._seed, generation),
+            self._evolution,
         )
         return gnp.population_to_arrays(self._pop)
 
@@ -177,13 +189,25 @@ class GnpFamily(BrainFamily):
         }
         return RunTemplate(config=self.config, genome=genome, trace=trace)
 
+    def evolution(self, pop: gnp.Population) -> GnpEvolution:
+        """`pop` as the run's population, evolving with the run's settings."""
+        config = self.config
+        return GnpEvolution(
+            self.cfg,
+            pop,
+            seed=config.seed,
+            generations=config.training.generations,
+            evolution=config.evolution,
+            rates=partial(generation_epsilon_alpha, config.training),
+        )
+
     def first(self) -> GnpEvolution:
-        return GnpEvolution(self.config, initial_population(self.config))
+        return self.evolution(initial_population(self.config))
 
     def rebuild(
         self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
     ) -> GnpEvolution:
-        return GnpEvolution(self.config, self.from_arrays(arrays))
+        return self.evolution(self.from_arrays(arrays))
 
     def take(self, individuals: gnp.Population, rows: np.ndarray | list[int]) -> gnp.Population:
         return gnp.take(individuals, rows)

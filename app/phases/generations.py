@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -57,6 +57,7 @@ class GenerationSummary:
     best_fitness: float
     mean_fitness: float
     seconds: float
+    steps: int = 0  # steps lived: robot-steps, or a task's env-steps
 
 
 ProgressCallback = Callable[[GenerationSummary], None]
@@ -201,85 +202,171 @@ class Evaluator:
 # --- the loop -------------------------------------------------------------------------------
 
 
-def _elite(
-    config: RunConfig, individuals: Any, best: int, seeds: LifeSeeds, epsilon: float, alpha: float
-) -> Any:
-    """Live the best individual's evaluation again, recording it. Alone in a world of its own
-    it lives the same life as in its worker's world, bit for bit (lives do not depend on
-    their world's other robots)."""
-    alone = ShardLives(config)
-    one = slice(best, best + 1)
-    the_best = alone.family.take(individuals, [best])
-    _, _, trajectory = alone.run(the_best, seeds.take(one), epsilon, alpha, True)
-    assert trajectory is not None
-    return trajectory
+@dataclass(frozen=True)
+class Lived:
+    """A generation's lives: fitness, the individuals after them (what they learned), what the
+    run file keeps beside the fitness (`details`), and the steps they took."""
+
+    fitness: np.ndarray  # (N,)
+    after: Any
+    details: Any = None
+    steps: int = 0
+
+
+class Lab(Protocol):
+    """Where a run's generations are lived and written: the robot's worlds and run file
+    (`RobotLab`), or a Gymnasium task's environments and task run file (`app.tasks`)."""
+
+    generations: int
+
+    def live(self, individuals: Any, generation: int, epsilon: float, alpha: float) -> Lived:
+        """The lives of a generation's individuals (left as they are)."""
+        ...
+
+    def write(
+        self,
+        generation: int,
+        lived: Lived,
+        epsilon: float,
+        alpha: float,
+        best_genome: dict[str, np.ndarray],
+    ) -> None:
+        """Record a lived generation (not yet counted as done)."""
+        ...
+
+    def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
+        """The population `next_generation` starts from (the lab keeps it when it should)."""
+        ...
+
+    def last(self, individuals: Any, lived: Lived, epsilon: float, alpha: float) -> None:
+        """After the last generation is written, before it is counted: what the lab keeps of
+        the run's end (the robot: the final elite's life, re-lived and recorded)."""
+        ...
+
+    def done(self, generations_done: int) -> None:
+        """Count the generations written as done; after the last one, its end is written."""
+        ...
+
+    def close(self) -> None: ...
 
 
 def run_generations(
-    writer: RunWriter,
-    brain: Evolution,
+    lab: Lab,
+    evolution: Evolution,
     start: int,
-    evaluator: Evaluator,
     progress: ProgressCallback | None,
     control: Control,
 ) -> None:
-    """Generations `start`… of `writer`'s run; closes the writer.
+    """Generations `start`… of a run, for any brain family and either lab; closes the lab.
 
     Raises:
         Interrupted: a stop (Ctrl-C, SIGTERM, `control.stop`); the file holds every complete
             generation.
         TrainingError: a worker died.
     """
-    config = writer.config
-    training = config.training
-    n_starts = len(arena_of(training.arena).start_poses)
-    segments = n_segments(training.steps, training.redraw_every)
-    everyone = np.arange(training.population)
     done = start
     try:
         with stop_on_signals(control):  # nested in start/resume's: also when called on its own
-            for generation in range(start, training.generations):
+            for generation in range(start, lab.generations):
                 control.checkpoint()
                 began = time.perf_counter()
-                epsilon, alpha = brain.epsilon_alpha(generation)
-                individuals = brain.individuals()
-                seeds = life_seeds(config.seed, generation, everyone, segments, n_starts)
-                lives, after = evaluator.evaluate(individuals, seeds, epsilon, alpha)
-                best = int(np.argmax(lives.fitness))
-                writer.write_generation(
-                    generation,
-                    fitness=lives.fitness,
-                    best_terms=dict(zip(sim.TERM_NAMES, lives.terms[best], strict=True)),
-                    mean_terms=dict(zip(sim.TERM_NAMES, lives.terms.mean(axis=0), strict=True)),
-                    epsilon=epsilon,
-                    alpha=alpha,
-                    best_genome=brain.arrays(evaluator.family.take(after, [best])),
-                )
-                last = generation + 1 == training.generations
-                if last:
-                    elite = _elite(config, individuals, best, seeds, epsilon, alpha)
+                epsilon, alpha = evolution.epsilon_alpha(generation)
+                individuals = evolution.individuals()
+                lived = lab.live(individuals, generation, epsilon, alpha)
+                best = int(np.argmax(lived.fitness))
+                stored = evolution.arrays(lived.after)
+                best_genome = {name: rows[best : best + 1] for name, rows in stored.items()}
+                lab.write(generation, lived, epsilon, alpha, best_genome)
+                if generation + 1 == lab.generations:
+                    lab.last(individuals, lived, epsilon, alpha)
                 else:
-                    arrays = brain.advance(after, lives.fitness, generation)
-                    if (generation + 1) % training.checkpoint_every == 0:
-                        writer.write_checkpoint(generation + 1, arrays)
-                writer.mark_done(generation + 1)
+                    arrays = evolution.advance(lived.after, lived.fitness, generation)
+                    lab.checkpoint(generation + 1, arrays)
+                lab.done(generation + 1)
                 done = generation + 1
                 if progress is not None:
                     progress(
                         GenerationSummary(
                             generation=generation,
-                            generations=training.generations,
-                            best_fitness=float(lives.fitness[best]),
-                            mean_fitness=float(lives.fitness.mean()),
+                            generations=lab.generations,
+                            best_fitness=float(lived.fitness[best]),
+                            mean_fitness=float(lived.fitness.mean()),
                             seconds=time.perf_counter() - began,
+                            steps=lived.steps,
                         )
                     )
-                if last:
-                    writer.write_elite(generation, elite)
     except KeyboardInterrupt:
         raise Interrupted(done) from None
     finally:
-        writer.close()
+        lab.close()
+
+
+class RobotLab:
+    """The robot's lab: lives in the arena's worlds (`Evaluator`: this process or the worker
+    pool), generations in a run file; the final elite re-lived alone and recorded. Alone in a
+    world of its own it lives the same life as in its worker's world, bit for bit (lives do not
+    depend on their world's other robots)."""
+
+    def __init__(self, writer: RunWriter, evaluator: Evaluator) -> None:
+        self.writer, self.evaluator = writer, evaluator
+        self.config = writer.config
+        training = self.config.training
+        self.generations = training.generations
+        self._n_starts = len(arena_of(training.arena).start_poses)
+        self._segments = n_segments(training.steps, training.redraw_every)
+        self._seeds: LifeSeeds | None = None
+        self._elite: Any = None
+
+    def live(self, individuals: Any, generation: int, epsilon: float, alpha: float) -> Lived:
+        training = self.config.training
+        everyone = np.arange(training.population)
+        seeds = life_seeds(self.config.seed, generation, everyone, self._segments, self._n_starts)
+        self._seeds = seeds
+        lives, after = self.evaluator.evaluate(individuals, seeds, epsilon, alpha)
+        steps = training.population * training.steps
+        return Lived(fitness=lives.fitness, after=after, details=lives.terms, steps=steps)
+
+    def write(
+        self,
+        generation: int,
+        lived: Lived,
+        epsilon: float,
+        alpha: float,
+        best_genome: dict[str, np.ndarray],
+    ) -> None:
+        best = int(np.argmax(lived.fitness))
+        terms = lived.details
+        self.writer.write_generation(
+            generation,
+            fitness=lived.fitness,
+            best_terms=dict(zip(sim.TERM_NAMES, terms[best], strict=True)),
+            mean_terms=dict(zip(sim.TERM_NAMES, terms.mean(axis=0), strict=True)),
+            epsilon=epsilon,
+            alpha=alpha,
+            best_genome=best_genome,
+        )
+
+    def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
+        if next_generation % self.config.training.checkpoint_every == 0:
+            self.writer.write_checkpoint(next_generation, arrays)
+
+    def last(self, individuals: Any, lived: Lived, epsilon: float, alpha: float) -> None:
+        assert self._seeds is not None
+        best = int(np.argmax(lived.fitness))
+        alone = ShardLives(self.config)
+        one = slice(best, best + 1)
+        the_best = alone.family.take(individuals, [best])
+        _, _, trajectory = alone.run(the_best, self._seeds.take(one), epsilon, alpha, True)
+        assert trajectory is not None
+        self._elite = (best, trajectory)
+
+    def done(self, generations_done: int) -> None:
+        self.writer.mark_done(generations_done)
+        if generations_done == self.generations and self._elite is not None:
+            self.writer.write_elite(generations_done - 1, self._elite[1])
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 def start_run(
@@ -313,7 +400,7 @@ def start_run(
             writer.close()
             Path(out).unlink(missing_ok=True)
             raise
-        run_generations(writer, brain, 0, evaluator, progress, control)
+        run_generations(RobotLab(writer, evaluator), brain, 0, progress, control)
     return writer.path
 
 
@@ -350,5 +437,5 @@ def resume_run(
         except BaseException:
             writer.close()
             raise
-        run_generations(writer, brain, generation, evaluator, progress, control)
+        run_generations(RobotLab(writer, evaluator), brain, generation, progress, control)
     return writer.path

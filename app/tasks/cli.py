@@ -17,7 +17,13 @@ from app.system.exit_codes import EXIT_INTERRUPTED
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
 from app.tasks.store import read_task_run
-from app.tasks.training import TaskGeneration, replay_episodes, resume_task, train_task
+from app.tasks.training import (
+    GenerationSummary,
+    Interrupted,
+    replay_episodes,
+    resume_task,
+    train_task,
+)
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
 
@@ -40,12 +46,12 @@ def task_settings(task: str, assignments: list[tuple[list[str], Any]]) -> TaskSe
 
 
 def _progress(quiet: bool) -> Any:
-    def show(g: TaskGeneration) -> None:
+    def show(g: GenerationSummary) -> None:
         if not quiet:
             sys.stderr.write(
                 f"generation {g.generation + 1}/{g.generations}: best return "
-                f"{g.best_return:.1f}, mean {g.mean_return:.1f}, "
-                f"{g.env_steps / max(g.seconds, 1e-9):,.0f} env-steps/s\n"
+                f"{g.best_fitness:.1f}, mean {g.mean_fitness:.1f}, "
+                f"{g.steps / max(g.seconds, 1e-9):,.0f} env-steps/s\n"
             )
 
     return show
@@ -66,7 +72,7 @@ def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -
         path = Path(args.runs_dir) / f"{name}-{config.controller.method}-{stamp}.h5"
     try:
         train_task(task_config, path, _progress(args.quiet))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Interrupted):
         return _interrupted(path)
     return _finished(path)
 
@@ -94,7 +100,7 @@ def resume(path: Path, quiet: bool) -> int:
     """`gnp-lab train --resume` of a task run."""
     try:
         resume_task(path, _progress(quiet))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Interrupted):
         return _interrupted(path)
     return _finished(path)
 

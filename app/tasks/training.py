@@ -1,42 +1,42 @@
 """Training GNP on a Gymnasium task, and replaying a trained individual.
 
-The same generation as the robot's (`app.phases.training`): generation 0 drawn from (seed, init),
-lives that learn online with ε and α fixed or scheduled, the learned population evolved by
-`gnp.evolve` with the Generator of (seed, generation), every life's random inputs keyed by
-(seed, generation, individual) (`app.loop.seeds.life_seeds`). A run is a function of its config
-and seed, and a resumed run matches one never interrupted.
+Built on the lab's own pieces: the generation loop is the robot's
+(`app.phases.generations.run_generations`, with `TaskLab` as the lab: lives in the task's
+environments, generations in a task run file) and the population evolves as the GNP family's
+(`app.brains.gnp_brain.GnpEvolution`): generation 0 drawn from (seed, init), lives that learn
+online with ε and α fixed or scheduled, the learned population evolved by `gnp.evolve` with the
+Generator of (seed, generation), every life's random inputs keyed by (seed, generation,
+individual) (`app.loop.seeds.life_seeds`). A run is a function of its config and seed, and a
+resumed run matches one never interrupted.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 import gnp
-from app.loop.seeds import evolution_rng, init_rng, life_seeds
+from app.brains.gnp_brain import GnpEvolution
+from app.loop.seeds import init_rng, life_seeds
+from app.phases.generations import (
+    Control,
+    GenerationSummary,
+    Interrupted,
+    Lived,
+    ProgressCallback,
+    run_generations,
+    stop_on_signals,
+)
 from app.tasks.config import TaskRunConfig
 from app.tasks.faults import ObservationFault
 from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, live
 from app.tasks.store import TaskRunWriter, read_task_run
 
-
-@dataclass(frozen=True)
-class TaskGeneration:
-    """What a progress display needs after each generation."""
-
-    generation: int
-    generations: int
-    best_return: float
-    mean_return: float
-    env_steps: int
-    seconds: float
-
-
-TaskProgress = Callable[[TaskGeneration], None]
+# What callers of task training meet, imported from their rooms.
+__all__ = ["GenerationSummary", "Interrupted", "resume_task", "train_task"]
 
 
 def first_population(config: TaskRunConfig) -> gnp.Population:
@@ -46,103 +46,123 @@ def first_population(config: TaskRunConfig) -> gnp.Population:
     )
 
 
+def task_evolution(config: TaskRunConfig, pop: gnp.Population) -> GnpEvolution:
+    """`pop` as a task run's population, evolving as the GNP family's does."""
+    training = config.training
+    return GnpEvolution(
+        config.gnp_config(),
+        pop,
+        seed=config.seed,
+        generations=training.generations,
+        evolution=config.evolution,
+        rates=training.epsilon_alpha,
+    )
+
+
 def generation_lives(
-    config: TaskRunConfig, pop: gnp.Population, generation: int, env: BatchEnv | None = None
+    config: TaskRunConfig,
+    pop: gnp.Population,
+    generation: int,
+    epsilon: float,
+    alpha: float,
+    env: BatchEnv | None = None,
 ) -> TaskLives:
     """The lives of `pop` (generation `generation`) on the task."""
-    cfg = config.gnp_config()
-    adapter = config.adapter
     n = pop.size
     seeds = life_seeds(config.seed, generation, np.arange(n), 1, 1)
-    epsilon, alpha = config.training.epsilon_alpha(generation)
     own = env is None
-    batch = BatchEnv(config.task.id, n, adapter) if env is None else env
+    batch = BatchEnv(config.task.id, n, config.adapter) if env is None else env
     try:
         return live(
-            cfg, adapter, batch, pop, seeds.world, seeds.engine, epsilon, alpha,
-            config.training.steps,
+            config.gnp_config(), config.adapter, batch, pop, seeds.world, seeds.engine,
+            epsilon, alpha, config.training.steps,
         )  # fmt: skip
     finally:
         if own:
             batch.close()
 
 
-def _run(
-    writer: TaskRunWriter, pop: gnp.Population, start: int, progress: TaskProgress | None
-) -> Path:
-    config = writer.config
-    training = config.training
-    cfg = config.gnp_config()
-    env = BatchEnv(config.task.id, training.population, config.adapter)
-    try:
-        for generation in range(start, training.generations):
-            began = time.perf_counter()
-            lives = generation_lives(config, pop, generation, env)
-            best = int(np.argmax(lives.returns))
-            epsilon, alpha = training.epsilon_alpha(generation)
-            writer.write_generation(
-                generation,
-                lives.returns,
-                epsilon,
-                alpha,
-                gnp.population_to_arrays(gnp.take(lives.learned, [best])),
-            )
-            if generation + 1 < training.generations:
-                pop = gnp.evolve(
-                    cfg,
-                    lives.learned,
-                    lives.returns,
-                    generation,
-                    training.generations,
-                    evolution_rng(config.seed, generation),
-                    config.evolution,
-                )
-                writer.write_checkpoint(generation + 1, gnp.population_to_arrays(pop))
-            writer.mark_done(generation + 1)
-            if progress is not None:
-                progress(
-                    TaskGeneration(
-                        generation=generation,
-                        generations=training.generations,
-                        best_return=float(lives.returns[best]),
-                        mean_return=float(lives.returns.mean()),
-                        env_steps=int(lives.lengths.sum()),
-                        seconds=time.perf_counter() - began,
-                    )
-                )
-    finally:
-        env.close()
-        writer.close()
-    return writer.path
+class TaskLab:
+    """A task's lab for the one generation loop: lives in the task's environments (one batch
+    env for the whole run), generations in its task run file, a checkpoint every generation."""
+
+    def __init__(self, writer: TaskRunWriter) -> None:
+        self.writer, self.config = writer, writer.config
+        self.generations = self.config.training.generations
+        self._env = BatchEnv(
+            self.config.task.id, self.config.training.population, self.config.adapter
+        )
+
+    def live(
+        self, individuals: gnp.Population, generation: int, epsilon: float, alpha: float
+    ) -> Lived:
+        lives = generation_lives(self.config, individuals, generation, epsilon, alpha, self._env)
+        return Lived(fitness=lives.returns, after=lives.learned, steps=int(lives.lengths.sum()))
+
+    def write(
+        self,
+        generation: int,
+        lived: Lived,
+        epsilon: float,
+        alpha: float,
+        best_genome: dict[str, np.ndarray],
+    ) -> None:
+        self.writer.write_generation(generation, lived.fitness, epsilon, alpha, best_genome)
+
+    def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
+        self.writer.write_checkpoint(next_generation, arrays)
+
+    def last(self, individuals: gnp.Population, lived: Lived, epsilon: float, alpha: float) -> None:
+        pass  # a task run keeps no elite's life
+
+    def done(self, generations_done: int) -> None:
+        self.writer.mark_done(generations_done)
+
+    def close(self) -> None:
+        try:
+            self._env.close()
+        finally:
+            self.writer.close()
 
 
 def train_task(
-    config: TaskRunConfig, out: str | Path, progress: TaskProgress | None = None
+    config: TaskRunConfig,
+    out: str | Path,
+    progress: ProgressCallback | None = None,
+    control: Control | None = None,
 ) -> Path:
     """Train `config` into a new task run file `out`.
 
     Raises:
         TaskError: the task cannot be run by GNP.
         RunFileError: `out` exists or cannot be created.
+        Interrupted: Ctrl-C / SIGTERM / a stop; the file holds every complete generation.
     """
     config.gnp_config()  # a bad task fails before any file is made
-    pop = first_population(config)
-    writer = TaskRunWriter.create(out, config)
-    try:
-        writer.write_checkpoint(0, gnp.population_to_arrays(pop))
-        writer.mark_done(0)
-    except BaseException:  # Ctrl-C, a full disk: no file without its first checkpoint
-        writer.close()
-        Path(out).unlink(missing_ok=True)
-        raise
-    return _run(writer, pop, 0, progress)
+    control = control or Control()
+    with stop_on_signals(control):  # a stop before generation 0's checkpoint leaves no file
+        evolution = task_evolution(config, first_population(config))
+        writer = TaskRunWriter.create(out, config)
+        try:
+            writer.write_checkpoint(0, evolution.arrays(evolution.individuals()))
+            writer.mark_done(0)
+        except BaseException:  # Ctrl-C, a full disk: no file without its first checkpoint
+            writer.close()
+            Path(out).unlink(missing_ok=True)
+            raise
+        run_generations(TaskLab(writer), evolution, 0, progress, control)
+    return writer.path
 
 
-def resume_task(path: str | Path, progress: TaskProgress | None = None) -> Path:
-    """Continue an interrupted task run from its checkpoint."""
+def resume_task(
+    path: str | Path, progress: ProgressCallback | None = None, control: Control | None = None
+) -> Path:
+    """Continue an interrupted task run from its checkpoint (as `train_task`)."""
     writer, generation, arrays = TaskRunWriter.resume(path)
     pop = gnp.population_from_arrays(writer.config.gnp_config(), arrays)
-    return _run(writer, pop, generation, progress)
+    evolution = task_evolution(writer.config, pop)
+    run_generations(TaskLab(writer), evolution, generation, progress, control or Control())
+    return writer.path
 
 
 @dataclass(frozen=True)
