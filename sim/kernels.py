@@ -5,7 +5,7 @@ a robot's draws depend on nothing but its own key and clock (see docs/decisions.
 """
 
 import math
-from typing import Literal
+from typing import Literal, get_args
 
 import numba as nb
 import numpy as np
@@ -345,7 +345,7 @@ _BLOCK_ZIGGURAT = 8  # blocks 8..15: one ziggurat normal each, for sensor j (zig
 _INV_2_53 = 1.0 / 9007199254740992.0
 
 NoiseStream = Literal["box-muller-v1", "ziggurat-v1"]
-NOISE_STREAMS: tuple[NoiseStream, ...] = ("box-muller-v1", "ziggurat-v1")
+NOISE_STREAMS: tuple[NoiseStream, ...] = get_args(NoiseStream)
 """How the sensor noise's normal draws are made from a robot's stream; its code in the kernels
 is its index here. ``box-muller-v1`` (the default, every run before the setting): one
 Box–Muller pair per two sensors, glibc's ``log``, ``sqrt`` and ``sincos``. ``ziggurat-v1``: one

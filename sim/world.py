@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Literal, cast
+from typing import Literal, cast, get_args
 
 import numpy as np
 import pymunk
@@ -24,10 +24,10 @@ from sim.khepera import (
 from sim.loop import WorldArrays
 
 FaultMode = Literal["dead", "saturated", "stuck", "random"]
-FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
+FAULT_MODES: tuple[FaultMode, ...] = get_args(FaultMode)
 """Fault modes; their codes in ``World.fault_modes`` are 1..4 in this order (0 = healthy)."""
 Physics = Literal["pymunk", "analytic"]
-PHYSICS: tuple[Physics, ...] = ("pymunk", "analytic")
+PHYSICS: tuple[Physics, ...] = get_args(Physics)
 """The world's physics: pymunk (the reference) or analytic (numba, for sweeps; see
 ``sim.analytic``)."""
 
