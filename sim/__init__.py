@@ -6,7 +6,6 @@ The constants below are the world's facts; `app` imports them rather than re-typ
 
 from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
-from sim.kernels import NOISE_STREAMS, NoiseStream
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -16,6 +15,7 @@ from sim.khepera import (
     MAX_COMMAND,
     N_SENSORS,
 )
+from sim.noise import NOISE_STREAMS, NoiseStream
 from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import WallGrid, ir_readings, sensor_rays
 from sim.world import (

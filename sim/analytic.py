@@ -1,7 +1,7 @@
 """The analytic physics: each robot a disc against its arena's wall segments, in numba.
 
 No pymunk space. A robot is a point state (position, heading, velocity, the contact solver's
-bias velocity) moved by the same force drive as the pymunk world (``kernels.drive_forces``),
+bias velocity) moved by the same force drive as the pymunk world (``sim.drive.drive_forces``),
 and its contacts with the walls are found and solved here, one robot at a time. The contact
 model is chipmunk's, restricted to what this world uses (a disc against static, frictionless,
 inelastic segments; see docs/decisions.md): a contact exists while the disc's centre is closer
@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from sim import kernels
+from sim import drive
 from sim.khepera import BODY_RADIUS_MM, MASS, MOMENT
 from sim.sensors import WallGrid
 
@@ -161,7 +161,7 @@ class BodyArrays(NamedTuple):
 @nb.njit(cache=True)
 def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray) -> None:
     """One control period of every body: the force drive, then the substeps' contacts."""
-    kernels.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
+    drive.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
     solve_discs(
         bodies.state,
         bodies.forces,

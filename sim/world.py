@@ -10,10 +10,9 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
-from sim import kernels
+from sim import drive, noise, rays
 from sim.analytic import AnalyticBodies
 from sim.arena import Arena
-from sim.kernels import NoiseStream
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -22,6 +21,7 @@ from sim.khepera import (
     N_SENSORS,
 )
 from sim.loop import WorldArrays
+from sim.noise import NoiseStream
 
 FaultMode = Literal["dead", "saturated", "stuck", "random"]
 FAULT_MODES: tuple[FaultMode, ...] = get_args(FaultMode)
@@ -182,7 +182,7 @@ class _Chunk:
         """Arena-local poses of this chunk's robots into out (n, 3)."""
         self.buffer.clear()
         pb.get_space_bodies(self.space, _POSE_FIELDS, self.buffer)
-        kernels.gather_poses(np.frombuffer(self.buffer.float_buf()), self.rows, self.offsets, out)
+        drive.gather_poses(np.frombuffer(self.buffer.float_buf()), self.rows, self.offsets, out)
 
     def advance(
         self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
@@ -195,7 +195,7 @@ class _Chunk:
                 buffer = pb.Buffer()
                 buffer.set_float_buf(forces.reshape(-1))
                 self.set_buffers.append(buffer)
-        kernels.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
+        drive.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
         for buffer in self.set_buffers:
             pb.set_space_bodies(self.space, _DRIVE_FIELDS, buffer)
             self.space.step(dt)
@@ -285,7 +285,7 @@ class World:
             raise WorldError(f"unknown physics {physics!r}: expected one of {', '.join(PHYSICS)}")
         self.physics = physics
         try:
-            self._noise_stream = kernels.noise_stream_code(noise_stream)
+            self._noise_stream = noise.noise_stream_code(noise_stream)
         except ValueError as error:
             raise WorldError(str(error)) from None
         self.noise_stream = noise_stream
@@ -381,7 +381,7 @@ class World:
         """
         poses = self._check_poses(poses, self.n)
         if seeds is None:
-            new_seeds = kernels.derive_seeds(
+            new_seeds = noise.derive_seeds(
                 np.uint64(self.seed % 2**64), np.uint64(self._episode), self.n
             )
         else:
@@ -393,7 +393,7 @@ class World:
             new_seeds = raw.astype(np.uint64)
         self._episode += 1
         self._seeds = new_seeds
-        self._keys = kernels.robot_keys(new_seeds)
+        self._keys = noise.robot_keys(new_seeds)
         self.t = 0
         self._fault_mode[:] = 0
         self._stuck[:] = 0.0
@@ -475,7 +475,7 @@ class World:
     def _update_readings(self) -> None:
         if not self._fresh:
             grid = self._wall_grid  # the kernel itself: sensors.ir_readings without its checks
-            kernels.ir_readings_grid(
+            rays.ir_readings_grid(
                 self._poses, grid.table, grid.frame, grid.starts, grid.members, self._readings
             )
             self._fresh = True
@@ -487,7 +487,7 @@ class World:
         same values.
         """
         self._update_readings()
-        kernels.observe(
+        noise.observe(
             self._readings,
             self._keys,
             np.uint64(self.t),
@@ -508,7 +508,7 @@ class World:
         raw = np.asarray(commands, dtype=np.float64)
         if raw.shape != (self.n, 2):
             raise WorldError(f"commands must have shape ({self.n}, 2), got {raw.shape}")
-        if not kernels.clip_commands(raw, self._commands):
+        if not drive.clip_commands(raw, self._commands):
             raise WorldError("commands contain NaN")
         dt = self.control_period / self.substeps
         if self._analytic is not None:
@@ -523,7 +523,7 @@ class World:
                 self._poses[part, 2], self._spins[part], self._commands[part], dt, self.substeps
             )
             chunk.read_poses(self._poses[part])
-        kernels.wheel_spins(self._commands, self._spins)
+        drive.wheel_spins(self._commands, self._spins)
         self._fresh = False
         self.t += 1
         self._fire_scheduled()
