@@ -14,7 +14,7 @@ finds them (by the first hash cell they share with the robot, then the latest-ad
 first), so that where several walls touch a robot the solver's passes round alike too.
 
 Positions are kept in a copy of the arena at the same kind of offset as the pymunk world's
-(``sim.world.COPY_REGION_MM``), so their rounding is the pymunk world's too.
+(``sim.spaces.COPY_REGION_MM``), so their rounding is the pymunk world's too.
 """
 
 from __future__ import annotations

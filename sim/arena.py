@@ -19,7 +19,7 @@ from sim.sensors import WallGrid, wall_grid
 ARENA_NAMES: tuple[str, ...] = ("implementation", "training")
 N_START_POSES = 10
 MAX_EXTENT_MM = 3000.0
-"""Largest arena side: each robot gets its own copy of the arena in a space (see ``sim.world``)."""
+"""Largest arena side: each robot gets its own copy of the arena in a space (see ``sim.spaces``)."""
 _EPS = 1e-9
 # Bounds on an arena's size: its checks are quadratic in its segments, and an arena can come
 # inline from a run file someone sent.

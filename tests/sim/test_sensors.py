@@ -17,7 +17,7 @@ from sim.khepera import (
     SENSOR_HEADINGS_RAD,
     SENSOR_ORIGINS_MM,
 )
-from sim.world import RAY_FILTER
+from sim.spaces import RAY_FILTER
 
 
 def expected(d: float) -> float:
