@@ -24,15 +24,9 @@ from pydantic import ValidationError
 from app.config import describe_problems
 from app.dashboard.controls import DashboardInputError
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
-from app.experiments.report import (
-    ComparisonReport,
-    ExperimentReport,
-    format_number,
-    interval_level,
-    looks_text,
-    stages_json,
-    tally,
-)
+from app.experiments.report import ComparisonReport, ExperimentReport, tally
+from app.experiments.report_json import stages_json
+from app.experiments.report_text import format_number, interval_level, looks_text
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import POWER, Design
 from app.experiments.spec import ScaleSpec

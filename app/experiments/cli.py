@@ -327,7 +327,8 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 
 
 def _print_json(results: ExperimentResults) -> int:
-    from app.experiments.report import analyse, to_json
+    from app.experiments.report import analyse
+    from app.experiments.report_json import to_json
 
     json.dump(to_json(analyse(results)), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
     sys.stdout.write("\n")
