@@ -29,7 +29,7 @@ from app.experiments.report_json import stages_json
 from app.experiments.report_text import format_number, interval_level, looks_text
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import POWER, Design
-from app.experiments.spec import ScaleSpec
+from app.experiments.spec_tables import ScaleSpec
 
 KINDS = (("question", "The thesis's questions"), ("sanity", "Within one arm (sanity)"))
 CLAIM_HEADER = "claim: Δ [interval]"

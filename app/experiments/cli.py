@@ -20,15 +20,9 @@ from app.exit_codes import EXIT_INTERRUPTED
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
 from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
-from app.experiments.spec import (
-    SCALES,
-    ExperimentError,
-    ExperimentSpec,
-    check_name,
-    load_file,
-    load_shipped,
-    shipped_names,
-)
+from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
+from app.experiments.spec_loading import load_file, load_shipped, shipped_names
+from app.experiments.spec_tables import check_name
 
 DEFAULT_SCALE = "small"
 

@@ -20,7 +20,7 @@ from lab_fixtures import assert_same_data, file_digest, finish, gnp_lab, tiny_co
 from app.cli import main
 from app.config import to_toml
 from app.experiments.planning import plan
-from app.experiments.spec import load_file
+from app.experiments.spec_loading import load_file
 from app.implementation import implement
 from app.store import RunReader
 from app.training import train

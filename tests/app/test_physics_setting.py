@@ -14,7 +14,7 @@ from lab_fixtures import assert_same_data, tiny_config
 import sim
 from app.cli import build_parser, config_from_args
 from app.config import ConfigError, RunConfig, build_config, stored_config
-from app.experiments.spec import load_shipped, parse
+from app.experiments.spec_loading import load_shipped, parse
 from app.implementation import implement
 from app.store import RunReader
 from app.training import train

@@ -10,7 +10,7 @@ from experiment_fixtures import write_tiny
 
 from app.experiments.cluster import connect, warm_numba
 from app.experiments.planning import plan
-from app.experiments.spec import load_file
+from app.experiments.spec_loading import load_file
 
 
 def loaded() -> dict[str, bool]:

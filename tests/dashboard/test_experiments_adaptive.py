@@ -29,7 +29,8 @@ from app.experiments.report import analyse
 from app.experiments.report_text import format_number
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import Design
-from app.experiments.spec import ExperimentSpec, load_file
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import load_file
 from app.experiments.summary import read_summary
 
 SCALE, STAGE, MOST = "smoke", 2, 4
