@@ -25,7 +25,8 @@ from app.experiments.cluster import connect, warm_numba
 from app.experiments.execution import execute, run_task
 from app.experiments.harvest import collect
 from app.experiments.planning import plan
-from app.experiments.spec import ExperimentSpec, load_shipped, parse
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import load_shipped, parse
 
 
 def _sized(spec: ExperimentSpec, scale: str, sizes: dict[str, int]) -> ExperimentSpec:

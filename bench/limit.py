@@ -6,7 +6,7 @@
 One life of `--robots` generation-0 controllers of the preset (σ = `--noise`) is recorded in the
 training arena; then each stage replays its share of that life alone, on the recorded inputs:
 - sensing: the 8 IR rays of every robot at the recorded poses (`sim.ir_readings`), and the
-  same with every wall tested for reach (`sim.kernels.ir_readings`, the kernel before the cull);
+  same with every wall tested for reach (`sim.rays.ir_readings`, the kernel before the cull);
 - noise: what the controllers see (`World.observe`: Eq. 2.6 noise and faults) on those readings,
   with the default noise stream (box-muller-v1) and with ziggurat-v1 (`training.noise_stream`);
 - physics pymunk: `World.step` through the recorded commands (the same contacts);
@@ -62,7 +62,8 @@ from app.loop.seeds import life_seeds
 from app.settings.arenas import arena_of
 from app.settings.config import RunConfig
 from app.settings.loading import build_config, load_preset
-from sim import kernels
+from sim import rays
+from sim.noise import noise_stream_code, observe, robot_keys
 
 
 @dataclass(frozen=True)
@@ -157,7 +158,7 @@ def sensing_every_wall(life: Life) -> Timed:
 
     def run() -> None:
         for poses in life.poses:
-            kernels.ir_readings(poses, table, out)
+            rays.ir_readings(poses, table, out)
 
     return run
 
@@ -167,13 +168,13 @@ def noise(life: Life, stream: sim.NoiseStream = "box-muller-v1") -> Timed:
     mode = np.zeros(life.readings.shape[1:], np.int8)
     stuck = np.zeros(life.readings.shape[1:])
     out = np.empty(life.readings.shape[1:])
-    keys = kernels.robot_keys(life.world_seeds)
-    code = kernels.noise_stream_code(stream)
+    keys = robot_keys(life.world_seeds)
+    code = noise_stream_code(stream)
     sigma = world.noise_sigma
 
     def run() -> None:
         for t, readings in enumerate(life.readings):  # World.observe's kernel, as it calls it
-            kernels.observe(readings, keys, np.uint64(t), sigma, mode, stuck, out, code)
+            observe(readings, keys, np.uint64(t), sigma, mode, stuck, out, code)
 
     return run
 

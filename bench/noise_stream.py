@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/noise_stream.py [--population 300] [--steps 1000] [--rounds 3]
 
-- noise stage: `sim.kernels.observe` (σ = 50, no fault) on 300 robots' readings for 500 steps,
+- noise stage: `sim.noise.observe` (σ = 50, no fault) on 300 robots' readings for 500 steps,
   in this process, streams alternating, best of `--rounds` × 3; ns per robot-step;
 - training generation: `app.phases.training.train` (thesis-ch3, σ = 50, analytic, 1 worker,
   `--population` × `--steps`), the second of three generations (as `bench/versus.py` times it),
@@ -25,14 +25,14 @@ from typing import Any
 import numpy as np
 
 import sim
-from sim import kernels
+from sim import noise
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def noise_stage(rounds: int, robots: int = 300, steps: int = 500) -> dict[str, float]:
-    """ns per robot-step of `kernels.observe` for each stream."""
-    keys = kernels.robot_keys(np.arange(robots, dtype=np.uint64))
+    """ns per robot-step of `noise.observe` for each stream."""
+    keys = noise.robot_keys(np.arange(robots, dtype=np.uint64))
     readings = np.random.default_rng(0).uniform(0.0, sim.IR_MAX, (steps, robots, sim.N_SENSORS))
     mode = np.zeros((robots, sim.N_SENSORS), np.int8)
     stuck = np.zeros((robots, sim.N_SENSORS))
@@ -41,16 +41,16 @@ def noise_stage(rounds: int, robots: int = 300, steps: int = 500) -> dict[str, f
     def run(code: int) -> float:
         began = time.process_time()
         for t in range(steps):
-            kernels.observe(readings[t], keys, np.uint64(t), 50.0, mode, stuck, out, code)
+            noise.observe(readings[t], keys, np.uint64(t), 50.0, mode, stuck, out, code)
         return time.process_time() - began
 
     best = dict.fromkeys(sim.NOISE_STREAMS, float("inf"))
     for stream in sim.NOISE_STREAMS:
-        run(kernels.noise_stream_code(stream))  # compiled, loaded
+        run(noise.noise_stream_code(stream))  # compiled, loaded
     for r in range(3 * rounds):
         order = sim.NOISE_STREAMS if r % 2 == 0 else sim.NOISE_STREAMS[::-1]
         for stream in order:
-            best[stream] = min(best[stream], run(kernels.noise_stream_code(stream)))
+            best[stream] = min(best[stream], run(noise.noise_stream_code(stream)))
     return {stream: 1e9 * seconds / (robots * steps) for stream, seconds in best.items()}
 
 

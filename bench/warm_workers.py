@@ -19,7 +19,7 @@ from pathlib import Path
 from app.experiments.cluster import connect, warm_numba
 from app.experiments.execution import run_task
 from app.experiments.planning import plan
-from app.experiments.spec import load_shipped
+from app.experiments.spec_loading import load_shipped
 
 
 def first_tasks(warm: bool, experiment: str, folder: Path) -> tuple[float, float, float]:

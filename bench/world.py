@@ -35,7 +35,8 @@ from sim.khepera import (
     SENSOR_ORIGINS_MM,
     WHEEL_RADIUS_MM,
 )
-from sim.world import DEFAULT_SUBSTEPS, RAY_FILTER, ROBOT_FILTER, SOLVER_ITERATIONS, WALL_FILTER
+from sim.spaces import RAY_FILTER, ROBOT_FILTER, SOLVER_ITERATIONS, WALL_FILTER
+from sim.world import DEFAULT_SUBSTEPS
 
 SIGMA = 50.0
 

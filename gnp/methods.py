@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Literal
+from typing import Literal, get_args
 
 #: The learning methods: GNP-RL (sub node selection), GNP-TSRL with branch selection or credit.
 Method = Literal["RL", "BS", "CS"]
-METHODS: tuple[Method, ...] = ("RL", "BS", "CS")
+METHODS: tuple[Method, ...] = get_args(Method)
 
 #: The compiled kernel's flags for the second stage (`MethodTraits.kernel_code`); none of them
 #: runs the first stage alone, as the live ablation runs every method.

@@ -6,7 +6,7 @@ The constants below are the world's facts; `app` imports them rather than re-typ
 
 from sim.arena import ARENA_NAMES, N_START_POSES, Arena, ArenaError, load_arena
 from sim.check import check_world
-from sim.kernels import NOISE_STREAMS, NoiseStream
+from sim.faults import FAULT_MODES, Fault, FaultMode, WorldError
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -16,17 +16,10 @@ from sim.khepera import (
     MAX_COMMAND,
     N_SENSORS,
 )
+from sim.noise import NOISE_STREAMS, NoiseStream
 from sim.reward import TERM_NAMES, reward_table, reward_terms
 from sim.sensors import WallGrid, ir_readings, sensor_rays
-from sim.world import (
-    FAULT_MODES,
-    PHYSICS,
-    Fault,
-    FaultMode,
-    Physics,
-    World,
-    WorldError,
-)
+from sim.world import PHYSICS, Physics, World
 
 __all__ = [
     "ARENA_NAMES",

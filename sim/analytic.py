@@ -1,7 +1,7 @@
 """The analytic physics: each robot a disc against its arena's wall segments, in numba.
 
 No pymunk space. A robot is a point state (position, heading, velocity, the contact solver's
-bias velocity) moved by the same force drive as the pymunk world (``kernels.drive_forces``),
+bias velocity) moved by the same force drive as the pymunk world (``sim.drive.drive_forces``),
 and its contacts with the walls are found and solved here, one robot at a time. The contact
 model is chipmunk's, restricted to what this world uses (a disc against static, frictionless,
 inelastic segments; see docs/decisions.md): a contact exists while the disc's centre is closer
@@ -14,7 +14,7 @@ finds them (by the first hash cell they share with the robot, then the latest-ad
 first), so that where several walls touch a robot the solver's passes round alike too.
 
 Positions are kept in a copy of the arena at the same kind of offset as the pymunk world's
-(``sim.world.COPY_REGION_MM``), so their rounding is the pymunk world's too.
+(``sim.spaces.COPY_REGION_MM``), so their rounding is the pymunk world's too.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from sim import kernels
+from sim import drive, khepera, sensors
+from sim.kernel_cache import drop_stale_cache, source_fingerprint
 from sim.khepera import BODY_RADIUS_MM, MASS, MOMENT
 from sim.sensors import WallGrid
 
@@ -161,7 +162,7 @@ class BodyArrays(NamedTuple):
 @nb.njit(cache=True)
 def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray) -> None:
     """One control period of every body: the force drive, then the substeps' contacts."""
-    kernels.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
+    drive.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
     solve_discs(
         bodies.state,
         bodies.forces,
@@ -475,3 +476,17 @@ def _swap(
     bias[p], bias[q] = bias[q], bias[p]
     jn[p], jn[q] = jn[q], jn[p]
     warm[p], warm[q] = warm[q], warm[p]
+
+
+#: What this module's cached kernels were compiled against: sim/khepera.py's constants and
+#: the modules whose kernels it calls (sim.kernel_cache).
+COMPILED_AGAINST = source_fingerprint(drive, khepera, sensors)
+
+
+@nb.njit(cache=True)
+def _frozen_sources() -> np.ndarray:
+    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
+    return COMPILED_AGAINST.copy()
+
+
+drop_stale_cache(globals(), _frozen_sources, COMPILED_AGAINST)

@@ -12,14 +12,14 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from sim import kernels
+from sim import rays
 from sim.khepera import BODY_RADIUS_MM
 from sim.sensors import WallGrid, wall_grid
 
 ARENA_NAMES: tuple[str, ...] = ("implementation", "training")
 N_START_POSES = 10
 MAX_EXTENT_MM = 3000.0
-"""Largest arena side: each robot gets its own copy of the arena in a space (see ``sim.world``)."""
+"""Largest arena side: each robot gets its own copy of the arena in a space (see ``sim.spaces``)."""
 _EPS = 1e-9
 # Bounds on an arena's size: its checks are quadratic in its segments, and an arena can come
 # inline from a run file someone sent.
@@ -87,10 +87,10 @@ class Arena:
         """Whether points (..., 2) lie in free space: inside the outer wall, outside solids."""
         flat = _as_points(points)
         inside = np.empty(len(flat), dtype=bool)
-        kernels.in_polygon(flat, np.ascontiguousarray(self.outer), inside)
+        rays.in_polygon(flat, np.ascontiguousarray(self.outer), inside)
         in_solid = np.empty(len(flat), dtype=bool)
         for solid in self.solids:
-            kernels.in_polygon(flat, np.ascontiguousarray(solid), in_solid)
+            rays.in_polygon(flat, np.ascontiguousarray(solid), in_solid)
             inside &= ~in_solid
         return inside.reshape(np.shape(points)[:-1])
 
@@ -98,13 +98,13 @@ class Arena:
         """Distance (...,) from points (..., 2) to the nearest wall, mm."""
         flat = _as_points(points)
         out = np.empty(len(flat))
-        kernels.wall_distances(flat, self.wall_table, out)
+        rays.wall_distances(flat, self.wall_table, out)
         return out.reshape(np.shape(points)[:-1])
 
     @cached_property
     def wall_table(self) -> np.ndarray:
-        """The walls as ``sim.kernels.wall_table`` rows, for the numba kernels."""
-        return kernels.wall_table(self.walls)
+        """The walls as ``sim.rays.wall_table`` rows, for the numba kernels."""
+        return rays.wall_table(self.walls)
 
     @cached_property
     def wall_grid(self) -> WallGrid:

@@ -41,6 +41,7 @@ import numpy as np
 from gymnasium import spaces
 
 from sim.arena import N_START_POSES, Arena, load_arena
+from sim.faults import Fault, FaultMode, WorldError
 from sim.khepera import (
     BODY_RADIUS_MM,
     CONTROL_PERIOD_S,
@@ -50,7 +51,7 @@ from sim.khepera import (
     N_SENSORS,
 )
 from sim.reward import C_FROM, TERM_NAMES, CFrom, reward_table
-from sim.world import PHYSICS, Fault, FaultMode, Physics, World, WorldError
+from sim.world import PHYSICS, Physics, World
 
 ENV_ID = "GnpLab/WallFollow-v0"
 SEED_BOUND = 2**63

@@ -25,6 +25,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from sim.faults import WorldError
 from sim.gym_env import (
     ArenaArg,
     TopDown,
@@ -40,7 +41,7 @@ from sim.gym_env import (
 )
 from sim.khepera import LIFE_STEPS
 from sim.reward import TERM_NAMES, CFrom
-from sim.world import Physics, WorldError
+from sim.world import Physics
 
 
 class WallFollowVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):

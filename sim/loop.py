@@ -15,7 +15,8 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from sim import analytic, kernels, reward
+from sim import analytic, drive, khepera, noise, rays, reward, sensors
+from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
 
 class WorldArrays(NamedTuple):
@@ -30,7 +31,7 @@ class WorldArrays(NamedTuple):
     stuck: np.ndarray  # (N, 8)
     keys: np.ndarray  # (N,) uint64 stream keys
     noise_sigma: float
-    noise_stream: int  # the index of a kernels.NOISE_STREAMS name
+    noise_stream: int  # the index of a sim.noise.NOISE_STREAMS name
     wall_table: np.ndarray
     grid_frame: np.ndarray
     grid_starts: np.ndarray
@@ -85,7 +86,7 @@ def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
 @nb.njit(cache=True)
 def sense(world: WorldArrays) -> None:
     """The true readings at the world's poses (`World.sense`), into `world.readings`."""
-    kernels.ir_readings_grid(
+    rays.ir_readings_grid(
         world.poses,
         world.wall_table,
         world.grid_frame,
@@ -98,7 +99,7 @@ def sense(world: WorldArrays) -> None:
 @nb.njit(cache=True)
 def observe(world: WorldArrays, t: int) -> None:
     """What the controllers see at world step `t` (`World.observe`), into `world.observed`."""
-    kernels.observe(
+    noise.observe(
         world.readings,
         world.keys,
         np.uint64(t),
@@ -119,7 +120,7 @@ def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
     world, t, drawn = source
     i, b = int(i), int(j) >> 1
     if not drawn[i, b]:
-        kernels.observe_pair(
+        noise.observe_pair(
             world.readings,
             world.keys,
             np.uint64(t),
@@ -138,14 +139,28 @@ def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
 @nb.njit(cache=True)
 def step(world: WorldArrays, commands: np.ndarray) -> None:
     """One control period at wheel `commands` (`World.step` without its clock and faults)."""
-    if not kernels.clip_commands(commands, world.commands):
+    if not drive.clip_commands(commands, world.commands):
         raise ValueError("commands contain NaN")
     analytic.move(world.bodies, world.poses[:, 2], world.spins, world.commands)
     analytic.read_local_poses(world.bodies.state, world.bodies.offset, world.poses)
-    kernels.wheel_spins(world.commands, world.spins)
+    drive.wheel_spins(world.commands, world.spins)
 
 
 @nb.njit(cache=True)
 def judge(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
     """Eq. 2.7's terms (`sim.reward_table` without its checks) into out (N, 4)."""
     reward.reward_kernel(readings, commands, out)
+
+
+#: What this module's cached kernels were compiled against: sim/khepera.py's constants and
+#: the modules whose kernels it calls (sim.kernel_cache).
+COMPILED_AGAINST = source_fingerprint(analytic, drive, khepera, noise, rays, reward, sensors)
+
+
+@nb.njit(cache=True)
+def _frozen_sources() -> np.ndarray:
+    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
+    return COMPILED_AGAINST.copy()
+
+
+drop_stale_cache(globals(), _frozen_sources, COMPILED_AGAINST)

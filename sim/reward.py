@@ -5,6 +5,7 @@ from typing import Literal, get_args
 import numba as nb
 import numpy as np
 
+from sim.kernel_cache import KHEPERA_CONSTANTS, drop_stale_cache
 from sim.khepera import MAX_COMMAND, N_SENSORS
 
 NEAR_WALL_MAX = 1000.0
@@ -77,3 +78,12 @@ def reward_terms(readings: np.ndarray, commands: np.ndarray) -> dict[str, np.nda
     ``reward/near_wall``, C judged from `readings` (see `reward_table`)."""
     table = reward_table(readings, commands)
     return {name: table[:, column] for column, name in enumerate(TERM_NAMES)}
+
+
+@nb.njit(cache=True)
+def _frozen_constants() -> np.ndarray:
+    """``KHEPERA_CONSTANTS`` as numba froze them into this module's cache."""
+    return KHEPERA_CONSTANTS.copy()
+
+
+drop_stale_cache(globals(), _frozen_constants)

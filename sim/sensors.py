@@ -1,7 +1,7 @@
 """IR sensing of N robots from their poses and the arena's walls, and ray geometry for drawing.
 
 The hot loop's readings come from ``ir_readings``: any physics that knows the robots' poses
-calls it (the numba kernels are in ``sim.kernels``). A ``WallGrid``, built once per arena, lists
+calls it (the numba kernels are in ``sim.rays``). A ``WallGrid``, built once per arena, lists
 for each square cell the walls that may come within reach of a robot centred in it, so a robot
 tests a few walls rather than all of them; the readings are those of testing every wall, to the
 bit (a wall out of reach cannot be hit, and every wall within reach is listed).
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim import kernels
+from sim import rays
 from sim.khepera import IR_MAX, IR_RANGE_MM, N_SENSORS, SENSOR_HEADINGS_RAD, SENSOR_ORIGINS_MM
 
 GRID_CELL_MM = 20.0
@@ -28,7 +28,7 @@ class WallGrid:
     """The walls near each cell of a square grid over an arena.
 
     Attributes:
-        table: (K, 5) ``sim.kernels.wall_table`` rows of the walls.
+        table: (K, 5) ``sim.rays.wall_table`` rows of the walls.
         frame: (5,) x0, y0, cell side, columns, rows: cell (col, row) is the square from
             (x0 + col·side, y0 + row·side), numbered row·columns + col.
         starts: (cells + 1,) int64: cell c lists members[starts[c]:starts[c + 1]].
@@ -48,9 +48,9 @@ def wall_grid(walls: np.ndarray, cell: float = GRID_CELL_MM) -> WallGrid:
     triangle inequality, every wall within reach of any point of the cell.
     """
     walls = np.asarray(walls, dtype=np.float64)
-    table = kernels.wall_table(walls)
-    lo = walls.reshape(-1, 2).min(axis=0) - kernels.REACH_MM
-    hi = walls.reshape(-1, 2).max(axis=0) + kernels.REACH_MM
+    table = rays.wall_table(walls)
+    lo = walls.reshape(-1, 2).min(axis=0) - rays.REACH_MM
+    hi = walls.reshape(-1, 2).max(axis=0) + rays.REACH_MM
     cols, rows = (int(v) for v in np.ceil((hi - lo) / cell))
     centres = np.stack(
         np.meshgrid(lo[0] + (np.arange(cols) + 0.5) * cell, lo[1] + (np.arange(rows) + 0.5) * cell),
@@ -58,8 +58,8 @@ def wall_grid(walls: np.ndarray, cell: float = GRID_CELL_MM) -> WallGrid:
     ).reshape(-1, 2)  # row-major: cell row·cols + col
     gaps = np.empty((len(walls), len(centres)))
     for w in range(len(walls)):  # a few dozen walls: one vector pass each
-        kernels.wall_distances(centres, table[w : w + 1], gaps[w])
-    radius = kernels.REACH_MM + cell * np.sqrt(0.5) + _SLACK_MM
+        rays.wall_distances(centres, table[w : w + 1], gaps[w])
+    radius = rays.REACH_MM + cell * np.sqrt(0.5) + _SLACK_MM
     listed = radius >= gaps.T  # (cells, K)
     starts = np.concatenate([[0], np.cumsum(listed.sum(axis=1))]).astype(np.int64)
     members = np.nonzero(listed)[1].astype(np.int64)  # row by row: ascending within a cell
@@ -80,7 +80,7 @@ def ir_readings(poses: np.ndarray, grid: WallGrid, out: np.ndarray | None = None
         raise ValueError(f"poses must have shape (N, 3), got {poses.shape}")
     if out is None:
         out = np.empty((len(poses), N_SENSORS))
-    kernels.ir_readings_grid(poses, grid.table, grid.frame, grid.starts, grid.members, out)
+    rays.ir_readings_grid(poses, grid.table, grid.frame, grid.starts, grid.members, out)
     return out
 
 

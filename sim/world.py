@@ -1,68 +1,30 @@
-"""A batch of Khepera robots, each in its own copy of an arena, in pymunk spaces."""
+"""A batch of Khepera robots, each in its own copy of an arena, in pymunk spaces (``sim.spaces``)
+or moved by the analytic physics (``sim.analytic``)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
-from typing import Literal, cast
+from typing import Literal, get_args
 
 import numpy as np
 import pymunk
-import pymunk.batch as pb
 
-from sim import kernels
+from sim import drive, noise, rays
 from sim.analytic import AnalyticBodies
 from sim.arena import Arena
-from sim.kernels import NoiseStream
-from sim.khepera import (
-    BODY_RADIUS_MM,
-    CONTROL_PERIOD_S,
-    MASS,
-    MOMENT,
-    N_SENSORS,
-)
+from sim.faults import FAULT_MODES, Fault, FaultMode, WorldError, check_sensors, mode_code
+from sim.khepera import BODY_RADIUS_MM, CONTROL_PERIOD_S, N_SENSORS
 from sim.loop import WorldArrays
+from sim.noise import NoiseStream
+from sim.spaces import SOLVER_ITERATIONS, Chunk, copy_layout
 
-FaultMode = Literal["dead", "saturated", "stuck", "random"]
-FAULT_MODES: tuple[FaultMode, ...] = ("dead", "saturated", "stuck", "random")
-"""Fault modes; their codes in ``World.fault_modes`` are 1..4 in this order (0 = healthy)."""
 Physics = Literal["pymunk", "analytic"]
-PHYSICS: tuple[Physics, ...] = ("pymunk", "analytic")
+PHYSICS: tuple[Physics, ...] = get_args(Physics)
 """The world's physics: pymunk (the reference) or analytic (numba, for sweeps; see
 ``sim.analytic``)."""
-
-WALL_CATEGORY = 0b01
-ROBOT_CATEGORY = 0b10
-WALL_FILTER = pymunk.ShapeFilter()
-"""Walls keep pymunk's default filter (every category, every mask): they collide with robots."""
-ROBOT_FILTER = pymunk.ShapeFilter(categories=ROBOT_CATEGORY, mask=WALL_CATEGORY)
-"""Robots collide with walls only: robots in one space never touch each other."""
-RAY_FILTER = pymunk.ShapeFilter(mask=WALL_CATEGORY)
-"""What a sensor ray sees: walls."""
-
-COPY_REGION_MM = (32768.0, 65536.0)
-"""All copies of the arena lie in this range on both axes: there every float64 has the same
-spacing (2⁻³⁷ mm), so moving a copy by a whole number of millimetres changes no rounding, and a
-robot's trajectory is bit-identical whichever copy it is in."""
-COPY_MARGIN_MM = 64
-"""Least gap between an arena's bounds and the edge of its copy's square."""
-HASH_CELLS_PER_SIDE = 5
-"""A copy's square is at most this many spatial hash cells on a side: a robot's query then
-visits one to four small cells, and few cells per copy are easy to keep apart (see _Layout)."""
-HASH_BINS = 6151
-"""Bins of a space's spatial hash. A prime from chipmunk's table of hash sizes, so the hash
-has exactly this many bins (chipmunk rounds a requested size up to its table); clearing the
-robots' hash every substep costs time in proportion to it."""
 DEFAULT_SUBSTEPS = 3
 """Physics steps per control period. A robot at full speed moves 75 mm/s · 64 ms / 3 = 1.6 mm
 per substep, which bounds how far it can enter a wall before chipmunk sees the contact."""
-SOLVER_ITERATIONS = 5
-"""Contact solver iterations (chipmunk's default is 10): a disc against one or two frictionless
-walls converges in a few; measured, fewer iterations leave the penetration unchanged."""
-
-
-_POSE_FIELDS = pb.BodyFields.POSITION | pb.BodyFields.ANGLE
-_DRIVE_FIELDS = pb.BodyFields.FORCE | pb.BodyFields.TORQUE
 
 
 def wrapped(poses: np.ndarray) -> np.ndarray:
@@ -70,176 +32,6 @@ def wrapped(poses: np.ndarray) -> np.ndarray:
     out = np.array(poses, dtype=np.float64)
     out[..., 2] = np.mod(out[..., 2] + np.pi, 2 * np.pi) - np.pi
     return out
-
-
-class WorldError(ValueError):
-    """Bad input to a ``World`` (shapes, ranges, sensor or robot indices, fault modes)."""
-
-
-@dataclass(frozen=True)
-class Fault:
-    """A scheduled sensor fault.
-
-    Attributes:
-        step: The world step (``world.t``) at which the sensors break.
-        sensors: Sensor indices 0..7.
-        mode: ``dead`` (reads 0), ``saturated`` (1023), ``stuck`` (keeps the value it showed when
-            it broke) or ``random`` (uniform in 0..1023 each step).
-        robots: Robot indices, or None for every robot.
-    """
-
-    step: int
-    sensors: tuple[int, ...]
-    mode: FaultMode = "dead"
-    robots: tuple[int, ...] | None = None
-
-    def __post_init__(self) -> None:
-        if isinstance(self.step, bool) or not isinstance(self.step, int | np.integer):
-            raise WorldError(f"Fault.step must be an int, got {self.step!r}")
-        if self.step < 0:
-            raise WorldError(f"Fault.step must be ≥ 0, got {self.step}")
-        object.__setattr__(self, "sensors", tuple(int(s) for s in _check_sensors(self.sensors)))
-        _mode_code(self.mode)
-        if self.robots is not None:
-            object.__setattr__(self, "robots", tuple(int(r) for r in self.robots))
-
-
-def _check_sensors(sensors: int | Iterable[int]) -> np.ndarray:
-    items = [sensors] if isinstance(sensors, int | np.integer) else list(sensors)
-    if not items:
-        raise WorldError("no sensors given: expected indices in 0..7")
-    for s in items:
-        if isinstance(s, bool) or not isinstance(s, int | np.integer) or not 0 <= s < N_SENSORS:
-            raise WorldError(f"sensor index {s!r} is not in 0..{N_SENSORS - 1}")
-    return np.array(items, dtype=np.int64)
-
-
-def _mode_code(mode: str) -> int:
-    if mode not in FAULT_MODES:
-        raise WorldError(f"unknown fault mode {mode!r}: expected one of {', '.join(FAULT_MODES)}")
-    return FAULT_MODES.index(cast(FaultMode, mode)) + 1
-
-
-class _Chunk:
-    """One pymunk space holding a run of robots, each with its own copy of the arena."""
-
-    def __init__(self, arena: Arena, offsets: np.ndarray, cell: int) -> None:
-        self.offsets = offsets
-        self.space = pymunk.Space()
-        self.space.damping = 0.0  # velocity = force·dt/m each substep: the force drive
-        self.space.gravity = (0.0, 0.0)
-        self.space.iterations = SOLVER_ITERATIONS
-        # Chipmunk solves a body's contacts in the order the broadphase found them, and that
-        # order decides the last bits of a robot pressed into a corner. The default BB tree's
-        # order depends on every copy in the space. In this spatial hash every copy has the same
-        # pattern of cells, and no two cells of one copy share a bin (see _layout), so a robot
-        # meets its own copy's walls in the same order in every copy.
-        self.space.use_spatial_hash(cell, HASH_BINS)
-        # pymunk's defaults are what the walls need: no friction, no bounce, WALL_FILTER.
-        static = self.space.static_body
-        self.space.add(
-            *(
-                pymunk.Segment(static, (ax, ay), (bx, by), 0.0)
-                for offset in offsets
-                for (ax, ay), (bx, by) in (arena.walls + offset).tolist()
-            )
-        )
-        self.bodies: list[pymunk.Body | None] = [None] * len(offsets)
-        self.shapes: list[pymunk.Circle | None] = [None] * len(offsets)
-        self.ids: dict[int, int] = {}  # pymunk body id -> robot
-        self.buffer = pb.Buffer()  # for reading; chipmunk owns (and grows) its arrays
-        self.rows = np.arange(len(offsets))  # buffer row of each robot
-        self.forces = np.zeros((0, 0, 3))  # (substeps, bodies, 3)
-        self.set_buffers: list[pb.Buffer] = []  # one per substep, each pointing into forces
-
-    def place(self, local: Sequence[int], poses: np.ndarray) -> None:
-        """Remove robots ``local`` and add them back, at rest, at arena-local ``poses``."""
-        for i, pose in zip(local, poses, strict=True):
-            old_body, old_shape = self.bodies[i], self.shapes[i]
-            if old_body is not None and old_shape is not None:
-                self.space.remove(old_body, old_shape)
-                del self.ids[old_body.id]
-            # A new body: a reused one would carry chipmunk's contact bias velocity along.
-            body = pymunk.Body(MASS, MOMENT)
-            body.position = (pose[0] + self.offsets[i, 0], pose[1] + self.offsets[i, 1])
-            body.angle = pose[2]
-            shape = pymunk.Circle(body, BODY_RADIUS_MM)
-            shape.filter = ROBOT_FILTER  # friction and elasticity stay at pymunk's default, 0
-            self.space.add(body, shape)
-            self.bodies[i], self.shapes[i] = body, shape
-            self.ids[body.id] = i
-        # Removing and adding bodies reorders them in the space: map robots to buffer rows.
-        self.buffer.clear()
-        pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, self.buffer)
-        ids = np.frombuffer(self.buffer.int_buf(), dtype=np.uintp)
-        for row, body_id in enumerate(ids):
-            robot = self.ids.get(int(body_id))
-            if robot is not None:
-                self.rows[robot] = row
-        self.forces = np.zeros((0, len(ids), 3))
-
-    def read_poses(self, out: np.ndarray) -> None:
-        """Arena-local poses of this chunk's robots into out (n, 3)."""
-        self.buffer.clear()
-        pb.get_space_bodies(self.space, _POSE_FIELDS, self.buffer)
-        kernels.gather_poses(np.frombuffer(self.buffer.float_buf()), self.rows, self.offsets, out)
-
-    def advance(
-        self, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray, dt: float, substeps: int
-    ) -> None:
-        """Drive the robots through ``substeps`` physics steps of ``dt``."""
-        if self.forces.shape[0] != substeps:
-            self.forces = np.zeros((substeps, self.forces.shape[1], 3))
-            self.set_buffers = []
-            for forces in self.forces:
-                buffer = pb.Buffer()
-                buffer.set_float_buf(forces.reshape(-1))
-                self.set_buffers.append(buffer)
-        kernels.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
-        for buffer in self.set_buffers:
-            pb.set_space_bodies(self.space, _DRIVE_FIELDS, buffer)
-            self.space.step(dt)
-
-
-def _hash_bin(i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """The bin of cell (i, j) in chipmunk's spatial hash (cpSpaceHash.c's hash_func)."""
-    i, j = i.astype(np.uint64), j.astype(np.uint64)
-    return ((i * np.uint64(1640531513)) ^ (j * np.uint64(2654435789))) % np.uint64(HASH_BINS)
-
-
-def _layout(arena: Arena, count: int) -> tuple[np.ndarray, int, int]:
-    """Where the copies of the arena go.
-
-    The region ``COPY_REGION_MM`` is tiled with squares of whole hash cells (a power of two in
-    mm, so chipmunk's cell of a point, floor(x / cell), shifts by whole cells with the copy).
-    A square is kept for a copy only if no two of its cells fall in the same hash bin: then a
-    bin holds, of that copy's walls, only those of one cell, in the order they were added.
-
-    Returns:
-        Whole-millimetre offsets of ``count`` copies (filling the squares in order, and again
-        in the next space), how many copies a space holds, and the hash cell side in mm.
-    """
-    xmin, ymin, xmax, ymax = arena.bounds
-    span = max(np.ceil(xmax) - np.floor(xmin), np.ceil(ymax) - np.floor(ymin)) + 2 * COPY_MARGIN_MM
-    # A copy spans the closed interval [start, start + span] from a cell boundary: floor(span /
-    # cell) + 1 cells, so the cell must exceed span / cells-per-side strictly (a span of exactly
-    # whole cells would reach one cell further: found by hypothesis for a 100 x 512 mm box). For
-    # the shipped arenas (span / 5 = 225.6 mm) this is the cell and side it always was.
-    cell = 1 << (int(np.floor(np.log2(span / HASH_CELLS_PER_SIDE))) + 1)
-    side = int(span // cell) + 1  # cells per square side
-    lo, hi = COPY_REGION_MM
-    first, per_axis = int(lo) // cell, int(hi - lo) // (side * cell)
-    col, row = np.divmod(np.arange(per_axis * per_axis), per_axis)
-    di, dj = np.divmod(np.arange(side * side), side)
-    bins = _hash_bin(
-        first + col[:, None] * side + di[None, :], first + row[:, None] * side + dj[None, :]
-    )
-    bins.sort(axis=1)
-    kept = np.flatnonzero(np.all(bins[:, 1:] != bins[:, :-1], axis=1))
-    slots = kept[np.arange(count) % len(kept)]
-    origin = np.array([lo + COPY_MARGIN_MM - np.floor(xmin), lo + COPY_MARGIN_MM - np.floor(ymin)])
-    offsets = origin + np.stack([col[slots], row[slots]], axis=1) * (side * cell)
-    return offsets.astype(np.float64), len(kept), cell
 
 
 class World:
@@ -285,7 +77,7 @@ class World:
             raise WorldError(f"unknown physics {physics!r}: expected one of {', '.join(PHYSICS)}")
         self.physics = physics
         try:
-            self._noise_stream = kernels.noise_stream_code(noise_stream)
+            self._noise_stream = noise.noise_stream_code(noise_stream)
         except ValueError as error:
             raise WorldError(str(error)) from None
         self.noise_stream = noise_stream
@@ -295,7 +87,7 @@ class World:
         self.control_period = float(control_period)
         self.substeps = substeps
         self.noise_sigma = noise_sigma
-        offsets, capacity, cell = _layout(arena, self.n)
+        offsets, capacity, cell = copy_layout(arena, self.n)
         self._wall_grid = arena.wall_grid
         # Analytic: every robot in the first copy's frame (copies round alike), no spaces.
         self._analytic = (
@@ -306,7 +98,7 @@ class World:
             else None
         )
         self._chunks = [
-            _Chunk(arena, offsets[start : start + capacity], cell)
+            Chunk(arena, offsets[start : start + capacity], cell)
             for start in range(0, self.n, capacity)
             if self._analytic is None
         ]
@@ -381,7 +173,7 @@ class World:
         """
         poses = self._check_poses(poses, self.n)
         if seeds is None:
-            new_seeds = kernels.derive_seeds(
+            new_seeds = noise.derive_seeds(
                 np.uint64(self.seed % 2**64), np.uint64(self._episode), self.n
             )
         else:
@@ -393,7 +185,7 @@ class World:
             new_seeds = raw.astype(np.uint64)
         self._episode += 1
         self._seeds = new_seeds
-        self._keys = kernels.robot_keys(new_seeds)
+        self._keys = noise.robot_keys(new_seeds)
         self.t = 0
         self._fault_mode[:] = 0
         self._stuck[:] = 0.0
@@ -475,7 +267,7 @@ class World:
     def _update_readings(self) -> None:
         if not self._fresh:
             grid = self._wall_grid  # the kernel itself: sensors.ir_readings without its checks
-            kernels.ir_readings_grid(
+            rays.ir_readings_grid(
                 self._poses, grid.table, grid.frame, grid.starts, grid.members, self._readings
             )
             self._fresh = True
@@ -487,7 +279,7 @@ class World:
         same values.
         """
         self._update_readings()
-        kernels.observe(
+        noise.observe(
             self._readings,
             self._keys,
             np.uint64(self.t),
@@ -508,7 +300,7 @@ class World:
         raw = np.asarray(commands, dtype=np.float64)
         if raw.shape != (self.n, 2):
             raise WorldError(f"commands must have shape ({self.n}, 2), got {raw.shape}")
-        if not kernels.clip_commands(raw, self._commands):
+        if not drive.clip_commands(raw, self._commands):
             raise WorldError("commands contain NaN")
         dt = self.control_period / self.substeps
         if self._analytic is not None:
@@ -523,7 +315,7 @@ class World:
                 self._poses[part, 2], self._spins[part], self._commands[part], dt, self.substeps
             )
             chunk.read_poses(self._poses[part])
-        kernels.wheel_spins(self._commands, self._spins)
+        drive.wheel_spins(self._commands, self._spins)
         self._fresh = False
         self.t += 1
         self._fire_scheduled()
@@ -583,8 +375,8 @@ class World:
             mode: ``dead``, ``saturated``, ``stuck`` or ``random``.
             robots: Robot indices or an (N,) bool mask; None for all.
         """
-        which = _check_sensors(sensors)
-        code = _mode_code(mode)
+        which = check_sensors(sensors)
+        code = mode_code(mode)
         index = self._robot_index(robots)
         if code == FAULT_MODES.index("stuck") + 1:
             seen = self.observe()
@@ -599,7 +391,7 @@ class World:
     ) -> None:
         """Repair sensors (all of them by default) of the given robots (all by default)."""
         index = self._robot_index(robots)
-        which = np.arange(N_SENSORS) if sensors is None else _check_sensors(sensors)
+        which = np.arange(N_SENSORS) if sensors is None else check_sensors(sensors)
         self._fault_mode[np.ix_(index, which)] = 0
 
     def schedule_faults(self, faults: Iterable[Fault]) -> None:

@@ -23,18 +23,12 @@ from pydantic import ValidationError
 
 from app.dashboard.controls import DashboardInputError
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
-from app.experiments.report import (
-    ComparisonReport,
-    ExperimentReport,
-    format_number,
-    interval_level,
-    looks_text,
-    stages_json,
-    tally,
-)
+from app.experiments.report import ComparisonReport, ExperimentReport, tally
+from app.experiments.report_json import stages_json
+from app.experiments.report_text import format_number, interval_level, looks_text
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import POWER, Design
-from app.experiments.spec import ScaleSpec
+from app.experiments.spec_tables import ScaleSpec
 from app.settings.loading import describe_problems
 
 KINDS = (("question", "The thesis's questions"), ("sanity", "Within one arm (sanity)"))

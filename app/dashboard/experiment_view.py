@@ -22,15 +22,9 @@ from app.dashboard.plots import MAX_POINTS, MeanBand
 from app.experiments import harvest, layout, planning
 from app.experiments.progress import Counts
 from app.experiments.results import ExperimentResults
-from app.experiments.spec import (
-    SCALES,
-    ExperimentError,
-    ExperimentSpec,
-    Scale,
-    check_name,
-    load_shipped,
-    shipped_names,
-)
+from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec, Scale
+from app.experiments.spec_loading import load_shipped, shipped_names
+from app.experiments.spec_tables import check_name
 from app.experiments.summary import read_summary
 from app.store.catalogue import SUFFIX
 

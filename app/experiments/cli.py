@@ -18,15 +18,9 @@ from typing import Any
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.lock import experiment_lock
 from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
-from app.experiments.spec import (
-    SCALES,
-    ExperimentError,
-    ExperimentSpec,
-    check_name,
-    load_file,
-    load_shipped,
-    shipped_names,
-)
+from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
+from app.experiments.spec_loading import load_file, load_shipped, shipped_names
+from app.experiments.spec_tables import check_name
 from app.settings.cli_options import add_quiet, add_runs_dir
 from app.system.exit_codes import EXIT_INTERRUPTED
 
@@ -327,7 +321,8 @@ def _from_values(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 
 
 def _print_json(results: ExperimentResults) -> int:
-    from app.experiments.report import analyse, to_json
+    from app.experiments.report import analyse
+    from app.experiments.report_json import to_json
 
     json.dump(to_json(analyse(results)), sys.stdout, indent=2, ensure_ascii=False, allow_nan=False)
     sys.stdout.write("\n")

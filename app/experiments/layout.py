@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.experiments.spec import ExperimentError, ExperimentSpec, check_name, load_file
+from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.experiments.spec_loading import load_file
+from app.experiments.spec_tables import check_name
 from app.store.files import atomic_file
 
 

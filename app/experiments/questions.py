@@ -14,7 +14,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.experiments.results import VERDICTS
-from app.experiments.spec import ExperimentError, load_shipped
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import load_shipped
 
 QUESTIONS_FILE = "questions.toml"
 
@@ -122,7 +123,7 @@ def decisive_cell(
 ) -> str:
     """The answering claim's verdict in the decisive experiment of the same question, if it
     asks it: its verdict, 'exploratory', 'not run yet', or '—' where there is none."""
-    from app.experiments.spec import load_shipped, shipped_names
+    from app.experiments.spec_loading import load_shipped, shipped_names
 
     name = experiment + DECISIVE
     if name not in shipped_names():

@@ -1,17 +1,17 @@
-"""An experiment's report: every claim's statistics, as a typed object and as JSON.
+"""An experiment's report: every claim's statistics and verdict, as a typed object.
 
 `analyse` computes the statistics and the verdict of every comparison of an
 `ExperimentResults` (`sequential.judge` over the looks of an adaptive run, Holm across the
-experiment's comparisons) and `to_json` gives them as a JSON-ready dict; the page, its
-figures and files are `app.experiments.report_page.write_report`'s.
+experiment's comparisons); `app.experiments.report_json` gives them as a JSON-ready dict,
+`app.experiments.report_text` in words, and the page, its figures and files are
+`app.experiments.report_page.write_report`'s.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,7 +30,6 @@ from app.experiments.results import (
 )
 from app.experiments.sequential import (
     ALPHA,
-    POWER,
     ClaimData,
     ClaimVerdict,
     Design,
@@ -166,17 +165,6 @@ def looks_made(results: ExperimentResults) -> tuple[Design, tuple[int, ...]]:
     design = Design(results.looks)
     made = tuple(k for k in design.looks if k <= n)
     return design, made or (n,)
-
-
-def looks_text(report: ExperimentReport) -> str:
-    """The looks a report made, in words: for the report's page and the dashboard's Stages line."""
-    if not report.results.looks:
-        return f"one look at {len(report.results.seeds)} seeds per arm (not adaptive)"
-    planned = ", ".join(map(str, report.design.looks))
-    return (
-        f"adaptive: {len(report.looks)} of {len(report.design.looks)} looks made; "
-        f"planned at {planned} seeds per arm"
-    )
 
 
 def _need(c: Comparison, judged: ClaimVerdict, margin: float | None, steps: float) -> Need:
@@ -332,219 +320,6 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
     )
 
 
-def json_number(x: float) -> float | None:
-    """A float for JSON: None where it is NaN or infinite (JSON has neither)."""
-    return float(x) if math.isfinite(x) else None
-
-
-def format_number(x: float | None) -> str:
-    """How the report prints a number: 4 significant digits, "–" for a missing one."""
-    if x is None or math.isnan(x):
-        return "–"
-    if math.isinf(x):
-        return "∞" if x > 0 else "−∞"
-    return f"{x:.4g}"
-
-
-def _arm_json(arm: Arm, summary: ArmSummary, thesis: ThesisValue | None) -> dict[str, Any]:
-    return {
-        "name": arm.name,
-        "label": arm.label,
-        "n": summary.n,
-        "dropped": summary.dropped,
-        "mean": json_number(summary.mean),
-        "sd": json_number(summary.sd),
-        "thesis": None if thesis is None else {"value": thesis.value, "source": thesis.source},
-    }
-
-
-def _need_json(need: Need | None) -> dict[str, Any] | None:
-    if need is None:
-        return None
-    return {
-        "power": POWER,
-        "seeds_per_arm_at_thesis_effect": json_number(need.seeds_at_thesis),
-        "seeds_per_arm_at_our_effect": json_number(need.seeds_at_ours),
-        "core_hours_at_thesis_effect": json_number(need.core_hours_at_thesis),
-        "core_hours_at_our_effect": json_number(need.core_hours_at_ours),
-    }
-
-
-def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
-    s, claim, c = report.stats, report.claim, report.comparison
-    iv = claim.judged.interval
-    return {
-        "name": c.name,
-        "claim": report.sentence,
-        "kind": c.kind,
-        "family": c.family,
-        "source": c.source,
-        "metric": report.metric.name,
-        "metric_label": report.metric.label,
-        "condition": c.condition,
-        "condition_b": c.condition_b,
-        "metric_b": c.metric_b,
-        "sides": list(c.side_names()),
-        "direction": c.direction,
-        "a": _arm_json(report.arm_a, s.a, report.thesis_a),
-        "b": _arm_json(report.arm_b, s.b, report.thesis_b),
-        "difference": json_number(s.difference),
-        "verdict": claim.verdict,
-        "interval": {
-            "low": json_number(iv.low),
-            "high": json_number(iv.high),
-            "level": json_number(1 - claim.judged.level),
-            "family_share": json_number(claim.judged.family_level),
-        },
-        "runs": list(claim.runs),
-        "look": claim.judged.look + 1,
-        "margin": None
-        if c.margin is None and claim.margin_rule.basis == "none"
-        else {
-            "value": c.margin,
-            "form": c.margin_form,
-            "source": c.margin_source,
-            "in_units": json_number(claim.margin if claim.margin is not None else math.nan),
-            "basis": claim.margin_rule.basis,
-            "rule": claim.margin_rule.text,
-        },
-        "need": _need_json(claim.need),
-        "post_hoc": claim.post_hoc,
-        "provenance": None if claim.provenance is None else asdict(claim.provenance),
-        "other_pairing": None
-        if claim.other_pairing is None
-        else {
-            "paired": not c.paired,
-            "low": json_number(claim.other_pairing[0].low),
-            "high": json_number(claim.other_pairing[0].high),
-            "verdict": claim.other_pairing[1],
-        },
-        "paired": s.paired,
-        "t_test": {
-            "test": s.tests[0],
-            "t": json_number(s.t),
-            "df": json_number(s.df),
-            "p": json_number(s.p),
-            "p_opposite": json_number(s.p_opposite),
-        },
-        "rank_test": {
-            "test": s.tests[1],
-            "statistic": json_number(s.rank_statistic),
-            "p": json_number(s.rank_p),
-        },
-        "holm_p": json_number(claim.holm_p),
-        "prob_improvement": json_number(s.prob_improvement),
-        "hedges_g": json_number(s.hedges_g),
-        "notes": list(s.notes),
-    }
-
-
-def stages_json(report: ExperimentReport) -> list[dict[str, Any]]:
-    """Per look: seeds per arm, the runs each arm had, and the claims it decided."""
-    results = report.results
-    missing = np.full(len(results.seeds), np.nan)
-    out = []
-    for k, n in enumerate(report.looks):
-        runs = {
-            arm.name: int(
-                np.isfinite(
-                    results.scalars.get(("final_best_fitness", arm.name, ""), missing)[:n]
-                ).sum()
-            )
-            for arm in results.arms
-        }
-        primary = report.of_family("primary")
-        decided = [
-            {"name": c.comparison.name, "verdict": c.claim.verdict}
-            for c in primary
-            if c.claim.verdict != "undecided" and c.claim.judged.look == k
-        ]
-        still_open = sum(c.claim.verdict == "undecided" or c.claim.judged.look > k for c in primary)
-        out.append({"look": k + 1, "seeds_per_arm": n, "runs": runs, "decided": decided,
-                    "open_after": still_open})  # fmt: skip
-    return out
-
-
-def to_json(report: ExperimentReport) -> dict[str, Any]:
-    """The report as a JSON-ready dict (NaN and infinities become null)."""
-    results = report.results
-    return {
-        "experiment": results.name,
-        "description": results.description,
-        "source": results.source,
-        "scale": results.scale,
-        "seeds": list(results.seeds),
-        "unit_of_analysis": "run (seed): a run's value is its mean over trials",
-        "alpha": report.alpha,
-        "looks_planned": list(report.design.looks),
-        "looks_made": list(report.looks),
-        "stages": stages_json(report),
-        "control": results.control,
-        "arms": [{"name": a.name, "label": a.label} for a in results.arms],
-        "conditions": [
-            {
-                "name": c.name,
-                "label": c.label,
-                "steps": c.steps,
-                "fault_step": c.fault_step,
-                "broken_count": c.broken_count,
-                "noise_sigma": c.noise_sigma,
-            }
-            for c in results.conditions
-        ],
-        "tally": tally(report),
-        "comparisons": [_comparison_json(c) for c in report.comparisons],
-        "thesis": [
-            {
-                "arm": v.arm,
-                "metric": v.metric,
-                "condition": v.condition,
-                "value": v.value,
-                "source": v.source,
-                "ours": {"mean": json_number(ours.mean), "sd": json_number(ours.sd), "n": ours.n},
-            }
-            for v, ours in thesis_beside_ours(results)
-        ],
-    }
-
-
-def interval_level(claim: ClaimStats) -> str:
-    """The interval's coverage, e.g. '99.6%'."""
-    return f"{100 * (1 - claim.judged.level):.3g}%"
-
-
-def interval_text(claim: ClaimStats) -> str:
-    iv = claim.judged.interval
-    return f"[{format_number(iv.low)}, {format_number(iv.high)}]"
-
-
-def provenance_text(claim: ClaimStats) -> str:
-    """When the claim and its margin were declared, against its data, in words."""
-    d = claim.provenance
-    if d is None:
-        return "not recorded (not a shipped experiment's claim)"
-    words = f"claim {d.claim_commit}, margin {d.margin_commit}; "
-    words += f"first data {d.data_commit}" if d.data_commit else "no data committed yet"
-    if claim.post_hoc is None:
-        return words
-    if not claim.post_hoc:
-        return words + ": pre-registered"
-    if not d.claim_first:
-        return words + ": post hoc (the claim came after its data)"
-    if not d.margin_first:
-        return words + ": post hoc (the margin came after the data)"
-    return words + ": post hoc (the declared margin alone gives another verdict)"
-
-
-def sensitivity_text(claim: ClaimStats) -> str:
-    """The claim analysed the other way (paired or unpaired), at the verdict's level."""
-    if claim.other_pairing is None:
-        return "–"
-    iv, verdict = claim.other_pairing
-    how = "unpaired" if claim.stats.paired else "paired by seed"
-    return f"{how}: [{format_number(iv.low)}, {format_number(iv.high)}] {verdict}"
-
-
 def tally(report: ExperimentReport) -> dict[str, dict[str, int]]:
     """Verdict counts: pre-registered (or unrecorded) and post hoc, primary claims only."""
     out: dict[str, dict[str, int]] = {"pre-registered": {}, "post hoc": {}}
@@ -552,23 +327,3 @@ def tally(report: ExperimentReport) -> dict[str, dict[str, int]]:
         group = out["post hoc" if c.claim.post_hoc else "pre-registered"]
         group[c.claim.verdict] = group.get(c.claim.verdict, 0) + 1
     return out
-
-
-def margin_text(report: ComparisonReport) -> str:
-    rule = report.claim.margin_rule
-    if rule.value is None:
-        return rule.text
-    sign = "±" if report.comparison.direction == "equivalent" else ""
-    return f"{sign}{format_number(rule.value)} ({rule.text})"
-
-
-def need_text(need: Need) -> str:
-    def one(seeds: float, hours: float) -> str:
-        if not math.isfinite(seeds):
-            return "–" if math.isnan(seeds) else "∞"
-        return f"{seeds:.0f} ({hours:.3g} core-h)"
-
-    return (
-        f"{one(need.seeds_at_thesis, need.core_hours_at_thesis)}, "
-        f"{one(need.seeds_at_ours, need.core_hours_at_ours)}"
-    )

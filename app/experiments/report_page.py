@@ -1,7 +1,8 @@
 """An experiment's report as a static page: `index.html` with its PNG figures, beside the
 per-run values (`values.csv`) and the statistics as JSON (`report.json`), in one folder.
 
-The statistics are `app.experiments.report`'s; this module only writes them out.
+The statistics are `app.experiments.report`'s (in JSON `report_json`'s, in words
+`report_text`'s); this module only writes them out.
 """
 
 from __future__ import annotations
@@ -16,6 +17,11 @@ from app.experiments.report import (
     ComparisonReport,
     ExperimentReport,
     analyse,
+    tally,
+    thesis_beside_ours,
+)
+from app.experiments.report_json import stages_json, to_json
+from app.experiments.report_text import (
     format_number,
     interval_level,
     interval_text,
@@ -24,10 +30,6 @@ from app.experiments.report import (
     need_text,
     provenance_text,
     sensitivity_text,
-    stages_json,
-    tally,
-    thesis_beside_ours,
-    to_json,
 )
 from app.experiments.results import METRICS, VERDICT_COLOURS, VERDICTS, Arm, ExperimentResults
 from app.experiments.values import VALUES_COLUMNS, write_values_csv

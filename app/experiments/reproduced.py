@@ -20,13 +20,8 @@ from typing import Any
 
 from app.experiments import planning
 from app.experiments.questions import answers_table, ran, runs_text, tally, verdict_words
-from app.experiments.spec import (
-    SCALES,
-    ExperimentError,
-    ExperimentSpec,
-    load_shipped,
-    shipped_names,
-)
+from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
+from app.experiments.spec_loading import load_shipped, shipped_names
 
 PAGE = "README.md"
 TITLE = "# The thesis, reproduced\n"

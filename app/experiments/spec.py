@@ -9,199 +9,43 @@ seed count). The config of arm A, seed i, at scale S is
 
 and condition C implements it with `[implementation]` ← condition C ← scale S's
 `[implementation]`, so a scale sizes every condition. Every arm × condition × scale config is
-validated when the file loads; a bad file raises `ExperimentError` with one line naming the
-problem.
+validated when the file loads (`app.experiments.spec_loading`); a bad file raises
+`ExperimentError` with one line naming the problem. Each of the file's tables is validated alone
+in `app.experiments.spec_tables`.
 """
 
 from __future__ import annotations
 
-import re
-import tomllib
-from collections.abc import Mapping
-from importlib import resources
-from pathlib import Path
 from typing import Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, model_validator
 
-from app.experiments.results import (
-    METRICS,
-    TASK_METRICS,
-    Arm,
-    ClaimKind,
-    Comparison,
-    Condition,
-    Direction,
-    Family,
-    MarginForm,
-    ThesisValue,
+from app.experiments.results import METRICS, TASK_METRICS, Arm, Comparison, Condition, ThesisValue
+from app.experiments.spec_tables import (
+    ArmSpec,
+    ComparisonSpec,
+    ConditionSpec,
+    DesignSpec,
+    ScaleSpec,
+    SpecModel,
+    TaskSpec,
+    ThesisValueSpec,
+    check_name,
 )
 from app.settings.config import (
     PRESET_NAMES,
-    ConfigError,
     ImplementationSettings,
     RunConfig,
     preset_layer,
 )
-from app.settings.loading import build_config, describe_problems
+from app.settings.loading import build_config
 
 Scale = Literal["smoke", "small", "thesis"]
 SCALES: tuple[Scale, ...] = get_args(Scale)
-SHIPPED_PACKAGE = "app.experiments.shipped"
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
-_NAME_RULE = "1-64 letters, digits, '_', '.' or '-', starting with a letter or digit"
 
 
 class ExperimentError(ValueError):
     """An experiment file, name or folder cannot be used as asked; the message is one line."""
-
-
-def check_name(name: str, what: str = "experiment name") -> str:
-    """A name that is safe as a file or folder name (no path, no hidden file)."""
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise ValueError(f"{what} {name!r} must be {_NAME_RULE}")
-    return name
-
-
-class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-
-class ArmSpec(_Frozen):
-    """One arm: a config overlay (e.g. the learning method)."""
-
-    name: str = Field(description="short name used in comparisons and file names")
-    label: str = Field(description="as the thesis names it")
-    config: dict[str, Any] = Field(default_factory=dict, description="RunConfig overlay")
-    brain: Literal["gnp", "fracnetics"] = Field(
-        default="gnp",
-        description="a task experiment's brain: ours (GNP, as the config says) or fracnetics "
-        "with its documented settings (app.tasks.fracnetics_arm)",
-    )
-
-    @model_validator(mode="after")
-    def _named(self) -> ArmSpec:
-        check_name(self.name, "arm name")
-        return self
-
-
-class ConditionSpec(_Frozen):
-    """One implementation condition: an ImplementationSettings overlay (faults, noise)."""
-
-    name: str = Field(description="name of the implementation stored in every run file")
-    label: str
-    implementation: dict[str, Any] = Field(default_factory=dict)
-
-    @model_validator(mode="after")
-    def _named(self) -> ConditionSpec:
-        check_name(self.name, "condition name")
-        return self
-
-
-class ComparisonSpec(_Frozen):
-    """A claim: arm `a` is `direction` than arm `b` on a scalar metric (or, `equivalent`,
-    within ±margin of it)."""
-
-    name: str
-    a: str
-    b: str
-    metric: str
-    condition: str | None = None
-    condition_b: str | None = Field(
-        None, description="b's condition: one arm (a = b) compared across two conditions"
-    )
-    metric_b: str | None = Field(
-        None, description="b's metric: one arm (a = b) compared on two metrics"
-    )
-    direction: Direction
-    source: str = Field(description="where the thesis claims it, e.g. 'Fig. 3.9'")
-    margin: float | None = Field(
-        None,
-        gt=0,
-        description="the thesis's effect, to rule out (equivalence: the margin), declared "
-        "before the runs; in the metric's units or, relative, as a share of b's mean",
-    )
-    margin_form: MarginForm = "absolute"
-    margin_source: str = Field("", description="where the margin comes from, and why")
-    role: ClaimKind | None = Field(
-        None,
-        description="question (a thesis's method-versus-baseline claim) or sanity (within one "
-        "arm); unset: sanity when one arm is compared with itself",
-    )
-    family: Family = Field(
-        "primary",
-        description="primary: judged with the experiment's family-wise error control; "
-        "exploratory: reported with its unadjusted interval, never counted among the verdicts",
-    )
-    paired: bool | None = Field(
-        None,
-        description="test paired by seed (the arms share seeds, start poses and broken sensors) "
-        "or not, declared before the runs; unset: paired when one arm is compared with itself",
-    )
-
-    @model_validator(mode="after")
-    def _margin_explained(self) -> ComparisonSpec:
-        if self.margin is not None and not self.margin_source:
-            raise ValueError(f"comparison {self.name!r}: say where its margin comes from")
-        if self.direction == "equivalent" and self.margin is None:
-            raise ValueError(f"comparison {self.name!r}: an equivalence claim needs a margin")
-        return self
-
-
-class ThesisValueSpec(_Frozen):
-    """A number the thesis reports, to sit beside ours."""
-
-    arm: str
-    metric: str
-    condition: str | None = None
-    value: float
-    source: str
-
-
-class DesignSpec(_Frozen):
-    """A pre-registered sequential design: the looks, the cap and the power analysis behind
-    them, declared before any run (a decisive experiment)."""
-
-    looks: tuple[int, ...] = Field(
-        min_length=1, description="seeds per arm at each look (Lan–DeMets O'Brien–Fleming)"
-    )
-    max_primary: int = Field(4, ge=1, le=10, description="at most this many primary claims")
-    core_hours: float = Field(gt=0, description="the cap in core-hours, all looks together")
-    power: str = Field(description="the power analysis that fixed the looks and the cap")
-
-    @model_validator(mode="after")
-    def _increasing(self) -> DesignSpec:
-        if (
-            any(b <= a for a, b in zip(self.looks, self.looks[1:], strict=False))
-            or min(self.looks) < 2
-        ):
-            raise ValueError(f"design.looks must increase from at least 2: {list(self.looks)}")
-        return self
-
-
-class TaskSpec(_Frozen):
-    """A task experiment: every run trains on a Gymnasium task instead of the robot, and its
-    final elite is tested on the same K episode seeds for every arm (app.tasks.peer)."""
-
-    id: str = Field(description="a Gymnasium id, e.g. CartPole-v1")
-    test_seeds: int = Field(default=20, ge=1, le=10_000, description="K test episodes")
-    first_test_seed: int = Field(
-        default=1_000_000,
-        ge=0,
-        le=2**31 - 10_001,
-        description="test episode seeds first_test_seed..+K-1 (none a training episode's)",
-    )
-
-    def seeds(self) -> tuple[int, ...]:
-        return tuple(range(self.first_test_seed, self.first_test_seed + self.test_seeds))
-
-
-class ScaleSpec(_Frozen):
-    """A size: a config overlay applied after the arm's, and a seed count."""
-
-    seeds: int | None = Field(default=None, ge=1, le=10_000, description="unset = the file's")
-    config: dict[str, Any] = Field(default_factory=dict)
-    measured: str = Field(default="", description="a measured wall time, shown by `list`")
 
 
 def _unique(kind: str, names: list[str]) -> None:
@@ -224,7 +68,7 @@ def _check_metric(where: str, metric: str, condition: str | None, conditions: se
         raise ValueError(f"{where}: metric {metric!r} is a training metric; drop the condition")
 
 
-class ExperimentSpec(_Frozen):
+class ExperimentSpec(SpecModel):
     """A whole experiment file."""
 
     name: str
@@ -477,97 +321,3 @@ class ExperimentSpec(_Frozen):
     def thesis_info(self) -> tuple[ThesisValue, ...]:
         """The thesis's numbers, to sit beside ours."""
         return tuple(ThesisValue(**v.model_dump()) for v in self.thesis)
-
-
-def _one_line(error: ValidationError, source: str) -> str:
-    return f"invalid experiment {source}: {describe_problems(error, limit=1)}"
-
-
-def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
-    """Validate an experiment's dict, including every arm × condition × scale config.
-
-    Raises:
-        ExperimentError: one line naming the problem.
-    """
-    try:
-        spec = ExperimentSpec.model_validate(data)
-    except ValidationError as error:
-        raise ExperimentError(_one_line(error, source)) from None
-    for arm in spec.arms:  # each overlay as written, before a scale can mask a bad value
-        try:
-            build_config(preset_layer(spec.preset), spec.config, arm.config)
-        except ConfigError as error:
-            message = f"invalid experiment {source}: arm {arm.name!r}: {error}"
-            raise ExperimentError(message.replace("\n", " ")) from None
-    for scale in spec.scales:
-        shapes: dict[str, tuple[int, int]] = {}
-        for arm in spec.arms:
-            where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
-            try:
-                run = spec.run_config(arm.name, scale, 0)
-            except ConfigError as error:
-                raise ExperimentError(f"{where}: {error}".replace("\n", " ")) from None
-            for condition in spec.conditions:
-                try:
-                    settings = spec.condition_settings(condition, run, scale)
-                except ConfigError as error:
-                    message = f"{where}, condition {condition.name!r}: {error}"
-                    raise ExperimentError(message.replace("\n", " ")) from None
-                shape = shapes.setdefault(condition.name, (settings.steps, settings.fault_step))
-                if shape != (settings.steps, settings.fault_step):
-                    raise ExperimentError(
-                        f"{where}, condition {condition.name!r}: steps and fault_step must be "
-                        f"the same for every arm (the first arm's are {shape})"
-                    )
-        spec.check_control(scale)
-        _check_fracnetics(spec, scale, source)
-    return spec
-
-
-def _check_fracnetics(spec: ExperimentSpec, scale: str, source: str) -> None:
-    """A fracnetics arm's population holds its tournament (else fracnetics never returns)."""
-    if spec.task is None:
-        return
-    from app.tasks.common import TaskError
-    from app.tasks.fracnetics_arm import check_population, documented
-
-    for arm in spec.arms:
-        if arm.brain == "fracnetics":
-            population = spec.run_config(arm.name, scale, 0).training.population
-            try:
-                check_population(documented(spec.task.id), population)
-            except TaskError as error:
-                where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
-                raise ExperimentError(f"{where}: {error}") from None
-
-
-def load_file(path: str | Path) -> ExperimentSpec:
-    """An experiment TOML file."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ExperimentError(f"experiment file not found: {path}") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as error:
-        raise ExperimentError(f"cannot read experiment file {path}: {error}") from None
-    except tomllib.TOMLDecodeError as error:
-        message = f"experiment file {path} is not valid TOML: {error}"
-        raise ExperimentError(message.replace("\n", " ")) from None
-    return parse(data, str(path))
-
-
-def shipped_names() -> tuple[str, ...]:
-    """Names of the experiments shipped in the package."""
-    files = resources.files(SHIPPED_PACKAGE).iterdir()
-    return tuple(sorted(f.name.removesuffix(".toml") for f in files if f.name.endswith(".toml")))
-
-
-def load_shipped(name: str) -> ExperimentSpec:
-    """A shipped experiment by name."""
-    if name not in shipped_names():
-        raise ExperimentError(
-            f"no shipped experiment named {name!r}; choose one of {', '.join(shipped_names())} "
-            "or give --file"
-        )
-    text = resources.files(SHIPPED_PACKAGE).joinpath(f"{name}.toml").read_text(encoding="utf-8")
-    return parse(tomllib.loads(text), f"{name!r}")

@@ -19,9 +19,11 @@ from numba import njit
 
 import gnp
 import sim
+from gnp import engine, kernel
 from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
 from gnp.kernel import records_part, walk_kernel
-from sim import loop
+from sim import analytic, drive, khepera, loop, noise, rays, reward, sensors
+from sim.kernel_cache import drop_stale_cache, source_fingerprint
 from sim.khepera import N_SENSORS
 
 ROBOTS_PER_BLOCK = 64
@@ -182,3 +184,19 @@ def _act(
         method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
         rng, obs, reward, rates, learn, visits, count, loop.read_lazily, source,
     )  # fmt: skip
+
+
+#: What this module's cached kernels were compiled against: the world's and the brain's kernel
+#: modules it calls (sim.kernel_cache).
+COMPILED_AGAINST = source_fingerprint(
+    loop, analytic, drive, khepera, noise, rays, reward, sensors, kernel, engine
+)
+
+
+@njit(cache=True)
+def _frozen_sources() -> np.ndarray:
+    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
+    return COMPILED_AGAINST.copy()
+
+
+drop_stale_cache(globals(), _frozen_sources, COMPILED_AGAINST)

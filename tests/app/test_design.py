@@ -8,7 +8,8 @@ from typing import Any
 import pytest
 
 from app.experiments.adaptive import stages_of
-from app.experiments.spec import ExperimentError, load_shipped, parse
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import load_shipped, parse
 
 DECISIVE = load_shipped("ch3-bs-rl-decisive").model_dump(mode="json", exclude_none=True)
 

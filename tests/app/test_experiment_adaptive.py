@@ -24,7 +24,8 @@ from app.experiments import adaptive, harvest
 from app.experiments.adaptive import Stage, needed_arms, run_adaptive
 from app.experiments.results import ExperimentResults
 from app.experiments.runner import RunOptions
-from app.experiments.spec import ExperimentSpec, load_file
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import load_file
 from app.experiments.summary import read_summary
 
 SCALE = "smoke"

@@ -14,7 +14,7 @@ from app.cli import main
 from app.experiments.cli import _core_time
 from app.experiments.planning import plan
 from app.experiments.results import CORE_STEPS_PER_SECOND, VERDICTS
-from app.experiments.spec import load_file
+from app.experiments.spec_loading import load_file
 from app.experiments.summary import read_summary
 from app.phases.implementation import implement
 from app.phases.training import train

@@ -15,8 +15,10 @@ from matplotlib.image import imread
 from scipy import stats as scipy_stats
 
 from app.experiments.figures import mean_and_ci, moving_average, smoothing_window
-from app.experiments.report import analyse, format_number, to_json
+from app.experiments.report import analyse
+from app.experiments.report_json import to_json
 from app.experiments.report_page import write_report
+from app.experiments.report_text import format_number
 from app.experiments.results import (
     CORE_STEPS_PER_SECOND,
     Arm,

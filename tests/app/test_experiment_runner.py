@@ -28,7 +28,8 @@ from app.experiments.layout import summary_path
 from app.experiments.planning import inspect, plan
 from app.experiments.results import ExperimentResults
 from app.experiments.runner import RunOptions, run_experiment
-from app.experiments.spec import ExperimentError, ExperimentSpec, load_file
+from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.experiments.spec_loading import load_file
 from app.experiments.summary import FORMAT, read_summary, write_summary
 from app.store import RunReader
 

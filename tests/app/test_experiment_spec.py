@@ -11,13 +11,8 @@ import pytest
 from experiment_fixtures import tiny_data, to_toml
 
 from app.experiments.results import METRICS
-from app.experiments.spec import (
-    ExperimentError,
-    load_file,
-    load_shipped,
-    parse,
-    shipped_names,
-)
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import load_file, load_shipped, parse, shipped_names
 
 
 def test_ch3_is_the_thesis_experiment() -> None:

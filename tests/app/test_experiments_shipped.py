@@ -20,7 +20,9 @@ from experiment_fixtures import in_process_client
 from app.experiments.report_page import write_report
 from app.experiments.results import METRICS, VERDICTS
 from app.experiments.runner import RunOptions, run_experiment
-from app.experiments.spec import SCALES, ConditionSpec, ExperimentSpec, load_shipped, shipped_names
+from app.experiments.spec import SCALES, ExperimentSpec
+from app.experiments.spec_loading import load_shipped, shipped_names
+from app.experiments.spec_tables import ConditionSpec
 from app.experiments.thesis_data import TableRow, ThesisData, load_thesis_data
 
 THESIS_SHIPPED = (

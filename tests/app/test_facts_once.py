@@ -1,7 +1,8 @@
-"""Each fact is written once (issue #33): lints over app/'s source that keep it so.
+"""Each fact is written once (issue #33): lints over the source that keep it so.
 
-Every module of app/ is parsed with `ast`; a fact written a second time (an exit code, a
-`sim.World(...)` built outside its factory, a private name of another package) fails here.
+Every module of app/ (and, for the literals, of sim/, gnp/ and neuro/) is parsed with `ast`; a
+fact written a second time (an exit code, a `sim.World(...)` built outside its factory, a private
+name of another package) fails here.
 """
 
 from __future__ import annotations
@@ -10,17 +11,17 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-APP = ROOT / "app"
 
 
-def _modules() -> dict[str, ast.Module]:
+def _modules(*folders: str) -> dict[str, ast.Module]:
     return {
         str(path.relative_to(ROOT)): ast.parse(path.read_text(encoding="utf-8"), str(path))
-        for path in sorted(APP.rglob("*.py"))
+        for folder in folders
+        for path in sorted((ROOT / folder).rglob("*.py"))
     }
 
 
-MODULES = _modules()
+MODULES = _modules("app")
 
 
 def test_exit_codes_are_assigned_in_app_exit_codes_only() -> None:
@@ -74,7 +75,7 @@ def test_a_tuple_of_a_literals_values_is_get_args_of_it() -> None:
     """`NAMES: tuple[L, ...] = get_args(L)`, never all the literal's values written again (a
     subset, such as the verdicts without "exploratory", is a fact of its own)."""
     checked, found = [], []
-    for name, tree in MODULES.items():
+    for name, tree in _modules("app", "sim", "gnp", "neuro").items():
         aliases = _literal_aliases(tree)
         for node in tree.body:
             if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)):
@@ -102,7 +103,7 @@ def test_a_tuple_of_a_literals_values_is_get_args_of_it() -> None:
                 continue
             if isinstance(value, ast.Tuple) and set(ast.literal_eval(value)) == aliases[alias]:
                 found.append(f"{name}: {node.target.id}")
-    assert "SCALES" in set(checked)  # (the brains are names in a registry now: app.brains)
+    assert {"SCALES", "FAULT_MODES", "PHYSICS", "METHODS", "NOISE_STREAMS"} <= set(checked)
     assert found == []
 
 

@@ -19,7 +19,7 @@ from lab_fixtures import assert_same_data, file_digest, finish, gnp_lab, tiny_co
 
 from app.cli import main
 from app.experiments.planning import plan
-from app.experiments.spec import load_file
+from app.experiments.spec_loading import load_file
 from app.phases.implementation import implement
 from app.phases.training import train
 from app.settings.loading import to_toml

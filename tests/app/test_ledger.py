@@ -16,7 +16,8 @@ from experiment_fixtures import in_process_client, tiny_data, to_toml, write_tin
 from app.experiments import ledger
 from app.experiments.report_page import write_report
 from app.experiments.runner import RunOptions, run_experiment
-from app.experiments.spec import ExperimentError, parse
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import parse
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +83,7 @@ def test_a_ledger_of_another_config_or_engine_is_refused_in_one_line(
 
 def test_a_setting_added_at_its_default_keeps_a_runs_identity() -> None:
     from app.experiments.planning import plan
-    from app.experiments.spec import load_shipped
+    from app.experiments.spec_loading import load_shipped
 
     task = plan(load_shipped("ch3-bs-rl-decisive"), "thesis", "", 1)[0]
     old = json.loads(task.config_json)
@@ -96,7 +97,7 @@ def test_a_setting_added_at_its_default_keeps_a_runs_identity() -> None:
 
 @pytest.mark.parametrize("folder", sorted(p.parent.name for p in ledger.DOCS.glob("*/ledger.json")))
 def test_every_committed_ledger_loads_on_this_checkout(folder: str) -> None:
-    from app.experiments.spec import load_shipped
+    from app.experiments.spec_loading import load_shipped
 
     name, scale = folder.rsplit("-", 1)
     held = ledger.load(load_shipped(name), scale, ledger.DOCS / folder)

@@ -17,7 +17,8 @@ from app.cli import main
 from app.experiments import harvest, ledger, looks_made
 from app.experiments.adaptive import run_adaptive
 from app.experiments.runner import RunOptions, run_experiment
-from app.experiments.spec import ExperimentSpec, load_file
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import load_file
 from app.experiments.values import write_values_csv
 
 SCALE = "smoke"

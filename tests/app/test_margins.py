@@ -9,7 +9,8 @@ import pytest
 
 from app.experiments.margins import margin_of
 from app.experiments.results import METRICS, Comparison, ThesisValue
-from app.experiments.spec import ExperimentError, load_shipped, parse
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import load_shipped, parse
 
 REWARD = METRICS["mean_reward"]
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"

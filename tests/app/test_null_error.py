@@ -31,7 +31,7 @@ from scipy import stats as scipy_stats
 from app.experiments import sequential
 from app.experiments.results import Direction
 from app.experiments.sequential import ClaimData, Design, judge, nominal_level
-from app.experiments.spec import load_shipped
+from app.experiments.spec_loading import load_shipped
 
 ALPHA = sequential.ALPHA
 MC_Z = 2.6  # standard errors of the estimate allowed above α

@@ -16,7 +16,8 @@ from experiment_fixtures import in_process_client
 from app.experiments import ledger
 from app.experiments.planning import plan
 from app.experiments.runner import RunOptions, check_task, run_experiment
-from app.experiments.spec import ExperimentError, parse
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import parse
 from app.tasks.config import TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.fracnetics_arm import DOCUMENTED, documented, train_fracnetics
 from app.tasks.peer import PeerRun, read_peer, run_peer

@@ -14,7 +14,7 @@ from lab_fixtures import assert_same_data, tiny_config
 import sim
 from app.cli.parser import build_parser
 from app.cli.train import config_from_args
-from app.experiments.spec import load_shipped, parse
+from app.experiments.spec_loading import load_shipped, parse
 from app.phases.implementation import implement
 from app.phases.training import train
 from app.settings.config import ConfigError, RunConfig

@@ -13,7 +13,7 @@ from app.experiments import provenance
 from app.experiments.report import post_hoc
 from app.experiments.results import Comparison
 from app.experiments.sequential import ClaimVerdict, Interval
-from app.experiments.spec import shipped_names
+from app.experiments.spec_loading import shipped_names
 
 ROOT = Path(__file__).resolve().parents[2]
 

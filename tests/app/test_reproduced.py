@@ -21,7 +21,8 @@ from app.experiments.reproduced import (
     write_page,
     written,
 )
-from app.experiments.spec import ExperimentError, load_shipped, shipped_names
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import load_shipped, shipped_names
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
 REPORT = DOCS / "ch3-bs-rl-small" / "report.json"

@@ -10,18 +10,18 @@ from experiment_fixtures import write_tiny
 
 from app.experiments.cluster import connect, warm_numba
 from app.experiments.planning import plan
-from app.experiments.spec import load_file
+from app.experiments.spec_loading import load_file
 
 
 def loaded() -> dict[str, bool]:
     """Which of the hot loop's kernels this process has compiled or loaded."""
     from gnp import kernel
-    from sim import kernels
+    from sim import drive, noise, rays
 
     return {
-        "ir_readings_grid": bool(kernels.ir_readings_grid.signatures),
-        "observe": bool(kernels.observe.signatures),
-        "drive_forces": bool(kernels.drive_forces.signatures),
+        "ir_readings_grid": bool(rays.ir_readings_grid.signatures),
+        "observe": bool(noise.observe.signatures),
+        "drive_forces": bool(drive.drive_forces.signatures),
         "step_kernel": bool(kernel.step_kernel.signatures),
     }
 

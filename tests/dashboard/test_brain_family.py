@@ -28,7 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 import sim
 from app.brains import PLUGINS_VARIABLE, BrainFamily, family_of, register
-from app.settings.config import RunConfig, build_config
+from app.settings.config import RunConfig
+from app.settings.loading import build_config
 from app.store import RunReader, RunTemplate
 
 HERE = Path(__file__).resolve().parent

@@ -25,10 +25,12 @@ from app.dashboard.experiment_job import DaskCluster, ExperimentJob
 from app.dashboard.experiment_verdicts import AdaptiveRequest, badge, claim_row, seed_count, whole
 from app.experiments import layout
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
-from app.experiments.report import analyse, format_number
+from app.experiments.report import analyse
+from app.experiments.report_text import format_number
 from app.experiments.results import VERDICT_COLOURS, VERDICTS
 from app.experiments.sequential import Design
-from app.experiments.spec import ExperimentSpec, load_file
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import load_file
 from app.experiments.summary import read_summary
 
 SCALE, STAGE, MOST = "smoke", 2, 4

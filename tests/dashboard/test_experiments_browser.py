@@ -25,7 +25,7 @@ from app.dashboard.headless import start_dashboard, stop_dashboard
 from app.experiments import layout
 from app.experiments.report import analyse
 from app.experiments.results import VERDICTS
-from app.experiments.spec import load_shipped
+from app.experiments.spec_loading import load_shipped
 from app.experiments.summary import read_summary
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]

@@ -30,9 +30,11 @@ from app.dashboard.plots import MAX_POINTS
 from app.experiments import execution, harvest, layout, planning
 from app.experiments.figures import mean_and_ci
 from app.experiments.progress import Counts
-from app.experiments.report import analyse, format_number, interval_text
+from app.experiments.report import analyse
+from app.experiments.report_text import format_number, interval_text
 from app.experiments.results import VERDICTS
-from app.experiments.spec import SHIPPED_PACKAGE, ExperimentSpec, load_shipped
+from app.experiments.spec import ExperimentSpec
+from app.experiments.spec_loading import SHIPPED_PACKAGE, load_shipped
 from app.experiments.summary import read_summary, write_summary
 
 NAME, SCALE = "ch3-bs-rl", "smoke"

@@ -17,7 +17,7 @@ from page_helpers import TIMEOUT_MS, choose, open_page
 from app.dashboard.app import PANEL_WIDTH, TAB_NAMES
 from app.dashboard.plots import BIN, SMOOTH
 from app.experiments import execution, planning
-from app.experiments.spec import load_shipped
+from app.experiments.spec_loading import load_shipped
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 

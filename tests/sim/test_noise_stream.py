@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 import sim
-from sim import kernels
+from sim import noise
 
 #: sha256 of ziggurat-v1's first 4 steps × 100 robots × 8 sensors of standard normals (robot
 #: seeds 0..99). A version is never changed: a new way of drawing is a new stream name.
@@ -18,9 +18,9 @@ ZIGGURAT_V1_DIGEST = "29d48135f648e865fc1f5db2b5d483db7d4374c4fb32272cb3f30e985f
 
 
 def _draws(stream: sim.NoiseStream, robots: int, steps: int, first_seed: int = 0) -> np.ndarray:
-    keys = kernels.robot_keys(np.arange(first_seed, first_seed + robots, dtype=np.uint64))
+    keys = noise.robot_keys(np.arange(first_seed, first_seed + robots, dtype=np.uint64))
     out = np.empty((steps, robots, sim.N_SENSORS))
-    kernels.normal_draws(keys, steps, kernels.noise_stream_code(stream), out)
+    noise.normal_draws(keys, steps, noise.noise_stream_code(stream), out)
     return out
 
 
@@ -41,8 +41,8 @@ def test_ziggurat_draws_are_standard_normal() -> None:
     assert stats.kstest(z, "norm").pvalue > 0.001
     assert abs(z.mean()) < 4.5 / np.sqrt(n)
     assert abs(z.var() - 1.0) < 4.5 * np.sqrt(2.0 / n)
-    tail = 2.0 * stats.norm.sf(kernels._ZIG_TAIL)  # the draws the base layer's tail gives
-    share = np.mean(np.abs(z) > kernels._ZIG_TAIL)
+    tail = 2.0 * stats.norm.sf(noise._ZIG_TAIL)  # the draws the base layer's tail gives
+    share = np.mean(np.abs(z) > noise._ZIG_TAIL)
     assert abs(share - tail) < 4.5 * np.sqrt(tail / n)
     assert np.all(np.isfinite(z))
 
@@ -65,7 +65,7 @@ def test_a_robots_draws_depend_on_its_key_and_clock_alone() -> None:
 @pytest.mark.parametrize("stream", sim.NOISE_STREAMS)
 def test_the_world_adds_the_streams_draws(stream: sim.NoiseStream) -> None:
     """`World.observe` adds σ times the stream's draws (readings clipped to 0..1023), step by
-    step: the staged path draws what `kernels.normal_draws` (and the compiled loop, by the same
+    step: the staged path draws what `noise.normal_draws` (and the compiled loop, by the same
     `observe_pair`) draw."""
     arena = sim.load_arena("training")
     n, sigma = 20, 50.0

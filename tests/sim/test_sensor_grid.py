@@ -1,6 +1,6 @@
 """The culled ray casts (``ir_readings_grid``) equal the reference kernel to the bit.
 
-``sim.kernels.ir_readings`` is the kernel as it was before the cull (it tests every wall for
+``sim.rays.ir_readings`` is the kernel as it was before the cull (it tests every wall for
 reach); every reading the world produces now comes from ``ir_readings_grid``. They must agree
 bit for bit on any pose: inside and outside the arenas, off the grid, on random wall sets, and
 with a wall at exactly the reach distance (and one float either side of it).
@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import sim
-from sim import kernels
+from sim import rays
 from sim.sensors import WallGrid, ir_readings, wall_grid
 
 ARENAS = {name: sim.load_arena(name) for name in sim.ARENA_NAMES}
@@ -23,7 +23,7 @@ ARENAS = {name: sim.load_arena(name) for name in sim.ARENA_NAMES}
 
 def reference(poses: np.ndarray, grid: WallGrid) -> np.ndarray:
     out = np.full((len(poses), sim.N_SENSORS), np.nan)
-    kernels.ir_readings(np.ascontiguousarray(poses), grid.table, out)
+    rays.ir_readings(np.ascontiguousarray(poses), grid.table, out)
     return out
 
 
@@ -41,9 +41,9 @@ def at_reach(walls: np.ndarray, rng: np.random.Generator, per_wall: int) -> np.n
         normal = np.array([-e[1], e[0]]) / np.hypot(*e)
         for _ in range(per_wall):
             side = rng.choice([-1.0, 1.0])
-            inner = a + rng.uniform(0.01, 0.99) * e + side * kernels.REACH_MM * normal
+            inner = a + rng.uniform(0.01, 0.99) * e + side * rays.REACH_MM * normal
             angle = rng.uniform(0, 2 * np.pi)
-            corner = a + kernels.REACH_MM * np.array([np.cos(angle), np.sin(angle)])
+            corner = a + rays.REACH_MM * np.array([np.cos(angle), np.sin(angle)])
             for centre in (inner, corner):
                 for x in (
                     np.nextafter(centre[0], -np.inf),
@@ -76,7 +76,7 @@ def test_grid_readings_equal_the_reference_on_many_poses(name: str) -> None:
 def test_a_wall_at_exactly_the_reach_is_listed_and_read_alike() -> None:
     # A horizontal wall REACH_MM above the robot's centre, on a cell corner and a cell centre.
     for x in (0.0, 10.0):
-        walls = np.array([[[-500.0, kernels.REACH_MM], [500.0, kernels.REACH_MM]]])
+        walls = np.array([[[-500.0, rays.REACH_MM], [500.0, rays.REACH_MM]]])
         grid = wall_grid(walls)
         for y in (0.0, np.nextafter(0.0, 1.0), np.nextafter(0.0, -1.0)):
             heading = np.linspace(-np.pi, np.pi, 64)
@@ -112,10 +112,10 @@ def test_every_cell_lists_every_wall_within_reach_of_its_points(name: str) -> No
     )
     gaps = np.empty((len(grid.table), len(points)))
     for w in range(len(grid.table)):
-        kernels.wall_distances(points, grid.table[w : w + 1], gaps[w])
+        rays.wall_distances(points, grid.table[w : w + 1], gaps[w])
     for k, cell in enumerate(cells):
         listed = set(grid.members[grid.starts[cell] : grid.starts[cell + 1]].tolist())
-        assert set(np.flatnonzero(gaps[:, k] <= kernels.REACH_MM).tolist()) <= listed
+        assert set(np.flatnonzero(gaps[:, k] <= rays.REACH_MM).tolist()) <= listed
     assert np.diff(grid.starts).mean() < 0.2 * len(grid.table)  # and the cull is worth it
 
 

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from rooms import box
 
 import sim
-from sim import kernels
+from sim import rays
 from sim.khepera import (
     BODY_RADIUS_MM,
     IR_BACKOFF_MM,
@@ -17,7 +17,7 @@ from sim.khepera import (
     SENSOR_HEADINGS_RAD,
     SENSOR_ORIGINS_MM,
 )
-from sim.world import RAY_FILTER
+from sim.spaces import RAY_FILTER
 
 
 def expected(d: float) -> float:
@@ -129,7 +129,7 @@ TRAINING = sim.load_arena("training")
 def test_readings_are_always_within_0_and_1023(x: float, y: float, heading: float) -> None:
     """Any pose at all, even overlapping or outside walls: readings stay in range."""
     out = np.full((1, 8), np.nan)
-    kernels.ir_readings(np.array([[x, y, heading]]), kernels.wall_table(TRAINING.walls), out)
+    rays.ir_readings(np.array([[x, y, heading]]), rays.wall_table(TRAINING.walls), out)
     assert np.all((out >= 0) & (out <= IR_MAX))
 
 
@@ -137,9 +137,9 @@ def test_readings_are_always_within_0_and_1023(x: float, y: float, heading: floa
 @given(index=st.integers(0, 9), turns=st.integers(-3, 3))
 def test_readings_do_not_depend_on_whole_turns_of_the_heading(index: int, turns: int) -> None:
     pose = TRAINING.start_poses[index].copy()
-    table = kernels.wall_table(TRAINING.walls)
+    table = rays.wall_table(TRAINING.walls)
     a, b = np.zeros((1, 8)), np.zeros((1, 8))
-    kernels.ir_readings(pose[None], table, a)
+    rays.ir_readings(pose[None], table, a)
     pose[2] += 2 * np.pi * turns
-    kernels.ir_readings(pose[None], table, b)
+    rays.ir_readings(pose[None], table, b)
     np.testing.assert_allclose(a, b, atol=1e-6)

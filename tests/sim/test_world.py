@@ -16,12 +16,12 @@ from sim.khepera import (
     IR_MAX,
     WHEEL_RADIUS_MM,
 )
-from sim.world import (
+from sim.spaces import (
     COPY_MARGIN_MM,
     COPY_REGION_MM,
     HASH_CELLS_PER_SIDE,
-    _hash_bin,
-    _layout,
+    copy_layout,
+    hash_bin,
 )
 
 TRAINING = sim.load_arena("training")
@@ -432,7 +432,7 @@ def test_copies_sit_on_hash_cells_that_keep_each_copy_apart(width: int, height: 
     which shares a hash bin with another cell of the same square."""
     arena = box(width, height)
     n = 700
-    offsets, capacity, cell = _layout(arena, n)
+    offsets, capacity, cell = copy_layout(arena, n)
     assert cell & (cell - 1) == 0 and cell >= 1
     assert capacity >= 30 and np.array_equal(offsets, np.round(offsets))
     lo, hi = (arena.walls.min(axis=(0, 1)), arena.walls.max(axis=(0, 1)))
@@ -446,5 +446,5 @@ def test_copies_sit_on_hash_cells_that_keep_each_copy_apart(width: int, height: 
     assert len(squares) == len(first[one_space])  # one copy per square within a space
     for (i0, j0), (i1, j1) in zip(first[one_space], last[one_space], strict=True):
         i, j = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1))
-        bins = _hash_bin(i.ravel(), j.ravel())
+        bins = hash_bin(i.ravel(), j.ravel())
         assert len(np.unique(bins)) == bins.size

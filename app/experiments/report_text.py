@@ -1,0 +1,85 @@
+"""An experiment's report in words: its numbers, intervals, looks, margins, needs and
+provenance as the report's page and the dashboard print them."""
+
+from __future__ import annotations
+
+import math
+
+from app.experiments.report import ClaimStats, ComparisonReport, ExperimentReport, Need
+
+
+def format_number(x: float | None) -> str:
+    """How the report prints a number: 4 significant digits, "–" for a missing one."""
+    if x is None or math.isnan(x):
+        return "–"
+    if math.isinf(x):
+        return "∞" if x > 0 else "−∞"
+    return f"{x:.4g}"
+
+
+def looks_text(report: ExperimentReport) -> str:
+    """The looks a report made, in words: for the report's page and the dashboard's Stages line."""
+    if not report.results.looks:
+        return f"one look at {len(report.results.seeds)} seeds per arm (not adaptive)"
+    planned = ", ".join(map(str, report.design.looks))
+    return (
+        f"adaptive: {len(report.looks)} of {len(report.design.looks)} looks made; "
+        f"planned at {planned} seeds per arm"
+    )
+
+
+def interval_level(claim: ClaimStats) -> str:
+    """The interval's coverage, e.g. '99.6%'."""
+    return f"{100 * (1 - claim.judged.level):.3g}%"
+
+
+def interval_text(claim: ClaimStats) -> str:
+    iv = claim.judged.interval
+    return f"[{format_number(iv.low)}, {format_number(iv.high)}]"
+
+
+def provenance_text(claim: ClaimStats) -> str:
+    """When the claim and its margin were declared, against its data, in words."""
+    d = claim.provenance
+    if d is None:
+        return "not recorded (not a shipped experiment's claim)"
+    words = f"claim {d.claim_commit}, margin {d.margin_commit}; "
+    words += f"first data {d.data_commit}" if d.data_commit else "no data committed yet"
+    if claim.post_hoc is None:
+        return words
+    if not claim.post_hoc:
+        return words + ": pre-registered"
+    if not d.claim_first:
+        return words + ": post hoc (the claim came after its data)"
+    if not d.margin_first:
+        return words + ": post hoc (the margin came after the data)"
+    return words + ": post hoc (the declared margin alone gives another verdict)"
+
+
+def sensitivity_text(claim: ClaimStats) -> str:
+    """The claim analysed the other way (paired or unpaired), at the verdict's level."""
+    if claim.other_pairing is None:
+        return "–"
+    iv, verdict = claim.other_pairing
+    how = "unpaired" if claim.stats.paired else "paired by seed"
+    return f"{how}: [{format_number(iv.low)}, {format_number(iv.high)}] {verdict}"
+
+
+def margin_text(report: ComparisonReport) -> str:
+    rule = report.claim.margin_rule
+    if rule.value is None:
+        return rule.text
+    sign = "±" if report.comparison.direction == "equivalent" else ""
+    return f"{sign}{format_number(rule.value)} ({rule.text})"
+
+
+def need_text(need: Need) -> str:
+    def one(seeds: float, hours: float) -> str:
+        if not math.isfinite(seeds):
+            return "–" if math.isnan(seeds) else "∞"
+        return f"{seeds:.0f} ({hours:.3g} core-h)"
+
+    return (
+        f"{one(need.seeds_at_thesis, need.core_hours_at_thesis)}, "
+        f"{one(need.seeds_at_ours, need.core_hours_at_ours)}"
+    )
