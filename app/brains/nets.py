@@ -14,6 +14,7 @@ pickles) and checks it against the checkpointed population, bit for bit.
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -149,7 +150,7 @@ class NetFamily(BrainFamily):
         if config.neuro is None or config.neuro.optimiser != self.name:
             raise ValueError(f"a {self.name} family needs a neuro section with that optimiser")
         self.settings = config.neuro
-        self.net = config.neuro.net_config()
+        self.net = self.net_config()
 
     @classmethod
     def selection(cls) -> dict[str, Any]:
@@ -175,9 +176,13 @@ class NetFamily(BrainFamily):
     def warm_key(self) -> dict[str, Any]:
         return {"brain": self.name, "neuro": self.settings.model_dump(mode="json")}
 
+    @abstractmethod
+    def net_config(self) -> neuro.NetConfig:
+        """The nets this family evolves, from its settings."""
+
+    @abstractmethod
     def make_optimiser(self) -> Optimiser:
         """A new optimiser at generation 0."""
-        raise NotImplementedError
 
     def run_template(self) -> RunTemplate:
         trace = {
@@ -249,6 +254,9 @@ class CmaesFamily(NetFamily):
 
     name = "cmaes"
 
+    def net_config(self) -> neuro.ElmanConfig:
+        return neuro.ElmanConfig(hidden=self.settings.hidden)
+
     @property
     def label(self) -> str:
         return "Elman"
@@ -266,6 +274,9 @@ class NeatFamily(NetFamily):
     """A recurrent net whose topology and weights NEAT evolves."""
 
     name = "neat"
+
+    def net_config(self) -> neuro.NetConfig:
+        return self.settings.neat.net_config()
 
     @property
     def label(self) -> str:

@@ -22,7 +22,6 @@ from pydantic import (
 )
 
 import gnp
-import neuro
 from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
@@ -415,12 +414,6 @@ class NeuroSettings(_Frozen):
     def name(self) -> str:
         """The brain family this section selects: its optimiser's."""
         return self.optimiser
-
-    def net_config(self) -> neuro.NetConfig:
-        """The nets this optimiser evolves."""
-        if self.optimiser == "cmaes":
-            return neuro.ElmanConfig(hidden=self.hidden)
-        return self.neat.net_config()
 
 
 class FamilySettings(BaseModel):
