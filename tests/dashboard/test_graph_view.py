@@ -11,7 +11,7 @@ from page_helpers import dashboard_in_process
 
 import gnp
 import sim
-from app.brains.gnp_brain import GnpFamily
+from app.brains.gnp_brain import VISIT_CAPACITY, GnpFamily
 from app.dashboard.status import set_value
 from app.phases.live import LiveSession, RobotSpec
 from app.views.graph_counts import FULL, SIMPLIFIED, edge_shades, graph_counts
@@ -157,7 +157,7 @@ def visits_of(session: LiveSession, steps: int) -> np.ndarray:
         session.step(20)
         after = session.robots[0].snapshot()
         new = int(after.node_visits.sum()) - before
-        assert 0 < new <= len(after.visits) and new < session.robots[0].visit_capacity
+        assert 0 < new <= len(after.visits) and new < VISIT_CAPACITY
         rows.append(after.visits[-new:])
     return np.concatenate(rows)
 
