@@ -13,7 +13,7 @@ import gymnasium as gym
 from pydantic import BaseModel, ConfigDict, Field
 
 import gnp
-from app.settings.config import ControllerSettings, RunConfig
+from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig
 from app.tasks.common import TaskError
 from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import EvolutionConfig, Schedule
@@ -116,7 +116,16 @@ class TaskRunConfig(_Frozen):
     @classmethod
     def from_run_config(cls, config: RunConfig, task: TaskSettings) -> TaskRunConfig:
         """The task run of the lab's settings (seed, controller, evolution, population,
-        generations, steps, ε/α schedules); the arena, noise and physics do not apply."""
+        generations, steps, ε/α schedules); the arena, noise and physics do not apply.
+
+        Raises:
+            TaskError: the config's brain is not GNP (the only family that runs on tasks).
+        """
+        if config.brain != DEFAULT_BRAIN:
+            raise TaskError(
+                f"brain family {config.brain!r} does not run on Gymnasium tasks; a task run "
+                f"trains {DEFAULT_BRAIN} (drop --brain, or train {config.brain} in the arena)"
+            )
         eps, alpha = config.training.schedules()
         training = TaskTraining(
             population=config.training.population,
