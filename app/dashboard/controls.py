@@ -16,7 +16,8 @@ from pydantic import BaseModel, ValidationError
 
 import sim
 from app import store
-from app.settings.config import PRESET_NAMES, ConfigError, RunConfig, preset_layer
+from app.brains.registry import family_class, family_of
+from app.settings.config import DEFAULT_BRAIN, PRESET_NAMES, ConfigError, RunConfig, preset_layer
 from app.settings.fields import nested
 from app.settings.loading import build_config, describe_problems
 
@@ -79,17 +80,24 @@ def whole(value: float, name: str, low: int, high: int) -> int:
     return int(value)
 
 
-def training_config(preset: str, values: Mapping[tuple[str, ...], Any]) -> RunConfig:
-    """The run the Train tab describes: `preset`, overridden by what its controls hold
-    ({setting path: value}), checked once by building the model.
+def training_config(
+    preset: str, values: Mapping[tuple[str, ...], Any], brain: str = DEFAULT_BRAIN
+) -> RunConfig:
+    """The run the Train tab describes: `preset` with the brain family `brain`, overridden by
+    what its controls hold ({setting path: value}), checked once by building the model (and
+    the family's own settings, at their defaults, by binding the family).
 
     Raises:
-        DashboardInputError: naming each bad setting and what it allows.
+        DashboardInputError: naming each bad setting and what it allows, or the family.
     """
     if preset not in PRESET_NAMES:
         raise DashboardInputError(f"unknown preset {preset!r}")
     try:
-        return build_config(preset_layer(preset), nested(dict(values)), source="the Train tab")
+        selection = family_class(brain).selection()
+        layers = (preset_layer(preset), selection, nested(dict(values)))
+        config = build_config(*layers, source="the Train tab")
+        family_of(config)  # its own settings, checked before any process starts
+        return config
     except ConfigError as error:
         raise DashboardInputError(str(error)) from None
 

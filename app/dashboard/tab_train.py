@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import viser
 
-from app.brains.registry import family_of
+from app.brains.registry import family_of, names
 from app.dashboard.controls import DashboardInputError, training_config
 from app.dashboard.follower import TrainingFollower
 from app.dashboard.setting_controls import SettingControls, add_controls
@@ -27,7 +27,7 @@ from app.dashboard.stage import Stage
 from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.dashboard.training_job import JobState, TrainingJob
-from app.settings.config import PRESET_NAMES, RunConfig
+from app.settings.config import DEFAULT_BRAIN, PRESET_NAMES, RunConfig
 from app.settings.loading import load_preset, train_settings
 
 FIRST = (
@@ -67,6 +67,7 @@ class TrainTab:
     runs_dir: Path
     on_run_ended: Callable[[], None]  # a run file is complete: list it
     preset: viser.GuiDropdownHandle[str]
+    brain: viser.GuiDropdownHandle[str]
     settings: SettingControls
     buttons: dict[str, viser.GuiButtonHandle]
     progress: ProgressBar
@@ -91,7 +92,7 @@ class TrainTab:
     def start(self) -> None:
         if self.job is not None and self.job.active:
             raise DashboardInputError("a training run is already going: stop it first")
-        config = training_config(self.preset.value, self.settings.values())
+        config = training_config(self.preset.value, self.settings.values(), self.brain.value)
         out = new_run_path(self.runs_dir, config)
         self.close()  # a run that ended but was not yet followed to its end
         self.job = TrainingJob(config, out)
@@ -162,6 +163,13 @@ def populate_train_tab(
     """Add the Train tab's controls (inside the current tab) and attach their callbacks."""
     quick = load_preset("quick")  # the fields start at the quick preset's values
     preset = gui.add_dropdown("Preset", PRESET_NAMES, initial_value="quick")
+    brain = gui.add_dropdown(
+        "Brain",
+        names(),
+        initial_value=DEFAULT_BRAIN,
+        hint="the brain family to train: GNP (method and judgment below), a neural net "
+        "(CMA-ES on an Elman net, NEAT), or one registered from outside (docs/brains.md)",
+    )
     everything = train_settings()
     first = [s for key in FIRST for s in everything if s.key == key]
     settings = add_controls(gui, first, quick)
@@ -176,6 +184,7 @@ def populate_train_tab(
         runs_dir=runs_dir,
         on_run_ended=on_run_ended,
         preset=preset,
+        brain=brain,
         settings=settings,
         buttons=buttons,
         progress=gui.add_progress_bar(0.0),

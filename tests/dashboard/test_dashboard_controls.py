@@ -114,6 +114,16 @@ def test_an_unknown_preset_is_refused() -> None:
         training_config("nope", fields())
 
 
+def test_the_train_tab_trains_any_registered_family() -> None:
+    assert training_config("quick", fields()).brain == "gnp"
+    net = training_config("quick", fields(), "cmaes")
+    assert net.brain == "cmaes" and net.neuro is not None and net.family is None
+    assert net.training.population == 10  # the form's settings still apply
+    assert training_config("quick", fields(), "neat").brain == "neat"
+    with pytest.raises(DashboardInputError, match="unknown brain family 'nope'"):
+        training_config("quick", fields(), "nope")
+
+
 @pytest.mark.parametrize("method", ["RL", "BS", "CS"])
 def test_genome_view_and_inspector(method: str) -> None:
     cfg = gnp.GnpConfig(method=method, n_judgment=8, n_processing=4)  # type: ignore[arg-type]
