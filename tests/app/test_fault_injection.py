@@ -64,18 +64,21 @@ IMPLEMENT = ("--repeats", "6", "--steps", "1000", "--fault-step", "500", "--brea
 
 
 @pytest.fixture(scope="module")
-def kill_config(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """(config file, its undisturbed run, implemented once as `fault`)."""
+def kill_config(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, float]:
+    """(config file, its undisturbed run, implemented once as `fault`, the median seconds of
+    one of its generations: kills land within a generation however fast the machine is)."""
     folder = tmp_path_factory.mktemp("kill")
-    config = tiny_config(population=8, steps=500, generations=KILL_GENERATIONS, shard_size=8)
+    # Generations of some milliseconds each (40k robot-steps): a kill can land inside one.
+    config = tiny_config(population=16, steps=2500, generations=KILL_GENERATIONS, shard_size=8)
     config_file = folder / "kill.toml"
     config_file.write_text(to_toml(config))
     reference = folder / "reference.h5"
-    train(config, reference, workers=1)
+    seconds: list[float] = []
+    train(config, reference, workers=1, progress=lambda summary: seconds.append(summary.seconds))
     shutil.copy(reference, folder / "trained.h5")  # the run before its implementation
     assert main(["implement", "reference", "--runs-dir", str(folder), "--name", "fault",
                  "--quiet", "--workers", "1", *IMPLEMENT]) == 0  # fmt: skip
-    return config_file, reference
+    return config_file, reference, float(np.median(seconds))
 
 
 def _moments(low: float, high: float) -> list[float]:
@@ -92,15 +95,17 @@ def _generations_done(path: Path) -> int:
 
 @pytest.mark.slow
 def test_train_killed_at_ten_moments_resumes_to_identical_data(
-    tmp_path: Path, kill_config: tuple[Path, Path]
+    tmp_path: Path, kill_config: tuple[Path, Path, float]
 ) -> None:
     """Moment i: once the file holds g_i generations (seeded, rising), a seeded fraction of a
-    generation later; g_0 = 0 kills while the file is being created or just after."""
-    config_file, reference = kill_config
+    generation later (of the reference run's median generation: a fixed delay outlasted the
+    generations left once the compiled loop made them a few milliseconds each); g_0 = 0 kills
+    while the file is being created or just after."""
+    config_file, reference, generation_seconds = kill_config
     out = tmp_path / "run.h5"
     rng = np.random.default_rng(RNG_SEED)
     targets = np.sort(rng.choice(np.arange(1, KILL_GENERATIONS - 1), MOMENTS - 1, replace=False))
-    for target, delay in zip([0, *targets], rng.uniform(0.0, 0.05, MOMENTS), strict=True):
+    for target, fraction in zip([0, *targets], rng.uniform(0.0, 1.0, MOMENTS), strict=True):
         if out.exists():
             with RunReader(out) as run:  # what a kill left opens, and is not finished
                 assert not run.finished
@@ -113,7 +118,8 @@ def test_train_killed_at_ten_moments_resumes_to_identical_data(
             process = gnp_lab("train", "--config", config_file, "--out", out, "--quiet")
         while process.poll() is None and _generations_done(out) < target:
             time.sleep(0.005)
-        assert _kill_after(process, float(delay)), "the run ended before its kill"
+        delay = float(fraction) * generation_seconds
+        assert _kill_after(process, delay), "the run ended before its kill"
     status, err = finish(gnp_lab("train", "--resume", out, "--quiet", "--workers", "1"))
     assert status == 0, err
     assert_same_data(out, reference.with_name("trained.h5"))
@@ -122,9 +128,9 @@ def test_train_killed_at_ten_moments_resumes_to_identical_data(
 
 @pytest.mark.slow
 def test_implement_killed_at_ten_moments_leaves_the_run_intact(
-    tmp_path: Path, kill_config: tuple[Path, Path]
+    tmp_path: Path, kill_config: tuple[Path, Path, float]
 ) -> None:
-    _, reference = kill_config
+    _, reference, _ = kill_config
     out = tmp_path / "run.h5"
     with RunReader(reference) as run:
         config = run.config
