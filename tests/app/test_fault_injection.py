@@ -140,11 +140,13 @@ def test_implement_killed_at_ten_moments_leaves_the_run_intact(
                       "--workers", "1", *IMPLEMENT)  # fmt: skip
     timing = tmp_path / "timing"
     timing.mkdir()
-    shutil.copy(out, timing / "run.h5")
-    began = time.monotonic()
-    status, err = finish(gnp_lab(*implement_args[:3], timing, *implement_args[4:]))
-    took = time.monotonic() - began  # of a whole `implement`, start-up included
-    assert status == 0, err
+    took = float("inf")  # of a whole `implement`, start-up included: the faster of two, so a
+    for _ in range(2):  # slow first one (caches loading, a busy machine) does not push the
+        shutil.copy(out, timing / "run.h5")  # kills past the end
+        began = time.monotonic()
+        status, err = finish(gnp_lab(*implement_args[:3], timing, *implement_args[4:]))
+        took = min(took, time.monotonic() - began)
+        assert status == 0, err
     pristine = timing / "pristine.h5"
     shutil.copy(out, pristine)
     kills = replaced = 0
