@@ -93,8 +93,10 @@ def family_of(config: RunConfig) -> BrainFamily:
 def run_kind(summary: RunSummary) -> str:
     """A run list's words for a run: its family's description (`CS fuzzy`, `cmaes: Elman net,
     8 hidden`), `task CartPole-v1` of a task run, or the name of a family not registered here."""
-    if summary.task or summary.config is None:
-        return f"task {summary.task}" if summary.task else ""
+    if summary.task:
+        return f"task {summary.task}"
+    if summary.config is None:  # unreadable: the list says so itself
+        return ""
     try:
         return family_of(summary.config).description
     except ConfigError:
