@@ -29,16 +29,45 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 HERE = Path(__file__).resolve().parents[1]
 
 
-def _config(population: int, steps: int) -> Any:
-    from app.settings.loading import build_config, load_preset
+def _lab() -> SimpleNamespace:
+    """The lab's entry points in the tree measured: app/ by role (#33), or the flat layout
+    before it (3cf00cf), whose implementation phase took the GNP config, not a brain family."""
+    try:
+        from app.brains.gnp_brain import initial_population
+        from app.brains.registry import family_of
+        from app.phases.implementation import run_implementation
+        from app.phases.training import train
+        from app.settings.loading import build_config, load_preset
 
-    return build_config(
-        load_preset("thesis-ch3").model_dump(),
+        brain = family_of
+    except ModuleNotFoundError:
+        from app.config import build_config, load_preset  # type: ignore[no-redef]
+        from app.implementation import run_implementation  # type: ignore[no-redef]
+        from app.training import initial_population, train  # type: ignore[no-redef]
+
+        def brain(config: Any) -> Any:
+            return config.controller.gnp_config()
+
+    return SimpleNamespace(
+        build_config=build_config,
+        load_preset=load_preset,
+        initial_population=initial_population,
+        run_implementation=run_implementation,
+        train=train,
+        brain=brain,
+    )
+
+
+def _config(population: int, steps: int) -> Any:
+    lab = _lab()
+    return lab.build_config(
+        lab.load_preset("thesis-ch3").model_dump(),
         {
             "training": {
                 "population": population,
@@ -60,11 +89,9 @@ def _cpu() -> float:
 def generation(population: int, steps: int) -> tuple[float, float]:
     """(wall s, CPU s) of the second of three generations of a training run, 1 worker (the
     first loads numba's caches, the last re-lives the elite, recording it)."""
-    from app.phases.training import train
-
     marks: list[tuple[float, float]] = [(time.perf_counter(), _cpu())]
     with tempfile.TemporaryDirectory() as folder:
-        train(
+        _lab().train(
             _config(population, steps),
             Path(folder) / "bench.h5",
             workers=1,
@@ -76,14 +103,12 @@ def generation(population: int, steps: int) -> tuple[float, float]:
 
 def implementation(trials: int, steps: int, workers: int) -> tuple[float, float]:
     """(wall s, CPU s) of an implementation phase of a generation-0 individual."""
-    from app.brains.gnp_brain import initial_population
-    from app.phases.implementation import run_implementation
-
+    lab = _lab()
     config = _config(2, 10)
     settings = config.implementation.model_copy(
         update={"repeats": trials // 10, "steps": steps, "noise_sigma": 50.0}
     )
-    individual = initial_population(config)
+    individual = lab.initial_population(config)
     run = {
         "seed": 0,
         "control_period": config.training.control_period,
@@ -92,9 +117,10 @@ def implementation(trials: int, steps: int, workers: int) -> tuple[float, float]
         "physics": "analytic",
     }
     small = settings.model_copy(update={"repeats": 1, "steps": 20})
-    run_implementation(config.controller.gnp_config(), individual, small, **run)  # warm caches
+    brain = lab.brain(config)
+    lab.run_implementation(brain, individual, small, **run)  # warm caches
     wall, cpu = time.perf_counter(), _cpu()
-    run_implementation(config.controller.gnp_config(), individual, settings, workers=workers, **run)
+    lab.run_implementation(brain, individual, settings, workers=workers, **run)
     return time.perf_counter() - wall, _cpu() - cpu
 
 
