@@ -37,8 +37,13 @@ HERE = Path(__file__).resolve().parents[1]
 
 def _lab() -> SimpleNamespace:
     """The lab's entry points in the tree measured: app/ by role (#33), or the flat layout
-    before it (3cf00cf), whose implementation phase took the GNP config, not a brain family."""
-    try:
+    before it (3cf00cf), whose implementation phase took the GNP config, not a brain family.
+
+    The layout is read from the tree's files, not from a failed import: the venv's editable
+    install finds a module the tree lacks in the checkout that installed it, mixing two trees."""
+    import app
+
+    if (Path(app.__file__).parent / "phases").is_dir():
         from app.brains.gnp_brain import initial_population
         from app.brains.registry import family_of
         from app.phases.implementation import run_implementation
@@ -46,7 +51,7 @@ def _lab() -> SimpleNamespace:
         from app.settings.loading import build_config, load_preset
 
         brain = family_of
-    except ModuleNotFoundError:
+    else:
         from app.config import build_config, load_preset  # type: ignore[no-redef]
         from app.implementation import run_implementation  # type: ignore[no-redef]
         from app.training import initial_population, train  # type: ignore[no-redef]
