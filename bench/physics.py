@@ -107,6 +107,8 @@ def main() -> None:
     parser.add_argument("--generations", type=int, default=3)
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
+    if args.generations < 2:  # a generation is timed from the one before it
+        parser.error(f"--generations must be at least 2 (got {args.generations})")
     poses, seeds, commands = loop_commands(args.steps)
     work = args.robots * args.steps
     loop_work = 300 * args.steps

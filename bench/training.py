@@ -152,6 +152,8 @@ def main() -> None:
     parser.add_argument("--impl-steps", type=int, default=3000)
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
+    if args.trials < 10:  # the trials are the arena's 10 start poses, `trials // 10` times each
+        parser.error(f"--trials must be at least 10 (got {args.trials})")
     life = args.population * args.steps
     trial_steps = (args.trials // 10 * 10) * args.impl_steps
     replay = loop_commands(args.steps)

@@ -90,6 +90,15 @@ def ours_side(robots: int, steps: int, repeats: int, stream: str) -> dict[str, f
     return {"cpu": best_cpu, "wall": best_wall}
 
 
+def kheperax_importable(python: str) -> bool:
+    """Whether the interpreter `python` runs and can import kheperax."""
+    try:
+        probe = subprocess.run([python, "-c", "import kheperax"], capture_output=True, check=False)
+    except OSError:  # no such interpreter, or not executable
+        return False
+    return probe.returncode == 0
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--kheperax-python", default="python3")
@@ -107,6 +116,11 @@ def main() -> None:
     if args.side:
         print(json.dumps(ours_side(args.robots, args.steps, args.repeats, args.side)))
         return
+    if not kheperax_importable(args.kheperax_python):
+        parser.error(
+            f"{args.kheperax_python} cannot import kheperax; install it in a venv of its own "
+            "(see this file's docstring) and pass that venv's python as --kheperax-python"
+        )
     pythons = {
         "kheperax": args.kheperax_python,
         "box-muller-v1": sys.executable,
