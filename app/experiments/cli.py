@@ -21,6 +21,7 @@ from app.experiments.results import CORE_STEPS_PER_SECOND, ExperimentResults
 from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
 from app.experiments.spec_loading import load_file, load_shipped, shipped_names
 from app.experiments.spec_tables import check_name
+from app.phases.generations import Interrupted
 from app.settings.cli_options import add_quiet, add_runs_dir
 from app.system.exit_codes import EXIT_INTERRUPTED
 
@@ -190,7 +191,8 @@ def main(args: argparse.Namespace) -> int:
     handlers = {"run": cmd_run, "report": cmd_report, "status": cmd_status}
     try:
         return handlers[args.verb](spec, args)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Interrupted):  # Interrupted: training in this process (numba's
+        # warm-up, an in-process cluster's runs) stopped by the same Ctrl-C or SIGTERM
         sys.stderr.write(
             "gnp-lab: interrupted; finished runs are kept: run the same command to resume\n"
         )

@@ -82,18 +82,19 @@ def one_error_line(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def gnp_lab(*args: str | Path) -> subprocess.Popen[bytes]:
-    """`gnp-lab ARGS` in a process of its own, in its own process group."""
-    return python("-m", "app.cli", *args)
+def gnp_lab(*args: str | Path, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+    """`gnp-lab ARGS` in a process of its own, in its own process group (`env`: variables set
+    beside this process's)."""
+    return python("-m", "app.cli", *args, env=env)
 
 
-def python(*args: str | Path) -> subprocess.Popen[bytes]:
+def python(*args: str | Path, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
     """`python ARGS` (this interpreter, the repository importable) in its own process group:
     a test's cleanup can kill the group, though a test's kill hits the process alone."""
     return subprocess.Popen(
         [sys.executable, *map(str, args)],
         cwd=ROOT,
-        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        env=dict(os.environ, PYTHONPATH=str(ROOT), **(env or {})),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         start_new_session=True,

@@ -114,3 +114,28 @@ def test_a_killed_experiment_leaves_no_dask_process(tmp_path: Path) -> None:
                                  "--scale", "smoke", "--runs-dir", runs,
                                  "--workers", "1", "--quiet"))  # fmt: skip
     assert status == 0, err
+
+
+@pytest.mark.slow
+def test_sigterm_during_an_experiments_warm_up_ends_it_on_one_line(tmp_path: Path) -> None:
+    """The warm-up trains a tiny run in the command's own process; a SIGTERM there stops that
+    training (`Interrupted`), which the command reports as it reports Ctrl-C."""
+    runs = tmp_path / "runs"
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cold-cache")}  # a cold cache: a warm-up of seconds
+    process = gnp_lab("experiment", "run", "--file", write_tiny(tmp_path), "--scale", "smoke",
+                      "--runs-dir", runs, "--workers", "1", env=env)  # fmt: skip
+    assert process.stderr is not None
+    heard = b""
+    while b"warming numba's cache" not in heard:
+        line = process.stderr.readline()
+        assert line, finish(process)
+        heard += line
+    time.sleep(0.5)  # into the warm-up's training
+    assert process.poll() is None, finish(process)
+    process.send_signal(signal.SIGTERM)
+    status, err = finish(process, 60)
+    assert status == 130, heard.decode() + err
+    assert "Traceback" not in err, err
+    assert err.strip().splitlines()[-1] == (
+        "gnp-lab: interrupted; finished runs are kept: run the same command to resume"
+    )
