@@ -10,9 +10,11 @@ workers' signal handling and the shutdown are decided once:
 - Signals: Ctrl-C and SIGTERM reach the whole process group; workers ignore them, the parent
   decides and stops its workers itself.
 - A parent's death: a worker ends within `PARENT_WATCH` seconds of it, however its parent
-  died (SIGKILL included) and whatever it was doing: a thread of its own watches its parent
-  id. A forked worker also closes every pipe end it inherited but its own, so a worker waiting
-  on its pipe sees it close at once.
+  died (SIGKILL included): a thread of its own watches its parent id. The thread needs the
+  GIL, so a worker in a compiled call ends when the call returns; and a spawned worker starts
+  watching once it has imported what its job needs (about a second of CPU). A forked worker
+  also closes every pipe end it inherited but its own, so a worker waiting on its pipe sees
+  it close at once.
 - Shutdown: `close` asks each worker to end, waits a little (not at all when interrupted
   mid-job, or for a worker never given a job: their results are not wanted) and kills what
   is left.
