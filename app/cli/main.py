@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -24,7 +23,7 @@ from app.settings.config import (
 from app.store import RunFileError
 from app.store.space import is_disk_full
 from app.system.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
-from app.system.workers import handling, raise_interrupt
+from app.system.signals import interrupted_by_signals
 from app.tasks.common import TaskError
 
 if TYPE_CHECKING:
@@ -61,7 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
         # its temporary files removed, and it says so on one line.
-        with handling(signal.SIGTERM, raise_interrupt):
+        with interrupted_by_signals():
             status = handlers[args.command](args)
         sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
         return status

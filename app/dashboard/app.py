@@ -36,7 +36,7 @@ from app.dashboard.tab_show import populate_show_tab
 from app.dashboard.tab_task import populate_task_panel
 from app.dashboard.tab_train import populate_train_tab
 from app.phases.live import LiveSession
-from app.system.workers import raise_interrupt
+from app.system.signals import raise_interrupt
 from app.views.arena_view import ArenaView
 from app.views.graph_view import GraphView
 from app.views.scene import aim_camera, scene_frame

@@ -24,6 +24,7 @@ from app.experiments.spec_tables import check_name
 from app.phases.generations import Interrupted
 from app.settings.cli_options import add_quiet, add_runs_dir
 from app.system.exit_codes import EXIT_INTERRUPTED
+from app.system.signals import interrupted_by_signals
 
 DEFAULT_SCALE = "small"
 
@@ -190,7 +191,8 @@ def main(args: argparse.Namespace) -> int:
     spec.scale(args.scale)
     handlers = {"run": cmd_run, "report": cmd_report, "status": cmd_status}
     try:
-        return handlers[args.verb](spec, args)
+        with interrupted_by_signals():
+            return handlers[args.verb](spec, args)
     except (KeyboardInterrupt, Interrupted):  # Interrupted: training in this process (numba's
         # warm-up, an in-process cluster's runs) stopped by the same Ctrl-C or SIGTERM
         sys.stderr.write(

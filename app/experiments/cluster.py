@@ -12,7 +12,8 @@ from typing import Any
 from app.experiments.planning import Task
 from app.experiments.spec import ExperimentError
 from app.system.security import local_cluster_security
-from app.system.workers import default_workers, handling
+from app.system.signals import handling
+from app.system.workers import default_workers
 
 
 def warm_numba(tasks: list[Task], client: Any = None) -> None:

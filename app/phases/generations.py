@@ -14,7 +14,6 @@ interrupted.
 
 from __future__ import annotations
 
-import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -33,14 +32,15 @@ from app.phases.lives import Lives, ShardLives, concat_lives, owned, shards
 from app.settings.arenas import arena_of
 from app.settings.config import RunConfig
 from app.store import RunFileError, RunReader, RunTemplate, RunWriter
-from app.system.workers import Handler, WorkerDied, WorkerPool, handling
+from app.system.signals import Stopped, interrupted_by_signals, raise_interrupt
+from app.system.workers import Handler, WorkerDied, WorkerPool
 
 
 class TrainingError(RuntimeError):
     """Training could not go on (a worker died, the run cannot start)."""
 
 
-class Interrupted(Exception):
+class Interrupted(Stopped):
     """Training was stopped by Ctrl-C or SIGTERM after the last complete generation."""
 
     def __init__(self, generations_done: int) -> None:
@@ -113,14 +113,15 @@ def stop_on_signals(control: Control) -> Iterator[None]:
     own SIGINT handler does, in the main thread (elsewhere signals are left alone).
 
     The request is also remembered in `control`: a KeyboardInterrupt raised while numba
-    compiles can be swallowed inside llvmlite, and the loop then stops at the next generation.
+    compiles can be swallowed inside llvmlite, and the loop then stops at the next generation
+    (or, should the compiler fail in its place, its error is raised as KeyboardInterrupt).
     """
 
     def handler(signum: int, frame: Any) -> None:
         control.stopping.set()
-        raise KeyboardInterrupt
+        raise_interrupt(signum, frame)
 
-    with handling(signal.SIGINT, handler), handling(signal.SIGTERM, handler):
+    with interrupted_by_signals(handler):
         yield
 
 

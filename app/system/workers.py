@@ -34,7 +34,7 @@ import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -57,27 +57,6 @@ def start_method() -> str:
 def default_workers() -> int:
     """One worker per core."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-@contextlib.contextmanager
-def handling(sig: int, handler: Any) -> Iterator[None]:
-    """`handler` (a function, SIG_IGN or SIG_DFL) for signal `sig` meanwhile, then the previous
-    one back. Only the main thread can set handlers: elsewhere signals are left alone."""
-    try:
-        previous = signal.signal(sig, handler)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
-
-
-def raise_interrupt(signum: int, frame: object) -> None:
-    """A signal handler: SIGTERM (or any) ends the main thread's work as Ctrl-C does, so every
-    `with` and `finally` under way (a pool's close, a temporary file's removal) runs."""
-    raise KeyboardInterrupt
 
 
 def _sendable(error: BaseException) -> BaseException:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import signal
@@ -266,6 +267,20 @@ def test_ctrl_c_and_sigterm_leave_the_same_stop_request(sig: int) -> None:
         signal.raise_signal(sig)
     assert control.stopping.is_set()  # remembered, should the interrupt be swallowed
     assert signal.getsignal(sig) is before
+
+
+def test_an_error_after_a_swallowed_interrupt_stops_training_as_the_interrupt() -> None:
+    """Should numba's compiler swallow the KeyboardInterrupt and fail in its place, the stop
+    is still what is raised (and remembered in the control)."""
+    from app.phases.generations import stop_on_signals
+    from app.phases.training import Control
+
+    control = Control()
+    with pytest.raises(KeyboardInterrupt), stop_on_signals(control):
+        with contextlib.suppress(KeyboardInterrupt):  # swallowed inside llvmlite
+            signal.raise_signal(signal.SIGTERM)
+        raise RuntimeError("no compiled object yet")
+    assert control.stopping.is_set()
 
 
 def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path) -> None:

@@ -1,0 +1,80 @@
+"""Stop signals: Ctrl-C and SIGTERM end the main thread's work as KeyboardInterrupt, so every
+`with` and `finally` under way (a pool's close, a temporary file's removal) runs, and the
+command says so on one line.
+
+numba's compiler calls back into Python from llvmlite; a KeyboardInterrupt raised there is
+swallowed (printed as "Exception ignored") and the compiler may then fail in its place.
+`interrupted_by_signals` counts the signals it turned into KeyboardInterrupt, so an error that
+follows one is raised as the stop it is, and the swallowed one is not printed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+
+@contextlib.contextmanager
+def handling(sig: int, handler: Any) -> Iterator[None]:
+    """`handler` (a function, SIG_IGN or SIG_DFL) for signal `sig` meanwhile, then the previous
+    one back. Only the main thread can set handlers: elsewhere signals are left alone."""
+    try:
+        previous = signal.signal(sig, handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+
+
+class Stopped(Exception):
+    """Work a stop request ended, reporting how far it got (training's `Interrupted`): never
+    taken by `interrupted_by_signals` for an error a swallowed interrupt left."""
+
+
+_signals_heard = 0
+"""How many stop signals `raise_interrupt` has turned into KeyboardInterrupt in this process."""
+
+
+def raise_interrupt(signum: int, frame: object) -> None:
+    """A signal handler: SIGTERM (or any) ends the main thread's work as Ctrl-C does, so every
+    `with` and `finally` under way (a pool's close, a temporary file's removal) runs."""
+    global _signals_heard
+    _signals_heard += 1
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
+    """Meanwhile Ctrl-C and SIGTERM call `handler` (one that calls `raise_interrupt`) in the
+    main thread; an error raised after one of them is raised as KeyboardInterrupt (the user
+    asked to stop, not for that error), and a KeyboardInterrupt swallowed in a callback is not
+    printed. Elsewhere than in the main thread, which alone gets signals, it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    heard = _signals_heard
+    previous_hook = sys.unraisablehook
+
+    def quiet_swallowed(unraisable: Any) -> None:
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_hook(unraisable)
+
+    sys.unraisablehook = quiet_swallowed
+    try:
+        with handling(signal.SIGINT, handler), handling(signal.SIGTERM, handler):
+            yield
+    except Stopped:
+        raise
+    except Exception as error:
+        if _signals_heard == heard:
+            raise
+        raise KeyboardInterrupt from error
+    finally:
+        sys.unraisablehook = previous_hook
