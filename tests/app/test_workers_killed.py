@@ -5,6 +5,7 @@ kept (the run resumes); SIGTERM ends a command on one line, its workers with it.
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import time
@@ -34,8 +35,8 @@ def _wait_for(condition: object, timeout: float = 180) -> None:
 
 
 def training_config(folder: Path) -> Path:
-    """A run of 2 shards (2 workers), generations of a fraction of a second, 12 of them."""
-    config = tiny_config(population=16, steps=1000, generations=12, shard_size=8)
+    """A run of 2 shards (2 workers), generations of a fraction of a second, 24 of them."""
+    config = tiny_config(population=16, steps=1000, generations=24, shard_size=8)
     path = folder / "config.toml"
     path.write_text(to_toml(config))
     return path
@@ -47,6 +48,9 @@ def test_a_killed_training_leaves_no_worker_and_resumes(tmp_path: Path) -> None:
     process = gnp_lab("train", "--config", training_config(tmp_path), "--out", out,
                       "--workers", "2", "--quiet")  # fmt: skip
     _wait_for(lambda: process.poll() is not None or _generations_done(out) >= 1)
+    # Frozen where it is, so it cannot finish (and close its pool) before it is looked at on a
+    # loaded machine; SIGKILL ends it frozen as running, and its workers run on meanwhile.
+    os.kill(process.pid, signal.SIGSTOP)
     assert process.poll() is None, finish(process)
     assert children_of(process) >= 2
     assert kill_alone(process) == []
@@ -63,7 +67,7 @@ def test_a_killed_implementation_leaves_no_worker_and_the_run_intact(
     shutil.copy(finished_run, tmp_path / "run.h5")
     before = file_digest(tmp_path / "run.h5")
     implement = ("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2")
-    process = gnp_lab(*implement, "--steps", "30000", "--repeats", "4")
+    process = gnp_lab(*implement, "--steps", "30000", "--repeats", "40")
     _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)  # into the trials
     assert process.poll() is None, finish(process)
@@ -82,10 +86,11 @@ def test_sigterm_ends_an_implementation_on_one_line_with_its_workers(
     shutil.copy(finished_run, tmp_path / "run.h5")
     before = file_digest(tmp_path / "run.h5")
     process = gnp_lab("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2",
-                      "--steps", "30000", "--repeats", "4")  # fmt: skip
+                      "--steps", "30000", "--repeats", "40")  # fmt: skip
     _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)
-    # Still in its trials: a signal after the command returned would meet Python's default.
+    # Still in its trials (tens of seconds of them): a signal after the command returned would
+    # meet Python's default.
     assert process.poll() is None, finish(process)
     children = psutil.Process(process.pid).children(recursive=True)
     process.send_signal(signal.SIGTERM)

@@ -6,7 +6,9 @@ resumes."""
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
+import signal
 import subprocess
 import time
 from pathlib import Path
@@ -72,11 +74,12 @@ def _generations_done(path: Path) -> int:
 @pytest.mark.slow
 def test_a_killed_dashboards_training_job_leaves_no_worker_and_resumes(tmp_path: Path) -> None:
     config = tmp_path / "config.json"
-    config.write_text(tiny_config(population=16, steps=1000, generations=12, shard_size=8)
+    config.write_text(tiny_config(population=16, steps=1000, generations=24, shard_size=8)
                       .model_dump_json())  # fmt: skip
     out = tmp_path / "run.h5"
     process = python("-c", TRAINING_JOB, config, out)
     _wait_for(lambda: process.poll() is not None or _generations_done(out) >= 1)
+    os.kill(process.pid, signal.SIGSTOP)  # frozen: it cannot finish before it is looked at
     assert process.poll() is None, finish(process)
     assert children_of(process) >= 2
     assert kill_alone(process) == []
