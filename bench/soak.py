@@ -16,7 +16,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from app.dashboard.headless import CHROMIUM_ARGS, start_dashboard, stop_dashboard
+from app.dashboard.headless import (
+    CHROMIUM_ARGS,
+    chromium_executable,
+    start_dashboard,
+    stop_dashboard,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -35,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tabs", type=int, default=3, help="browser tabs kept open")
     parser.add_argument("--every", type=float, default=30.0, help="seconds between samples")
     parser.add_argument("--runs-dir", default=str(REPO / "saved_runs"), help="runs to serve")
-    parser.add_argument("--chromium", default="/usr/bin/chromium", help="browser executable")
+    parser.add_argument("--chromium", default=chromium_executable(), help="browser executable")
     args = parser.parse_args(argv)
 
     with tempfile.TemporaryDirectory() as folder:

@@ -5,6 +5,7 @@ Only the standard library here; Playwright is imported by the callers that drive
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
@@ -12,6 +13,13 @@ import time
 import urllib.request
 from collections.abc import Sequence
 from pathlib import Path
+
+
+def chromium_executable() -> str:
+    """The Chromium the lab's browser tests and benches drive: `$GNP_LAB_CHROMIUM`, else
+    Debian's."""
+    return os.environ.get("GNP_LAB_CHROMIUM", "/usr/bin/chromium")
+
 
 CHROMIUM_ARGS = (
     "--headless",

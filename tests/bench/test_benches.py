@@ -3,12 +3,11 @@
 A bench is run only when someone measures, so an API change breaks it silently; here each one
 runs at a tiny size and must print its table. Timing is the benches' job, never this test's:
 what is asserted is the shape of each bench's answer, and the facts a bench checks itself
-(the experiment bench's "identical results"). `versus.py` has its own test beside this one.
+(the experiment bench's "identical results").
 """
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
@@ -97,6 +96,18 @@ def test_a_bench_prints_its_table(name: str) -> None:
         assert re.search(row, done.stdout), f"{row!r} not in:\n{done.stdout}"
 
 
+def test_versus_runs_a_tree_against_itself() -> None:
+    """It compares trees side by side; here this tree is its own baseline."""
+    tiny = "--population 4 --steps 10 --trials 10 --impl-steps 20 --rounds 1 --workers 1"
+    done = bench("versus", f"--baseline {ROOT} {tiny}")
+    assert done.returncode == 0, done.stderr
+    number = r"\s+[\d.]+ /\s+[\d.]+"
+    for case in ("training generation, 1 worker", "implementation block, 1 worker"):
+        row = rf"{case}\s+this tree{number}\s+baseline{number}\s+baseline / this tree\s+[\d.]+×"
+        assert re.search(row, done.stdout), done.stdout
+    assert "implementation 10 trials × 20 steps" in done.stdout
+
+
 def test_every_bench_is_run_by_a_test() -> None:
     """A new bench joins TINY (or has a test of its own), so it cannot rot unseen either."""
     tested = set(TINY) | {"versus", "versus_kheperax", "soak"}
@@ -134,8 +145,7 @@ def test_a_size_no_bench_can_time_is_refused(name: str, arguments: str, message:
 def test_soak_serves_the_runs_to_a_browser(tmp_path: Path) -> None:
     """The soak bench keeps a Chromium tab on the dashboard and samples the server's memory."""
     shutil.copy(ROOT / "saved_runs" / "demo.h5", tmp_path / "demo.h5")
-    chromium = os.environ.get("GNP_LAB_CHROMIUM", "/usr/bin/chromium")
-    arguments = f"--minutes 0.1 --tabs 1 --every 2 --runs-dir {tmp_path} --chromium {chromium}"
+    arguments = f"--minutes 0.1 --tabs 1 --every 2 --runs-dir {tmp_path}"
     done = bench("soak", arguments)
     assert done.returncode == 0, done.stderr[-3000:]
     samples = re.findall(r"^\s+[\d.]+\s+([\d.]+)\s+(\d+)$", done.stdout, flags=re.MULTILINE)

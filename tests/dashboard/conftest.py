@@ -9,7 +9,12 @@ from typing import Any
 
 import pytest
 
-from app.dashboard.headless import CHROMIUM_ARGS, start_dashboard, stop_dashboard
+from app.dashboard.headless import (
+    CHROMIUM_ARGS,
+    chromium_executable,
+    start_dashboard,
+    stop_dashboard,
+)
 from app.phases.training import train
 from app.settings.config import RunConfig
 from app.settings.loading import build_config
@@ -72,7 +77,7 @@ def browser() -> Iterator[Any]:
     """Debian's headless Chromium driven by Playwright (never `playwright install`)."""
     from playwright.sync_api import sync_playwright
 
-    executable = os.environ.get("GNP_LAB_CHROMIUM", "/usr/bin/chromium")
+    executable = chromium_executable()
     with sync_playwright() as playwright:
         instance = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
         yield instance
