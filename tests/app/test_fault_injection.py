@@ -81,8 +81,8 @@ def kill_config(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, f
     return config_file, reference, float(np.median(seconds))
 
 
-def _moments(low: float, high: float) -> list[float]:
-    return list(np.random.default_rng(RNG_SEED).uniform(low, high, MOMENTS))
+def _moments(low: float, high: float, count: int = MOMENTS) -> list[float]:
+    return list(np.random.default_rng(RNG_SEED).uniform(low, high, count))
 
 
 def _generations_done(path: Path) -> int:
@@ -149,15 +149,20 @@ def test_implement_killed_at_ten_moments_leaves_the_run_intact(
         assert status == 0, err
     pristine = timing / "pristine.h5"
     shutil.copy(out, pristine)
-    kills = replaced = 0
-    for moment in _moments(0.05 * took, 0.9 * took):
+    # Ten kills at seeded moments: an implementation that a faster spell of a busy machine lets
+    # finish first is checked the same way, and the next moment is drawn (at most ten of those).
+    kills = tries = replaced = 0
+    for moment in _moments(0.05 * took, 0.9 * took, 2 * MOMENTS):
+        if kills == MOMENTS:
+            break
         kills += _kill_after(gnp_lab(*implement_args), moment)
+        tries += 1
         # Untouched, or (killed after its rename, or finished first) holding the whole result.
         if file_digest(out) != before:
             assert_same_data(out, reference)
             shutil.copy(pristine, out)  # back to the trained run for the next moment
             replaced += 1
-    assert kills >= MOMENTS - 2 and replaced < MOMENTS // 2, (kills, replaced)
+    assert kills == MOMENTS and replaced < tries // 2, (kills, tries, replaced)
     status, err = finish(gnp_lab(*implement_args))
     assert status == 0, err
     assert_same_data(out, reference)
