@@ -1,5 +1,5 @@
 """Helpers of the lab's tests: tiny configs, file digests, dataset comparison, CLI errors,
-gnp-lab processes (started, killed, their children's fate)."""
+gnp-lab processes (started, killed, their children's fate), waiting on a run's progress."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,7 @@ import pytest
 
 from app.settings.config import RunConfig
 from app.settings.loading import build_config
+from app.store import RunReader
 
 
 def tiny_config(**training: Any) -> RunConfig:
@@ -144,3 +146,21 @@ def children_of(process: subprocess.Popen[bytes]) -> int:
         return len(psutil.Process(process.pid).children(recursive=True))
     except psutil.NoSuchProcess:
         return 0
+
+
+def generations_done(path: Path) -> int:
+    """How many generations the run file at `path` holds; -1 while it cannot be read (not
+    there yet, or being replaced by a resume)."""
+    try:
+        with RunReader(path) as run:
+            return run.generations_done
+    except Exception:
+        return -1
+
+
+def wait_for(condition: Callable[[], object], timeout: float = 180) -> None:
+    """Poll `condition` until it is true; fail after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)

@@ -15,7 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from experiment_fixtures import write_tiny
-from lab_fixtures import assert_same_data, file_digest, finish, gnp_lab, tiny_config
+from lab_fixtures import (
+    assert_same_data,
+    file_digest,
+    finish,
+    generations_done,
+    gnp_lab,
+    tiny_config,
+)
 
 from app.cli import main
 from app.experiments.planning import plan
@@ -85,14 +92,6 @@ def _moments(low: float, high: float, count: int = MOMENTS) -> list[float]:
     return list(np.random.default_rng(RNG_SEED).uniform(low, high, count))
 
 
-def _generations_done(path: Path) -> int:
-    try:
-        with RunReader(path) as run:
-            return run.generations_done
-    except Exception:  # not there yet, or being replaced by a resume: not yet
-        return -1
-
-
 @pytest.mark.slow
 def test_train_killed_at_ten_moments_resumes_to_identical_data(
     tmp_path: Path, kill_config: tuple[Path, Path, float]
@@ -116,7 +115,7 @@ def test_train_killed_at_ten_moments_resumes_to_identical_data(
             process = gnp_lab("train", "--resume", out, "--quiet", "--workers", "1")
         else:
             process = gnp_lab("train", "--config", config_file, "--out", out, "--quiet")
-        while process.poll() is None and _generations_done(out) < target:
+        while process.poll() is None and generations_done(out) < target:
             time.sleep(0.005)
         delay = float(fraction) * generation_seconds
         assert _kill_after(process, delay), "the run ended before its kill"

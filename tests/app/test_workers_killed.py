@@ -13,25 +13,19 @@ from pathlib import Path
 
 import pytest
 from experiment_fixtures import write_tiny
-from lab_fixtures import children_of, file_digest, finish, gnp_lab, kill_alone, tiny_config
+from lab_fixtures import (
+    children_of,
+    file_digest,
+    finish,
+    generations_done,
+    gnp_lab,
+    kill_alone,
+    tiny_config,
+    wait_for,
+)
 
 from app.settings.loading import to_toml
 from app.store import RunReader
-
-
-def _generations_done(path: Path) -> int:
-    try:
-        with RunReader(path) as run:
-            return run.generations_done
-    except Exception:  # not there yet
-        return -1
-
-
-def _wait_for(condition: object, timeout: float = 180) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():  # type: ignore[operator]
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 def training_config(folder: Path) -> Path:
@@ -47,7 +41,7 @@ def test_a_killed_training_leaves_no_worker_and_resumes(tmp_path: Path) -> None:
     out = tmp_path / "run.h5"
     process = gnp_lab("train", "--config", training_config(tmp_path), "--out", out,
                       "--workers", "2", "--quiet")  # fmt: skip
-    _wait_for(lambda: process.poll() is not None or _generations_done(out) >= 1)
+    wait_for(lambda: process.poll() is not None or generations_done(out) >= 1)
     # Frozen where it is, so it cannot finish (and close its pool) before it is looked at on a
     # loaded machine; SIGKILL ends it frozen as running, and its workers run on meanwhile.
     os.kill(process.pid, signal.SIGSTOP)
@@ -68,7 +62,7 @@ def test_a_killed_implementation_leaves_no_worker_and_the_run_intact(
     before = file_digest(tmp_path / "run.h5")
     implement = ("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2")
     process = gnp_lab(*implement, "--steps", "30000", "--repeats", "40")
-    _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
+    wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)  # into the trials
     assert process.poll() is None, finish(process)
     assert kill_alone(process) == []
@@ -87,7 +81,7 @@ def test_sigterm_ends_an_implementation_on_one_line_with_its_workers(
     before = file_digest(tmp_path / "run.h5")
     process = gnp_lab("implement", "run", "--runs-dir", tmp_path, "--quiet", "--workers", "2",
                       "--steps", "30000", "--repeats", "40")  # fmt: skip
-    _wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
+    wait_for(lambda: process.poll() is not None or children_of(process) >= 1)
     time.sleep(0.5)
     # Still in its trials (tens of seconds of them): a signal after the command returned would
     # meet Python's default.
@@ -112,7 +106,7 @@ def test_a_killed_experiment_leaves_no_dask_process(tmp_path: Path) -> None:
                       "--runs-dir", runs, "--workers", "2", "--quiet")  # fmt: skip
     # Once a task writes its run: the cluster is up. (Killed while its processes still import
     # distributed, they end only when the import is done, seconds later: see docs/decisions.)
-    _wait_for(lambda: process.poll() is not None or any(runs.rglob("*.h5")))
+    wait_for(lambda: process.poll() is not None or any(runs.rglob("*.h5")))
     assert process.poll() is None, finish(process)
     assert kill_alone(process) == []
     status, err = finish(gnp_lab("experiment", "run", "--file", tmp_path / "tiny.toml",

@@ -10,12 +10,20 @@ import os
 import shutil
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 import psutil
 import pytest
-from lab_fixtures import children_of, finish, gnp_lab, kill_alone, python, tiny_config
+from lab_fixtures import (
+    children_of,
+    finish,
+    generations_done,
+    gnp_lab,
+    kill_alone,
+    python,
+    tiny_config,
+    wait_for,
+)
 
 from app.store import RunReader
 
@@ -47,13 +55,6 @@ while jobs[0].active:
 """
 
 
-def _wait_for(condition: object, timeout: float = 180) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():  # type: ignore[operator]
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
-
-
 def _busiest_child_cpu(process: subprocess.Popen[bytes]) -> float:
     """The most CPU seconds any descendant of `process` has used so far."""
     used = [0.0]
@@ -63,14 +64,6 @@ def _busiest_child_cpu(process: subprocess.Popen[bytes]) -> float:
     return max(used)
 
 
-def _generations_done(path: Path) -> int:
-    try:
-        with RunReader(path) as run:
-            return run.generations_done
-    except Exception:  # not there yet
-        return -1
-
-
 @pytest.mark.slow
 def test_a_killed_dashboards_training_job_leaves_no_worker_and_resumes(tmp_path: Path) -> None:
     config = tmp_path / "config.json"
@@ -78,7 +71,7 @@ def test_a_killed_dashboards_training_job_leaves_no_worker_and_resumes(tmp_path:
                       .model_dump_json())  # fmt: skip
     out = tmp_path / "run.h5"
     process = python("-c", TRAINING_JOB, config, out)
-    _wait_for(lambda: process.poll() is not None or _generations_done(out) >= 1)
+    wait_for(lambda: process.poll() is not None or generations_done(out) >= 1)
     os.kill(process.pid, signal.SIGSTOP)  # frozen: it cannot finish before it is looked at
     assert process.poll() is None, finish(process)
     assert children_of(process) >= 2
@@ -98,6 +91,6 @@ def test_a_killed_dashboards_implementation_job_leaves_no_worker(
     process = python("-c", IMPLEMENTATION_JOB, run)
     # Until it is at its trials: a spawned worker watches its parent only once it has imported
     # what its job needs (about 0.7 CPU s; tens of wall seconds on a loaded machine).
-    _wait_for(lambda: process.poll() is not None or _busiest_child_cpu(process) >= 1.5)
+    wait_for(lambda: process.poll() is not None or _busiest_child_cpu(process) >= 1.5)
     assert process.poll() is None, finish(process)
     assert kill_alone(process) == []
