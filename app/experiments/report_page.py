@@ -29,6 +29,7 @@ from app.experiments.report_text import (
     margin_text,
     need_text,
     provenance_text,
+    seeds_text,
     sensitivity_text,
 )
 from app.experiments.results import METRICS, VERDICT_COLOURS, VERDICTS, Arm, ExperimentResults
@@ -168,7 +169,7 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
         for k, v in (
             ("source", results.source),
             ("scale", results.scale),
-            ("seeds", ", ".join(map(str, results.seeds)) + f" ({len(results.seeds)} runs per arm)"),
+            ("seeds", seeds_text(results)),
             ("looks", looks_text(report)),
             ("verdicts (primary claims)", tally_text(report)),
             ("arms", "; ".join(f"{a.name}: {a.label}" for a in results.arms)),

@@ -326,6 +326,21 @@ def test_the_page_says_how_many_of_its_looks_an_adaptive_run_made(tmp_path: Path
     assert f"<td>one look at {len(SEEDS)} seeds per arm (not adaptive)</td>" in plain
 
 
+def test_the_page_counts_the_runs_each_arm_finished(tmp_path: Path) -> None:
+    # RL stopped after 3 seeds (nothing beyond); BS lacks one condition of its first run only
+    results = synthetic_results()
+    scalars = {key: values.copy() for key, values in results.scalars.items()}
+    for (_, arm, _), values in scalars.items():
+        if arm == "RL":
+            values[3:] = np.nan
+    scalars[("mean_reward_after_fault", "BS", "break1")][0] = np.nan
+    stopped = dataclasses.replace(results, scalars=scalars)
+    page = write_report(stopped, tmp_path / "stopped").read_text()
+    assert f"(runs: RL 3, BS {len(SEEDS)})</td>" in page
+    plain = write_report(results, tmp_path / "plain").read_text()
+    assert f"({len(SEEDS)} runs per arm)</td>" in plain
+
+
 def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
     results = synthetic_results()
     one_condition = dataclasses.replace(
