@@ -48,6 +48,10 @@ TIGHT_TABS = "<style>[role=tab][data-dock-tab] { padding: 0 0.55em !important; }
 FRAME_SECONDS = 1 / 10
 PLOT_SECONDS = 0.5
 FOLLOW_SECONDS = 0.5
+# The loop leaves the lock free at least this long after each frame. Python's locks are not
+# fair: on a loaded machine, where a frame outlasts FRAME_SECONDS, a loop that took the lock
+# back at once kept a control's callback waiting for it for tens of seconds.
+MIN_PAUSE_SECONDS = 0.01
 
 
 class Dashboard:
@@ -231,7 +235,8 @@ class Dashboard:
                 )
                 traceback.print_exc()
                 time.sleep(0.5)
-            self._stop.wait(max(0.0, FRAME_SECONDS - (time.monotonic() - frame_start)))
+            pause = FRAME_SECONDS - (time.monotonic() - frame_start)
+            self._stop.wait(max(MIN_PAUSE_SECONDS, pause))
 
     def _draw(self, session: LiveSession, with_plots: bool) -> None:
         robots = session.snapshot()

@@ -12,6 +12,7 @@ from page_helpers import dashboard_in_process, until
 
 import gnp
 from app import store
+from app.dashboard.app import FRAME_SECONDS
 from app.dashboard.controls import (
     DashboardInputError,
     finite,
@@ -224,6 +225,29 @@ def test_the_loop_plays_the_run_on_show_and_a_fault_turns_new_lives_off(runs_dir
         assert session.snapshot()[0].broken[[2, 3]].all()
         dashboard.status.guarded(None, lambda: dashboard.show.inspect(99))
         assert dashboard.status.text == "⚠ node must be in 0..60, got 99"
+
+
+def test_a_control_gets_the_lock_while_frames_outlast_their_time(runs_dir: Path) -> None:
+    # Frames of 0.15 s (a loaded machine) against FRAME_SECONDS = 0.1: with no pause between
+    # frames, a control waited 13-35 s for the lock (Python's locks are not fair).
+    with dashboard_in_process(runs_dir, "cs") as dashboard:
+        stage = dashboard.stage
+        advance = stage.advance
+
+        def slow_advance(dt: float) -> None:
+            busy_until = time.monotonic() + 1.5 * FRAME_SECONDS
+            while time.monotonic() < busy_until:
+                pass
+            advance(dt)
+
+        stage.advance = slow_advance  # type: ignore[method-assign]
+        waits = []
+        for _ in range(10):
+            asked = time.monotonic()
+            dashboard.status.guarded(None, lambda: None)
+            waits.append(time.monotonic() - asked)
+            time.sleep(0.05)
+        assert max(waits) < 1.5, waits  # about one frame; ~13-35 s with no pause
 
 
 def test_the_faults_tab_learns_with_the_fixed_values_until_a_fault(tmp_path: Path) -> None:
