@@ -92,14 +92,8 @@ class ScaleCount:
 
 def summary_count(results: ExperimentResults) -> ScaleCount:
     """Runs done according to a summary: a final fitness and every condition's mean reward."""
-    done = np.ones((len(results.arms), len(results.seeds)), dtype=bool)
-    for row, arm in enumerate(results.arms):
-        keys = [("final_best_fitness", arm.name, "")]
-        keys += [("mean_reward", arm.name, c.name) for c in results.conditions]
-        for key in keys:
-            values = results.scalars.get(key, np.full(len(results.seeds), np.nan))
-            done[row] &= np.isfinite(values)
-    return ScaleCount(int(done.sum()), int(done.size))
+    done = [results.finished(arm.name) for arm in results.arms]
+    return ScaleCount(int(np.sum(done)), len(results.arms) * len(results.seeds))
 
 
 def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:

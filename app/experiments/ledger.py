@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from pydantic import BaseModel
 
 from app.experiments.planning import Task, plan
@@ -97,17 +96,12 @@ def default_folder(spec: ExperimentSpec, scale: str) -> Path | None:
 
 def finished(spec: ExperimentSpec, scale: str, results: ExperimentResults) -> list[Task]:
     """The runs of `results` that finished: trained, and every condition implemented."""
-    done = []
-    for task in plan(spec, scale, "", max(len(results.seeds), 1)):
-        if task.seed not in results.seeds:
-            continue
-        row = results.seeds.index(task.seed)
-        trained = "test_return" if task.task_json else "final_best_fitness"
-        keys = [(trained, task.arm, "")]
-        keys += [("mean_reward", task.arm, name) for name, _ in task.conditions]
-        if all(np.isfinite(results.scalars[k][row]) for k in keys if k in results.scalars):
-            done.append(task)
-    return done
+    finished = {arm.name: results.finished(arm.name) for arm in results.arms}
+    return [
+        task
+        for task in plan(spec, scale, "", max(len(results.seeds), 1))
+        if task.seed in results.seeds and finished[task.arm][results.seeds.index(task.seed)]
+    ]
 
 
 def write(spec: ExperimentSpec, scale: str, results: ExperimentResults, folder: Path) -> Path:

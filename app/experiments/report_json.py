@@ -6,8 +6,6 @@ import math
 from dataclasses import asdict
 from typing import Any
 
-import numpy as np
-
 from app.experiments.report import (
     ComparisonReport,
     ExperimentReport,
@@ -121,17 +119,9 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
 def stages_json(report: ExperimentReport) -> list[dict[str, Any]]:
     """Per look: seeds per arm, the runs each arm had, and the claims it decided."""
     results = report.results
-    missing = np.full(len(results.seeds), np.nan)
     out = []
     for k, n in enumerate(report.looks):
-        runs = {
-            arm.name: int(
-                np.isfinite(
-                    results.scalars.get(("final_best_fitness", arm.name, ""), missing)[:n]
-                ).sum()
-            )
-            for arm in results.arms
-        }
+        runs = {arm.name: int(results.finished(arm.name)[:n].sum()) for arm in results.arms}
         primary = report.of_family("primary")
         decided = [
             {"name": c.comparison.name, "verdict": c.claim.verdict}

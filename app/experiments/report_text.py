@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from app.experiments.report import ClaimStats, ComparisonReport, ExperimentReport, Need
 from app.experiments.results import ExperimentResults
 
@@ -22,22 +20,13 @@ def format_number(x: float | None) -> str:
 
 def seeds_text(results: ExperimentResults) -> str:
     """The seeds and the runs each arm finished: an arm an adaptive run stopped early has fewer."""
-    runs = {arm.name: finished_runs(results, arm.name) for arm in results.arms}
+    runs = {arm.name: int(results.finished(arm.name).sum()) for arm in results.arms}
     counts = (
         f"{next(iter(runs.values()))} runs per arm"
         if len(set(runs.values())) == 1
         else "runs: " + ", ".join(f"{name} {n}" for name, n in runs.items())
     )
     return ", ".join(map(str, results.seeds)) + f" ({counts})"
-
-
-def finished_runs(results: ExperimentResults, arm: str) -> int:
-    """The runs of `arm` with at least one finished value."""
-    done = np.zeros(len(results.seeds), dtype=bool)
-    for (_, name, _), values in results.scalars.items():
-        if name == arm:
-            done |= np.isfinite(values)
-    return int(done.sum())
 
 
 def looks_text(report: ExperimentReport) -> str:

@@ -273,3 +273,12 @@ class ExperimentResults:
 
     def curve(self, metric: str, arm: str, condition: str | None = None) -> np.ndarray:
         return self.curves[(metric, arm, condition or "")]
+
+    def finished(self, arm: str) -> np.ndarray:
+        """Per seed, whether `arm`'s run finished: trained (a task run: tested) and every
+        condition implemented. A value these results lack counts as unfinished."""
+        tested = ("test_return", arm, "") in self.scalars
+        keys = [("test_return" if tested else "final_best_fitness", arm, "")]
+        keys += [("mean_reward", arm, c.name) for c in self.conditions]
+        missing = np.full(len(self.seeds), np.nan)
+        return np.logical_and.reduce([np.isfinite(self.scalars.get(k, missing)) for k in keys])

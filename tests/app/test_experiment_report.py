@@ -327,18 +327,46 @@ def test_the_page_says_how_many_of_its_looks_an_adaptive_run_made(tmp_path: Path
 
 
 def test_the_page_counts_the_runs_each_arm_finished(tmp_path: Path) -> None:
-    # RL stopped after 3 seeds (nothing beyond); BS lacks one condition of its first run only
+    # RL stopped after 2 seeds (nothing beyond); BS's first run has one condition unfinished
+    # (its mean reward) and is not counted; a missing value of another metric does not matter
     results = synthetic_results()
     scalars = {key: values.copy() for key, values in results.scalars.items()}
     for (_, arm, _), values in scalars.items():
         if arm == "RL":
-            values[3:] = np.nan
-    scalars[("mean_reward_after_fault", "BS", "break1")][0] = np.nan
+            values[2:] = np.nan
+    scalars[("mean_reward", "BS", "break1")][0] = np.nan
+    scalars[("mean_reward_after_fault", "BS", "break2")][1] = np.nan
     stopped = dataclasses.replace(results, scalars=scalars)
     page = write_report(stopped, tmp_path / "stopped").read_text()
-    assert f"(runs: RL 3, BS {len(SEEDS)})</td>" in page
+    assert f"(runs: RL 2, BS {len(SEEDS) - 1})</td>" in page
     plain = write_report(results, tmp_path / "plain").read_text()
     assert f"({len(SEEDS)} runs per arm)</td>" in plain
+
+
+def test_a_run_is_finished_when_trained_and_every_condition_is_implemented() -> None:
+    results = synthetic_results()
+    scalars = {key: values.copy() for key, values in results.scalars.items()}
+    scalars[("final_best_fitness", "BS", "")][0] = np.nan  # not trained
+    scalars[("mean_reward", "BS", "break2")][2] = np.nan  # one condition not implemented
+    scalars[("mean_reward_after_fault", "BS", "break1")][3] = np.nan  # not what finishes a run
+    robot = dataclasses.replace(results, scalars=scalars)
+    expected = [True] * len(SEEDS)
+    expected[0] = expected[2] = False
+    assert robot.finished("BS").tolist() == expected
+    assert robot.finished("RL").all()
+    # A task run (no conditions) is finished when tested; its training return alone is not.
+    returns = np.array([10.0, np.nan, 30.0])
+    task = dataclasses.replace(
+        results,
+        seeds=(0, 1, 2),
+        conditions=(),
+        scalars={
+            ("final_best_return", "GNP", ""): np.array([1.0, 2.0, 3.0]),
+            ("test_return", "GNP", ""): returns,
+        },
+    )
+    assert task.finished("GNP").tolist() == [True, False, True]
+    assert not task.finished("nobody").any()  # values these results lack: unfinished
 
 
 def test_fault_figure_needs_two_broken_counts(tmp_path: Path) -> None:
