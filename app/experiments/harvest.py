@@ -35,7 +35,8 @@ def _fault_effects(
     curves: dict[tuple[str, str, str], np.ndarray],
 ) -> None:
     """fault_effect of every fault condition: its reward per step from the fault step on minus
-    the control's over the same steps, run by run (NaN where either is missing)."""
+    the control's over the same steps, run by run (NaN where either is missing); and
+    relative_fault_effect, that difference over the control's level (NaN where it is 0)."""
     if spec.control is None:
         return
     for arm in spec.arms:
@@ -43,10 +44,14 @@ def _fault_effects(
         for c in conditions:
             if c.fault_step is None:
                 continue
-            ours = curves[("reward_per_step", arm.name, c.name)]
-            scalars[("fault_effect", arm.name, c.name)] = ours[:, c.fault_step :].mean(
-                axis=1
-            ) - control[:, c.fault_step :].mean(axis=1)
+            ours = curves[("reward_per_step", arm.name, c.name)][:, c.fault_step :].mean(axis=1)
+            level = control[:, c.fault_step :].mean(axis=1)
+            scalars[("fault_effect", arm.name, c.name)] = ours - level
+            with np.errstate(divide="ignore", invalid="ignore"):
+                relative = (ours - level) / level
+            scalars[("relative_fault_effect", arm.name, c.name)] = np.where(
+                level > 0, relative, np.nan
+            )
 
 
 def _task_results(

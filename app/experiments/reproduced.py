@@ -20,6 +20,7 @@ from typing import Any
 
 from app.experiments import planning
 from app.experiments.questions import answers_table, ran, runs_text, tally, verdict_words
+from app.experiments.results import FAULT_EFFECTS
 from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
 from app.experiments.spec_loading import load_shipped, shipped_names
 
@@ -241,7 +242,7 @@ def spent_table(reports: Reports, folder: Path) -> str:
 
 def _against_control(c: dict[str, Any], report: dict[str, Any]) -> bool:
     """A claim on what a fault costs: fault_effect, or a fault condition against the control."""
-    return c["metric"] == "fault_effect" or (
+    return c["metric"] in FAULT_EFFECTS or (
         report.get("control") is not None and c.get("condition_b") == report["control"]
     )
 

@@ -36,6 +36,8 @@ ClaimKind = Literal["question", "sanity"]
 # and never counted among the verdicts. Specs that say nothing put every claim in the family.
 Family = Literal["primary", "exploratory"]
 FAMILIES: tuple[Family, ...] = get_args(Family)
+# The metrics measured against the experiment's no-fault control: absolute and relative (#44).
+FAULT_EFFECTS = ("fault_effect", "relative_fault_effect")
 # Simulated steps per CPU second of this machine, measured after the compiled loop (#31):
 # ch3-bs-rl-decisive at thesis scale, analytic physics, 7.8 G steps in 3,838 CPU s of every
 # process of the run (workers, scheduler, writes; 2.04 M/s). Prices the seeds an undecided
@@ -111,6 +113,16 @@ METRICS: dict[str, Metric] = {
             "reward per step from the fault step on, minus the same steps of the no-fault "
             "control condition with the same trial seeds (negative: the fault costs reward)",
             bounds=(-1.0, 1.0),
+        ),
+        Metric(
+            "relative_fault_effect",
+            "relative fault effect (fault_effect / the control's reward)",
+            "scalar",
+            "condition",
+            "fault_effect divided by the no-fault control's reward per step over the same steps: "
+            "the share of the arm's own no-fault level the fault costs (−0.1: a tenth lost; NaN "
+            "where the control earned nothing)",
+            bounds=(-1.0, math.inf),
         ),
         Metric(
             "convergence_generation",

@@ -20,7 +20,15 @@ from typing import Any, Literal, get_args
 
 from pydantic import Field, model_validator
 
-from app.experiments.results import METRICS, TASK_METRICS, Arm, Comparison, Condition, ThesisValue
+from app.experiments.results import (
+    FAULT_EFFECTS,
+    METRICS,
+    TASK_METRICS,
+    Arm,
+    Comparison,
+    Condition,
+    ThesisValue,
+)
 from app.experiments.spec_tables import (
     ArmSpec,
     ComparisonSpec,
@@ -154,8 +162,8 @@ class ExperimentSpec(SpecModel):
             for metric in {comp.metric, comp.metric_b or comp.metric}:
                 if METRICS[metric].kind != "scalar":
                     raise ValueError(f"{where}: metric {metric!r} is a curve, not a number")
-                if metric == "fault_effect" and self.control is None:
-                    raise ValueError(f"{where}: fault_effect needs the experiment's control")
+                if metric in FAULT_EFFECTS and self.control is None:
+                    raise ValueError(f"{where}: {metric} needs the experiment's control")
         if self.design is not None:
             self._check_design(self.design)
         for value in self.thesis:
@@ -306,9 +314,9 @@ class ExperimentSpec(SpecModel):
                     comparison.condition_b or comparison.condition,
                 ),
             ):
-                if metric == "fault_effect" and name is not None and info[name].fault_step is None:
+                if metric in FAULT_EFFECTS and name is not None and info[name].fault_step is None:
                     raise ExperimentError(
-                        f"experiment {self.name!r}, comparison {comparison.name!r}: fault_effect "
+                        f"experiment {self.name!r}, comparison {comparison.name!r}: {metric} "
                         f"of condition {name!r}, which has no fault"
                     )
         for c in info.values():

@@ -46,6 +46,7 @@ UNITS = {
         "reward per step, 0..1"
     ),
     "fault_effect": "reward per step, after the fault minus the no-fault control, -1..1",
+    "relative_fault_effect": "fault_effect over the no-fault control's reward per step, >= -1",
     "convergence_generation": "generation (1 = the first)",
     "best_fitness_curve axis 1": "generation",
     "reward_per_step axis 1": "implementation step",

@@ -27,11 +27,13 @@ from app.experiments.thesis_data import TableRow, ThesisData, load_thesis_data
 
 THESIS_SHIPPED = (
     "ch2-fuzzy-crisp",
+    "ch2-noise-decisive",
     "ch2-reward-source",
     "ch2-training-noise",
     "ch3-bs-rl",
     "ch3-bs-rl-decisive",
     "ch4-exponent",
+    "ch4-schedules-decisive",
     "ch4-schedules",
     "ch5-cs-bs-rl",
     "ch5-cs-bs-rl-decisive",
