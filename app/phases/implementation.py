@@ -119,6 +119,11 @@ def faults(settings: ImplementationSettings, seed: int, trials: np.ndarray) -> l
     ]
 
 
+def trial_count(settings: ImplementationSettings) -> int:
+    """The trials of an implementation phase: its arena's start poses × repeats."""
+    return len(arena_of(settings.arena).start_poses) * settings.repeats
+
+
 def trial_worlds(trials: int, recorded: int) -> list[slice]:
     """The fixed split of the trials into worlds: the recorded ones (traced) on their own, the
     rest in worlds of at most TRIALS_PER_WORLD. It depends on the settings only."""
@@ -215,7 +220,7 @@ def run_implementation(
     """
     arena = arena_of(settings.arena)
     n_starts = len(arena.start_poses)
-    trials = n_starts * settings.repeats
+    trials = trial_count(settings)
     recorded = min(settings.recorded_trials, trials)
     parts = trial_worlds(trials, recorded)
     report = progress or (lambda done, total: None)

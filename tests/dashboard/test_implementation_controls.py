@@ -11,7 +11,7 @@ from page_helpers import dashboard_in_process
 
 import sim
 from app.dashboard import tab_runs
-from app.dashboard.implementation_job import ImplementationRequest
+from app.dashboard.implementation_job import ImplementationRequest, JobProgress
 from app.settings.config import ImplementationSettings, ScheduleKind
 
 
@@ -55,9 +55,13 @@ def test_a_request_the_model_refuses_is_one_message_and_starts_no_worker(
 class FakeJob:
     """Stands in for `ImplementationJob`: records the request, starts no worker."""
 
-    def __init__(self, request: ImplementationRequest) -> None:
-        self.request = request
+    def __init__(self, request: ImplementationRequest, total: int = 0) -> None:
+        self.request, self.total = request, total
         self.active = True
+        self.reported = False
+
+    def progress(self) -> JobProgress:
+        return JobProgress("starting", 0, self.total, 0.0, None, self.request.steps)
 
     def close(self) -> None:
         self.active = False
