@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import tomllib
 from importlib import resources
-from typing import Any
+from typing import Any, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -140,6 +140,40 @@ def decisive_cell(
     return answer(found)
 
 
+class AnswerRow(NamedTuple):
+    """One question's cells: asked, where, its verdict per scale, Δ at small, the other claims."""
+
+    question: str
+    claim: str  # "experiment: `claim`"
+    small: str
+    thesis: str
+    decisive: str
+    delta: str  # small: Δ [interval]
+    others: str  # small: the tally of the other claims on it
+
+
+def answer_rows(reports: dict[tuple[str, str], dict[str, Any]]) -> list[AnswerRow]:
+    """A row per question: its verdict at `small`, at `thesis` scale and in its decisive
+    experiment (the page's answers table and the dashboard's)."""
+    rows = []
+    for question in load_questions():
+        small = _claims(reports.get((question.experiment, "small")))
+        thesis = _claims(reports.get((question.experiment, "thesis")))
+        others = [small[name] for name in question.also if name in small]
+        rows.append(
+            AnswerRow(
+                question.text,
+                f"{question.experiment}: `{question.claim}`",
+                answer(small.get(question.claim)),
+                answer(thesis.get(question.claim)) if thesis else "—",
+                decisive_cell(reports, question.experiment, question.claim),
+                measured(small.get(question.claim)),
+                tally(others),
+            )
+        )
+    return rows
+
+
 def answers_table(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
     """The headline table: a row per question, its verdict at `small` and at `thesis` scale."""
     out = [
@@ -147,19 +181,6 @@ def answers_table(reports: dict[tuple[str, str], dict[str, Any]]) -> str:
         "| small: Δ [interval] | small: the other claims on it |",
         "|---|---|---|---|---|---|---|",
     ]
-    for question in load_questions():
-        small = _claims(reports.get((question.experiment, "small")))
-        thesis = _claims(reports.get((question.experiment, "thesis")))
-        others = [small[name] for name in question.also if name in small]
-        thesis_cell = answer(thesis.get(question.claim)) if thesis else "—"
-        row = [
-            question.text,
-            f"{question.experiment}: `{question.claim}`",
-            answer(small.get(question.claim)),
-            thesis_cell,
-            decisive_cell(reports, question.experiment, question.claim),
-            measured(small.get(question.claim)),
-            tally(others),
-        ]
+    for row in answer_rows(reports):
         out.append("| " + " | ".join(cell.replace("|", "\\|") for cell in row) + " |")
     return "\n".join(out) + "\n"

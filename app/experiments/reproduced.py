@@ -58,7 +58,7 @@ def _number(value: float | None) -> str:
     return "—" if value is None else f"{value:.3f}"
 
 
-def _thesis(comparison: dict[str, Any]) -> str:
+def thesis_text(comparison: dict[str, Any]) -> str:
     """The thesis's own numbers for a claim, or its figure's ordering when it gives none."""
     a, b = comparison["a"], comparison["b"]
     names = comparison.get("sides") or (a["name"], b["name"])  # paired: conditions or metrics
@@ -148,7 +148,7 @@ def claims_tables(
         out.append("|" + "---|" * len(head))
         for claim in claims:
             comparison = next(found[claim] for found in by_scale if claim in found)
-            row = [comparison["claim"], _thesis(comparison)]
+            row = [comparison["claim"], thesis_text(comparison)]
             for found, scale in zip(by_scale, scales, strict=True):
                 same = found.get(claim)
                 missing = ["—", f"not in the {scale} report"]
