@@ -1,39 +1,61 @@
-"""`gnp-lab`'s entry point: the command's handler, and every user mistake on one line."""
+"""`gnp-lab`'s entry point: the command's handler, and every user mistake on one line.
+
+Nothing heavy is imported here: each command's module (and what it needs: numba, the simulator,
+the dashboard, Dask) is imported when that command runs, so `gnp-lab --help` and `gnp-lab runs`
+start at once (bench/cli_startup.py).
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
 
-import gnp
-import sim
-from app.cli.implement import cmd_implement
-from app.cli.parser import PROG, UsageError, build_parser
-from app.cli.runs import cmd_runs
-from app.cli.serve import cmd_serve
-from app.cli.train import cmd_train
-from app.experiments import cli as experiment_cli
-from app.export.cli import cmd_export
-from app.settings.config import (
-    ConfigError,
-)
-from app.store import RunFileError
-from app.store.space import is_disk_full
+from app.cli.parser import PROG, UsageError, build_parser, chosen_command
 from app.system.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
 from app.system.signals import interrupted_by_signals
-from app.tasks.common import TaskError
 
-if TYPE_CHECKING:
-    pass
+HANDLERS: dict[str, tuple[str, str]] = {
+    "train": ("app.cli.train", "cmd_train"),
+    "implement": ("app.cli.implement", "cmd_implement"),
+    "runs": ("app.cli.runs", "cmd_runs"),
+    "serve": ("app.cli.serve", "cmd_serve"),
+    "experiment": ("app.experiments.cli", "main"),
+    "export": ("app.export.cli", "cmd_export"),
+    "replay": ("app.tasks.cli", "replay"),
+}
+"""Each command's handler: (module, function), imported when the command runs."""
+
+USER_ERRORS: tuple[tuple[str, str], ...] = (
+    ("app.settings.config", "ConfigError"),
+    ("app.store.files", "RunFileError"),
+    ("app.phases.implementation", "ImplementationError"),
+    ("app.phases.generations", "TrainingError"),
+    ("sim.arena", "ArenaError"),
+    ("sim.faults", "WorldError"),
+    ("app.experiments.spec", "ExperimentError"),
+    ("gnp.config", "GnpError"),
+    ("app.tasks.common", "TaskError"),
+)
+"""The errors that are a user's mistake (reported on one line), by the module defining each."""
 
 
-def cmd_replay(args: argparse.Namespace) -> int:
-    from app.tasks.cli import replay
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The classes of `USER_ERRORS` whose modules are loaded: an error raised was defined by a
+    module that is, and none is imported just to be caught."""
+    return tuple(
+        getattr(sys.modules[module], name) for module, name in USER_ERRORS if module in sys.modules
+    )
 
-    return replay(args)
+
+def _handler(command: str) -> Callable[[argparse.Namespace], int]:
+    module, function = HANDLERS[command]
+    handler: Callable[[argparse.Namespace], int] = getattr(
+        importlib.import_module(module), function
+    )
+    return handler
 
 
 # --- entry point ----------------------------------------------------------------------------
@@ -41,27 +63,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `gnp-lab`; returns the exit status."""
-    from app.phases.implementation import ImplementationError
-    from app.phases.training import TrainingError
-
+    words = list(sys.argv[1:] if argv is None else argv)
+    command = chosen_command(words)
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser(() if command is None else (command,)).parse_args(words)
     except SystemExit as stop:  # --help, or a usage error already reported on one line
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
-    handlers = {
-        "train": cmd_train,
-        "implement": cmd_implement,
-        "runs": cmd_runs,
-        "serve": cmd_serve,
-        "experiment": experiment_cli.main,
-        "export": cmd_export,
-        "replay": cmd_replay,
-    }
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
         # its temporary files removed, and it says so on one line.
         with interrupted_by_signals():
-            status = handlers[args.command](args)
+            status = _handler(args.command)(args)
         sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
         return status
     except KeyboardInterrupt:
@@ -73,29 +85,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as error:
         sys.stderr.write(f"{PROG}: error: {error}\n")
         return EXIT_USAGE
-    except (
-        ConfigError,
-        RunFileError,
-        ImplementationError,
-        TrainingError,
-        sim.ArenaError,
-        sim.WorldError,
-        experiment_cli.ExperimentError,
-        gnp.GnpError,
-        TaskError,
-    ) as error:
-        sys.stderr.write(f"{PROG}: error: {error}\n")
-        return EXIT_ERROR
-    except (OSError, RuntimeError) as error:
-        if not (isinstance(error, OSError) or is_disk_full(error)):
-            raise
-        text = str(error).splitlines()[0] if str(error) else type(error).__name__
-        if is_disk_full(error):
-            text = f"no space left on the device: {text}"
-        sys.stderr.write(f"{PROG}: error: {text}\n")
-        if is_disk_full(error):
-            # HDF5 cannot close a file after a failed write: it would fail again at every
-            # flush and crash at exit. What was complete is on disk: end here.
-            sys.stderr.flush()
-            os._exit(EXIT_ERROR)
-        return EXIT_ERROR
+    except Exception as error:
+        if isinstance(error, _user_errors()):
+            sys.stderr.write(f"{PROG}: error: {error}\n")
+            return EXIT_ERROR
+        if isinstance(error, OSError | RuntimeError):
+            from app.store.space import is_disk_full
+
+            if isinstance(error, OSError) or is_disk_full(error):
+                return _os_error(error, disk_full=is_disk_full(error))
+        raise
+
+
+def _os_error(error: Exception, disk_full: bool) -> int:
+    """An OSError, or HDF5's RuntimeError for a full disk, on one line."""
+    text = str(error).splitlines()[0] if str(error) else type(error).__name__
+    if disk_full:
+        text = f"no space left on the device: {text}"
+    sys.stderr.write(f"{PROG}: error: {text}\n")
+    if disk_full:
+        # HDF5 cannot close a file after a failed write: it would fail again at every
+        # flush and crash at exit. What was complete is on disk: end here.
+        sys.stderr.flush()
+        os._exit(EXIT_ERROR)
+    return EXIT_ERROR

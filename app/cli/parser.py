@@ -1,31 +1,35 @@
-"""The `gnp-lab` argument parser: every command, its options, one-line usage errors."""
+"""The `gnp-lab` argument parser: every command, its options, one-line usage errors.
+
+Only the chosen command's parser is built with its options (`build_parser(verbs)`): the others
+are listed by name and help. A command's options may need heavy modules (`train`'s are built
+from the run configuration's models, which import the simulator and numba), so `gnp-lab --help`
+and `gnp-lab runs` never import them (tests/app/test_cli_startup.py).
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import tomllib
-from typing import TYPE_CHECKING, Any, NoReturn
+from collections.abc import Callable, Collection, Sequence
+from typing import Any, NoReturn
 
-from app.brains.registry import BUILT_IN
-from app.experiments import cli as experiment_cli
-from app.export.cli import add_export_parser
-from app.settings.cli_options import (
-    add_quiet,
-    add_run_name,
-    add_runs_dir,
-    add_setting_options,
-)
-from app.settings.config import PRESET_NAMES
-from app.settings.loading import implement_settings, train_settings
+from app.settings.cli_options import add_quiet, add_run_name, add_runs_dir
 from app.system.exit_codes import EXIT_USAGE
-from app.tasks.common import add_replay_parser
-
-if TYPE_CHECKING:
-    pass
-
 
 PROG = "gnp-lab"
+
+COMMANDS: dict[str, str] = {
+    "train": "train a population (evolution + Sarsa) into a run file",
+    "implement": "implement a trained individual in the unseen arena, sensors breaking",
+    "runs": "list run files, or inspect one",
+    "serve": "open the dashboard (viser)",
+    "experiment": "compare methods over seeds and sensor faults, on Dask, with statistics",
+    "export": "export a run's controller, graph and tables, or a replay folder",
+    "replay": "live a task run's best individual one episode again and print its return",
+}
+"""Each command and its one-line help, in `gnp-lab --help`'s order. `experiment`, `export` and
+`replay` build their parsers in their packages (with the same help: a test keeps them equal)."""
 
 
 class UsageError(Exception):
@@ -61,17 +65,40 @@ def _assignment(text: str) -> tuple[list[str], Any]:
     return key.strip().split("."), value
 
 
-def build_parser() -> argparse.ArgumentParser:
+def chosen_command(argv: Sequence[str]) -> str | None:
+    """The command `argv` names (its first word that is not an option), or None."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word if word in COMMANDS else None
+    return None
+
+
+def build_parser(verbs: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """`gnp-lab`'s parser, with the options of `verbs` (default: every command's); the other
+    commands are listed with their help but parse no options."""
     parser = _Parser(
         prog=PROG,
         description="GNP Lab: GNP with reinforcement learning for a Khepera robot "
         "that learns wall following and adapts when its sensors break.",
     )
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for verb, text in COMMANDS.items():
+        if verbs is None or verb in verbs:
+            _BUILDERS[verb](commands)
+        else:
+            commands.add_parser(verb, help=text)
+    return parser
+
+
+def _add_train(commands: Any) -> None:
+    from app.brains.registry import BUILT_IN
+    from app.settings.cli_options import add_setting_options
+    from app.settings.config import PRESET_NAMES
+    from app.settings.loading import train_settings
 
     train = commands.add_parser(
         "train",
-        help="train a population (evolution + Sarsa) into a run file",
+        help=COMMANDS["train"],
         description="Train a population. Settings come from the thesis's defaults, then "
         "--preset, then --config, then the options below (later wins).",
     )
@@ -115,9 +142,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--print-config", action="store_true", help="print the resulting config as TOML and stop"
     )
 
+
+def _add_implement(commands: Any) -> None:
+    from app.settings.cli_options import add_setting_options
+    from app.settings.loading import implement_settings
+
     implement = commands.add_parser(
         "implement",
-        help="implement a trained individual in the unseen arena, sensors breaking",
+        help=COMMANDS["implement"],
         description="Clone the final elite (or the best of --generation) into 10 start "
         "poses × --repeats trials in the implementation arena, with online Sarsa; the sensors "
         "of --break fail at --fault-step. Results are stored in the run file. Unset options "
@@ -135,11 +167,15 @@ def build_parser() -> argparse.ArgumentParser:
         "depend on it)",
     )
 
-    runs = commands.add_parser("runs", help="list run files, or inspect one")
+
+def _add_runs(commands: Any) -> None:
+    runs = commands.add_parser("runs", help=COMMANDS["runs"])
     runs.add_argument("name", nargs="?", metavar="NAME", help="a run to inspect")
     add_runs_dir(runs)
 
-    serve = commands.add_parser("serve", help="open the dashboard (viser)")
+
+def _add_serve(commands: Any) -> None:
+    serve = commands.add_parser("serve", help=COMMANDS["serve"])
     serve.add_argument("--host", default="127.0.0.1", help="address to bind")
     serve.add_argument("--port", type=_port, default=8080, help="port to bind (1..65535)")
     add_runs_dir(serve)
@@ -150,7 +186,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="allow a --host other machines can reach: the dashboard has no login and can "
         "train, export and start experiments as you",
     )
+
+
+def _add_experiment(commands: Any) -> None:
+    from app.experiments import cli as experiment_cli
+
     experiment_cli.add_parser(commands)
+
+
+def _add_export(commands: Any) -> None:
+    from app.export.cli import add_export_parser
+
     add_export_parser(commands)
+
+
+def _add_replay(commands: Any) -> None:
+    from app.tasks.common import add_replay_parser
+
     add_replay_parser(commands)
-    return parser
+
+
+_BUILDERS: dict[str, Callable[[Any], None]] = {
+    "train": _add_train,
+    "implement": _add_implement,
+    "runs": _add_runs,
+    "serve": _add_serve,
+    "experiment": _add_experiment,
+    "export": _add_export,
+    "replay": _add_replay,
+}

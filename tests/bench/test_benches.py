@@ -19,6 +19,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 RATE = r"[\d,]+"  # a rate as the benches print it: 1,234,567
 RATIO = r"[\d.]+ ?[×x]"
+TIMES = r"[\d.]+ /\s+[\d.]+"  # wall s / CPU s
 
 TINY = {
     "engine": (
@@ -68,6 +69,10 @@ TINY = {
     "warm_workers": (
         "--rounds 1",
         [r"cold worker\s+first task\s+[\d.]+ s", r"with WarmWorkers\s+first task"],
+    ),
+    "cli_startup": (
+        "--rounds 1",
+        [rf"gnp-lab (--help|runs)\s+lazy\s+{TIMES}\s+eager\s+{TIMES}\s+eager / lazy\s+{RATIO}"],
     ),
     "dashboard_latency": (
         "--seconds 3",
