@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from app.brains.registry import run_kind
 from app.settings.loading import to_toml
-from app.store import RunReader, list_runs, resolve_run
+from app.store import BEST_OF_RUN, RunReader, best_words, list_runs, resolve_run
 from app.tasks.common import is_task_run
 
 if TYPE_CHECKING:
@@ -33,16 +33,17 @@ def cmd_runs(args: argparse.Namespace) -> int:
         return 0
     kinds = {s.name: run_kind(s) for s in summaries}
     w = max(10, *(len(kinds[s.name]) for s in summaries if not s.error))  # `task CartPole-v1`
-    print(f"{'name':32} {'method':{w}} {'generations':>12} {'best':>7}  status")
+    b = len(BEST_OF_RUN)
+    print(f"{'name':32} {'method':{w}} {'generations':>12} {BEST_OF_RUN:>{b}}  status")
     for s in summaries:
         if s.error:
-            print(f"{s.name:32} {'?':{w}} {'':>12} {'':>7}  unreadable: {s.error}")
+            print(f"{s.name:32} {'?':{w}} {'':>12} {'':>{b}}  unreadable: {s.error}")
             continue
         status = "finished" if s.finished else "running or interrupted"
         if s.implementations:
             status += f"; implementations: {', '.join(s.implementations)}"
         gens = f"{s.generations_done}/{s.generations}"
-        print(f"{s.name:32} {kinds[s.name]:{w}} {gens:>12} {s.best_fitness:7.4f}  {status}")
+        print(f"{s.name:32} {kinds[s.name]:{w}} {gens:>12} {s.best_fitness:{b}.4f}  {status}")
     return 0
 
 
@@ -58,6 +59,7 @@ def _inspect(path: Path) -> int:
             f"{'finished' if run.finished else 'running or interrupted'}"
         )
         if done:
+            print(best_words(history.best_fitness[:done]))
             for g in sorted({0, done // 2, done - 1}):
                 print(
                     f"  generation {g:5d}: best {history.best_fitness[g]:.4f}  "

@@ -18,7 +18,7 @@ from app.settings.cli_options import (
 from app.settings.config import ConfigError, RunConfig, preset_layer
 from app.settings.fields import nested
 from app.settings.loading import build_config, read_toml, to_toml
-from app.store import RunFileError, RunReader, new_run_path
+from app.store import RunFileError, RunReader, best_words, new_run_path
 from app.system.exit_codes import EXIT_INTERRUPTED
 from app.tasks.common import is_task_run
 
@@ -82,14 +82,12 @@ class Bar:
 
 
 class GenerationBar(Bar):
-    """Progress over generations with the current best and mean fitness."""
+    """Progress over generations with the generation's best and mean fitness."""
 
     def __init__(self, total: int, initial: int, quiet: bool) -> None:
         super().__init__(total, initial, "train", "gen", quiet)
-        self.best = float("nan")
 
     def __call__(self, summary: GenerationSummary) -> None:
-        self.best = summary.best_fitness
         self.update(
             summary.generation + 1,
             best=f"{summary.best_fitness:.3f}",
@@ -165,5 +163,6 @@ def cmd_train(args: argparse.Namespace) -> int:
             return _interrupted(stop, path)
         finally:
             bar.close()
-    print(f"{path}: finished, best fitness {bar.best:.4f}")
+    with RunReader(path) as run:  # the run's own record, as `gnp-lab runs` reads it
+        print(f"{path}: finished, {best_words(run.history().best_fitness)}")
     return 0

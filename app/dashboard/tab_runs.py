@@ -119,7 +119,7 @@ class RunsTab:
             f"{config.training.population}, {reader.generations_done}/"
             f"{config.training.generations} generations, T = {config.training.steps}, "
             f"σ = {config.training.noise_sigma:g}, seed {config.seed}  \n"
-            f"best fitness {best:.4f}"
+            f"{store.BEST_OF_RUN} {best:.4f}"
             f" · implementations: {', '.join(impls) or 'none'}"
             + ("" if family.learns_online else FIXED_NOTE)
         )
@@ -330,7 +330,7 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
     fitness."""
     if not runs:
         return f"No runs in `{runs_dir}` yet: train one in the Train tab."
-    rows = ["| run | method | generations | best fitness |", "|---|---|---|---|"]
+    rows = [f"| run | method | generations | {store.BEST_OF_RUN} |", "|---|---|---|---|"]
     for r in runs:
         if r.error is not None:
             rows.append(f"| {r.name} | ⚠ unreadable | | |")

@@ -9,14 +9,25 @@ The rooms of the store, one job each (the layout is described in docs/run-format
 - `catalogue`: run names and the runs folder.
 """
 
-from app.store.catalogue import RunSummary, list_runs, new_run_path, resolve_run, run_name
+from app.store.catalogue import (
+    BEST_OF_RUN,
+    LAST_BEST,
+    RunSummary,
+    best_words,
+    list_runs,
+    new_run_path,
+    resolve_run,
+    run_name,
+)
 from app.store.files import RunFileError
 from app.store.reader import History, Implementation, RunReader
 from app.store.schema import FORMAT, SCHEMA_VERSION, RunTemplate, package_version
 from app.store.writer import RunWriter, add_implementation
 
 __all__ = [
+    "BEST_OF_RUN",
     "FORMAT",
+    "LAST_BEST",
     "SCHEMA_VERSION",
     "History",
     "Implementation",
@@ -26,6 +37,7 @@ __all__ = [
     "RunTemplate",
     "RunWriter",
     "add_implementation",
+    "best_words",
     "list_runs",
     "new_run_path",
     "package_version",

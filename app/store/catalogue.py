@@ -16,6 +16,26 @@ from app.store.reader import RunReader
 
 SUFFIX = ".h5"
 
+BEST_OF_RUN = "best of all generations"
+"""What a run's best fitness is called wherever it is shown (`gnp-lab`, the dashboard): the best
+individual's fitness over every generation done (`RunSummary.best_fitness`), as against
+`LAST_BEST`."""
+
+LAST_BEST = "last generation's best"
+"""What the best fitness of a run's last generation done is called beside `BEST_OF_RUN`."""
+
+
+def best_words(best_per_generation: np.ndarray) -> str:
+    """A run's best fitness and its last generation's, both named: "best of all generations
+    0.4065 (generation 812); last generation's best 0.3612" (generations counted from 0)."""
+    if not len(best_per_generation):
+        return f"{BEST_OF_RUN}: none yet (no generation done)"
+    at = int(np.argmax(best_per_generation))
+    return (
+        f"{BEST_OF_RUN} {best_per_generation[at]:.4f} (generation {at}); "
+        f"{LAST_BEST} {best_per_generation[-1]:.4f}"
+    )
+
 
 def run_name(stem: str, seed: int, now: datetime) -> str:
     """The default name of a run started at `now`: its brain's stem (`family.file_stem`), seed

@@ -11,7 +11,7 @@ import pytest
 from lab_fixtures import file_digest, one_error_line
 
 from app.cli import main
-from app.store import RunReader
+from app.store import BEST_OF_RUN, LAST_BEST, RunReader
 
 
 @pytest.fixture
@@ -39,7 +39,12 @@ def test_train_implement_and_inspect(
         assert run.finished and run.seed == 3
         assert run.config.controller.method == "BS" and not run.config.controller.fuzzy
         assert run.config.training.noise_sigma == 20
-    assert "best fitness" in capsys.readouterr().out
+        best = run.history().best_fitness
+    # both bests, named: the run's over all generations (what `runs` lists) and the last one's
+    said = capsys.readouterr().out
+    at = int(best.argmax())
+    assert f"{BEST_OF_RUN} {best[at]:.4f} (generation {at}); " in said
+    assert f"{LAST_BEST} {best[-1]:.4f}" in said
     argv = ["implement", "new", "--runs-dir", str(runs_dir), "--break", "2,3", "--mode", "stuck"]
     argv += ["--fault-step", "10", "--steps", "40", "--repeats", "1", "--schedule", "changing"]
     assert main([*argv, "--quiet"]) == 0
