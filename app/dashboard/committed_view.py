@@ -71,7 +71,7 @@ def answers_table(shelf: Shelf) -> str:
         tip = f"{row.claim.replace('`', '')}; small: {row.delta}; other claims: {row.others}"
         question = f'<span title="{_tip(tip)}">{html.escape(row.question)}</span>'
         cells = [question, row.small, row.thesis, row.decisive]
-        rows.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+        rows.append("| " + " | ".join(f"<small>{_cell(c)}</small>" for c in cells) + " |")
     return "\n".join(rows)
 
 

@@ -32,6 +32,7 @@ NO_EXPERIMENTS = "(none)"
 NO_RUNS = "(no runs yet)"
 FITNESS = "best_fitness_curve"
 REWARD = "reward_per_step"
+NO_SUMMARY = "No summary at this scale yet: start the experiment."
 
 
 @dataclass(frozen=True)
@@ -204,7 +205,7 @@ def build_view(
     problems: tuple[str, ...] = ()
     results: ExperimentResults | None = None
     count: ScaleCount | None
-    verdicts = "No summary at this scale yet: start the experiment."
+    verdicts = NO_SUMMARY
     stages = ""
     if live:  # the job's progress counts the runs; reading every file twice is too slow
         count = None

@@ -1,4 +1,6 @@
-"""The Experiments tab: the shipped and saved experiments with their status, starting one at
+"""The Experiments tab: the committed reports of the checkout (`tab_committed`: the thesis's
+answers, every report's verdicts and runs, with no run files), then the shipped and saved
+experiments with their local runs' status, starting one at
 `smoke` or `small` scale on the dashboard's Dask cluster (all its seeds, or adaptively in
 stages of seeds), its progress live, the stages of an adaptive run, the verdicts of the
 thesis's questions and of the sanity claims, its fitness and implementation curves per arm
@@ -26,6 +28,7 @@ from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
 from app.dashboard.experiment_verdicts import AdaptiveRequest
 from app.dashboard.status import ProgressBar, Status, set_value
+from app.dashboard.tab_committed import CommittedSection, populate_committed
 from app.dashboard.tab_runs import set_options
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.layout import DEFINITION
@@ -59,6 +62,7 @@ class ExperimentsTab:
     reward_caption: viser.GuiMarkdownHandle
     reward: viser.GuiUplotHandle
     run: viser.GuiDropdownHandle[str]
+    committed: CommittedSection | None = None  # the committed reports, shown beside
     cluster: DaskCluster = field(default_factory=DaskCluster)
     job: ExperimentJob | None = None
     view: ev.ExperimentView | None = None
@@ -88,6 +92,8 @@ class ExperimentsTab:
         """Show the chosen experiment at the chosen scale (read in the background)."""
         self._wanted = (self.experiment.value, self.scale.value)
         self._again = True
+        if self.committed is not None:  # its committed report beside the local runs
+            self.committed.choose(*self._wanted)
         self._submit()
 
     def _submit(self) -> None:
@@ -222,6 +228,8 @@ class ExperimentsTab:
     def close(self) -> None:
         """Stop the experiment and close the cluster (the page is shutting down)."""
         self._closed = True
+        if self.committed is not None:
+            self.committed.close()
         if self.job is not None:
             self.job.stop()
         self.cluster.close()
@@ -258,6 +266,12 @@ class ExperimentsTab:
         self.show_condition()
         self.stages.content = view.stages
         self.verdicts.content = view.verdicts
+        report = self.committed.shelf.of(view.name, view.scale) if self.committed else None
+        if report is not None and view.verdicts == ev.NO_SUMMARY:
+            self.verdicts.content = (
+                f"No local runs' summary at this scale: the committed report {report.name} "
+                "is shown above (Report)."
+            )
         set_options(self.run, view.runs, ev.NO_RUNS)
 
     def _show_progress(self, job: ExperimentJob, snapshot: JobSnapshot) -> None:
@@ -285,10 +299,23 @@ def draw_chart(plot: viser.GuiUplotHandle, chart: ev.Chart) -> None:
 def populate_experiments_tab(
     gui: viser.GuiApi, status: Status, runs_dir: Path, show_run: Callable[[Path], None]
 ) -> ExperimentsTab:
-    """Add the Experiments tab's controls (inside the current tab) and attach their callbacks.
+    """Add the Experiments tab's controls (inside the current tab) and attach their callbacks:
+    the committed reports first, then the experiments run here.
 
     `show_run(path)` puts a run file's best individual on the stage.
     """
+    committed = populate_committed(gui, status)
+    with gui.add_folder("Experiments run here (local runs)"):
+        tab = _populate_local(gui, status, runs_dir, show_run)
+    tab.committed = committed
+    tab.refresh()
+    return tab
+
+
+def _populate_local(
+    gui: viser.GuiApi, status: Status, runs_dir: Path, show_run: Callable[[Path], None]
+) -> ExperimentsTab:
+    """The experiments with their local runs: start one, follow it, its verdicts and curves."""
     table = gui.add_markdown("Reading the experiments…")
     experiment = gui.add_dropdown("Experiment", (ev.NO_EXPERIMENTS,))
     scale = gui.add_dropdown("Scale", SCALES, initial_value=STARTABLE_SCALES[0])
@@ -339,5 +366,4 @@ def populate_experiments_tab(
     scale.on_update(guarded(tab.select))
     tab.condition.on_update(guarded(tab.show_condition))
     load.on_click(guarded(tab.load_run))
-    tab.refresh()
     return tab

@@ -47,6 +47,19 @@ BROKEN_TEXT = """(table) => {
 """The texts of a table laid out on more than one line (a name broken at each hyphen, say)."""
 
 
+def catalogue_table(page: Any) -> Any:
+    """The local runs' catalogue: experiments by scale (a column per scale)."""
+    return page.locator("table", has=page.get_by_role("columnheader", name="smoke", exact=True))
+
+
+def local_verdicts(page: Any) -> Any:
+    """The local runs' verdict tables (a "runs" column; the committed reports' have "look,
+    runs")."""
+    header = page.get_by_role("columnheader", name=CLAIM_HEADER, exact=True)
+    runs = page.get_by_role("columnheader", name="runs", exact=True)
+    return page.locator("table", has=header).filter(has=runs)
+
+
 def totals() -> tuple[str, str, str]:
     """Runs, generations and conditions of the experiment at the scale, as the line counts them."""
     spec = load_shipped(NAME)
@@ -91,7 +104,7 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     process, url, runs = served
     page = open_page(browser, url)
     page.get_by_role("tab", name="Experiments").click()
-    catalogue = page.locator("table", has_text="experiment").first
+    catalogue = catalogue_table(page)
     expect(catalogue).to_contain_text(f"{NAME}", timeout=TIMEOUT_MS)
     choose(page, "Experiment", NAME)
     choose(page, "Scale", SCALE)
@@ -116,7 +129,7 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     last = wait_for_line(page, PROGRESS, rf"finished: summary written · {COUNTS}")
     assert last.groups() == (RUNS, GENERATIONS, CONDITIONS) and len(seen) >= 2
     assert field(page, "Experiment").input_value() == NAME
-    verdicts = page.locator("table", has_text="Δ [interval]")
+    verdicts = local_verdicts(page)
     expect(verdicts.first).to_contain_text(re.compile("|".join(VERDICTS)), timeout=TIMEOUT_MS)
     claims = len(load_shipped(NAME).comparisons)
     expect(verdicts.locator("tr")).to_have_count(2 + claims)  # questions, sanity: header, rows
@@ -148,7 +161,7 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
     _, url, runs = served
     page = open_page(browser, url)
     page.get_by_role("tab", name="Experiments").click()
-    expect(page.locator("table", has_text="experiment").first).to_contain_text(NAME)
+    expect(catalogue_table(page)).to_contain_text(NAME)
     choose(page, "Experiment", NAME)
     choose(page, "Scale", SCALE)
     adaptive = field(page, "Adaptive")
@@ -174,9 +187,7 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
     expect(first.nth(1)).to_have_text("2")
     expect(first.nth(2)).to_have_text("BS 2 · RL 2")
     # The verdicts: questions then sanity claims, each named by one of the four verdicts.
-    page.get_by_text("The thesis's questions").first.wait_for()
-    header = page.get_by_role("columnheader", name=CLAIM_HEADER, exact=True)
-    verdicts = page.locator("table", has=header)
+    verdicts = local_verdicts(page)
     expect(verdicts).to_have_count(2)
     for table, kind in zip((verdicts.nth(0), verdicts.nth(1)), ("question", "sanity"), strict=True):
         claims = report.of_kind(kind)

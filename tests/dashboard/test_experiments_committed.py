@@ -164,7 +164,7 @@ def test_the_tables_and_the_picture(shelf: Shelf) -> None:
     answers = cv.answers_table(shelf)
     assert answers.count("\n") == 1 + len(load_questions())
     row = next(line for line in answers.splitlines() if "CS earn more reward than BS" in line)
-    assert row.endswith("| — | **reversed** (50 + 50 runs) |")
+    assert row.endswith("| <small>—</small> | <small>**reversed** (50 + 50 runs)</small> |")
     report = shelf.find(DECISIVE)
     claims = cv.claims_tables(report)
     assert "**The thesis's questions** (4)" in claims and "(16)" in claims
