@@ -121,11 +121,11 @@ class JobProgress:
         """`running · 1230 of 3000 trials · 41% · 40 s · ETA 58 s` (trials' worth of steps:
         the trials of a world live side by side, so none ends before the others)."""
         trials = self.total // self.steps if self.steps else 0
+        if self.state == "starting":
+            return f"starting its worker process · {trials} trials · {self.elapsed:.0f} s"
         line = f"{self.state} · {self.done / max(1, self.steps):.0f} of {trials} trials"
         line += f" · {100 * self.fraction:.0f}% · {self.elapsed:.0f} s"
-        if self.state == "starting":
-            line += " · starting the worker process"
-        elif self.eta is not None and self.state == "running":
+        if self.eta is not None and self.state == "running":
             line += f" · ETA {self.eta:.0f} s"
         return line
 
