@@ -38,6 +38,7 @@ from app.dashboard.tab_train import populate_train_tab
 from app.phases.live import LiveSession
 from app.system.signals import raise_interrupt
 from app.views.arena_view import ArenaView
+from app.views.graph_counts import SIMPLIFIED
 from app.views.graph_view import GraphView
 from app.views.scene import aim_camera, scene_frame
 
@@ -84,7 +85,7 @@ class Dashboard:
         self.plots = populate_plots_tab(gui)  # in its own panel, docked left
         with show:
             self.show = populate_show_tab(
-                gui, self.stage, self.status, self.graph_view, self.network_view
+                gui, self.stage, self.status, self.graph_view, self.network_view, self.runs_dir
             )
         with train:
             self.train = populate_train_tab(
@@ -130,6 +131,7 @@ class Dashboard:
         self.arena_view = ArenaView(self.server, self.stage.arenas["training"])
         graph_box = (frame.graph_origin, frame.width, frame.graph_height)
         self.graph_view = GraphView(self.server, *graph_box)
+        self.graph_view.set_mode(SIMPLIFIED)  # the program the robot runs; full is a click away
         # A neural net on show draws its network in the same place (one of the two is hidden).
         self.network_view = NetworkView(self.server, *graph_box)
         aim_camera(self.server, frame, headroom=0.03)
@@ -159,7 +161,7 @@ class Dashboard:
         self.task.leave()
         self.arena_view.set_arena(session.arena)
         self.show.staged(show)
-        self.plots.staged(show)
+        self.plots.staged(show, self.stage.selected)
 
     def _leave_task(self) -> None:
         """A robot run loaded while a task replay is on show: the robot's show again."""
@@ -167,9 +169,8 @@ class Dashboard:
             self.stage.restage()  # its `_staged` puts the arena and the robot's graph back
 
     def _show_run_file(self, path: Path) -> None:
-        """Load a run file inside the runs dir (an experiment's run) and replay its best."""
+        """Load a run file inside the runs dir (an experiment's run): its best on show."""
         self.runs.load_file(path)
-        self.runs.replay()
 
     def refresh_runs(self) -> None:
         """Re-read the runs dir into every list of runs on the page."""
@@ -190,8 +191,7 @@ class Dashboard:
             choice = names[-1]
         if choice is not None:
             try:
-                self.runs.load(choice)
-                self.runs.replay()
+                self.runs.load(choice)  # its final best on show
                 return
             except (store.RunFileError, gnp.GnpError, neuro.NeuroError) as error:
                 if run is not None:
@@ -242,10 +242,11 @@ class Dashboard:
         robots = session.snapshot()
         with self.server.atomic():
             self.arena_view.update(robots)
+            chosen = robots[min(self.stage.selected, len(robots) - 1)]
             if self.network_view.visible:
-                self.network_view.update(robots[0])
+                self.network_view.update(chosen)
             else:
-                self.graph_view.update(robots[0])
+                self.graph_view.update(chosen)
             if with_plots:
                 self.plots.draw(robots, self.stage.noise_sigma)
 

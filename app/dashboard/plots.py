@@ -25,7 +25,18 @@ BIN = 10
 REWARD_RANGE = (0.0, 1.08)
 """A reward per step (and so a fitness, Eq. 2.8) lies in 0..1: headroom keeps the 1.0 tick."""
 REWARD_TICKS = (0.25, 0.5)
-HIDDEN_N_AXIS: Axis = {"scale": "n", "show": False}
+BROKEN_AXIS: Axis = {
+    "scale": "n",
+    "side": 1,
+    "label": "sensors broken",
+    "splits": tuple(float(n) for n in range(0, sim.N_SENSORS + 1, 2)),
+    "stroke": "#e61414",
+    "grid": {"show": False},
+    "size": 28,
+}
+"""The broken-sensor count's own axis, on the right: its dashed line is read there, never
+against the reward's scale on the left."""
+BROKEN_SCALE = {"n": {"range": (0.0, float(sim.N_SENSORS))}}
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
 WHOLE_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0)
 """Tick spacings for a generation or step axis (no 2.5th generation)."""
@@ -64,19 +75,15 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
     """Reward per step of the robots on show; the broken-sensor count as a dashed line.
 
     The reward axis runs a little past 1 so its top tick is not cut off; the broken-sensor count
-    has its own hidden scale (0 to all sensors; its value is in the legend).
+    has its own scale and axis on the right (0 to all sensors).
     """
     series = _reward_series(["robot"])
     return gui.add_uplot(
         data=_empty(len(series)),
         series=series,  # type: ignore[arg-type]
         title="Reward per step (robots on show)",
-        scales={
-            **X_NOT_TIME,
-            "y": {"range": REWARD_RANGE},
-            "n": {"range": (0.0, float(sim.N_SENSORS))},
-        },
-        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}, HIDDEN_N_AXIS),
+        scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}, **BROKEN_SCALE},
+        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}, BROKEN_AXIS),
         aspect=1.9,
     )
 
@@ -146,15 +153,21 @@ def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
 
 
 FITNESS_TITLE = "Fitness per generation"
+IMPLEMENTATION_TITLE = "Implementation phase"
 RETURN_TITLE = "Episode return per generation (task)"
 
 
 def set_fitness(
-    plot: viser.GuiUplotHandle, best: np.ndarray, mean: np.ndarray, returns: bool = False
+    plot: viser.GuiUplotHandle,
+    best: np.ndarray,
+    mean: np.ndarray,
+    returns: bool = False,
+    run: str = "",
 ) -> None:
-    """Best and mean per generation: a robot run's fitness on 0..1, or (`returns`) a task
-    run's episode returns on a scale of their own."""
-    title = RETURN_TITLE if returns else FITNESS_TITLE
+    """Best and mean per generation of `run` (named in the title): a robot run's fitness on
+    0..1, or (`returns`) a task run's episode returns on a scale of their own."""
+    kind = RETURN_TITLE if returns else FITNESS_TITLE
+    title = f"{kind} · {run}" if run else kind
     if returns and len(best):
         low = min(0.0, float(np.min(mean)))
         high = max(1.0, float(np.max(best))) * 1.08
@@ -162,7 +175,7 @@ def set_fitness(
         x: dict[str, Any] = {"time": False, "range": (0.0, float(max(1, len(best) - 1)))}
         plot.scales = {"x": x, "y": {"range": (low, high)}}  # type: ignore[assignment]
         plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y"})
-    elif plot.title != title:  # back from a task run: the robot's scale
+    elif not (plot.title or "").startswith(FITNESS_TITLE):  # back from a task run: robot scale
         plot.scales = {**X_NOT_TIME, "y": {"range": REWARD_RANGE}}
         plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS})
     if plot.title != title:
@@ -196,16 +209,19 @@ def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
     return gui.add_uplot(
         data=_empty(3),
         series=series,
-        title="Implementation phase",
-        scales={**X_NOT_TIME, "n": {"range": (0.0, 1.0)}},
-        axes=({}, {}, HIDDEN_N_AXIS),
+        title=IMPLEMENTATION_TITLE,
+        scales={**X_NOT_TIME, **BROKEN_SCALE},
+        axes=({}, {}, BROKEN_AXIS),
         aspect=2.3,
     )
 
 
-def set_implementation(plot: viser.GuiUplotHandle, reward: np.ndarray, fault_step: int) -> None:
+def set_implementation(
+    plot: viser.GuiUplotHandle, reward: np.ndarray, fault_step: int, broken: int = 0
+) -> None:
+    """The trials' mean reward per step, and the `broken` sensors from the fault step on."""
     x, y = block_mean(reward, MAX_POINTS)
-    plot.data = (x, y, (x >= fault_step).astype(np.float64))
+    plot.data = (x, y, np.where(x >= fault_step, float(broken), 0.0))
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import sim
 from app import store
@@ -25,7 +26,11 @@ MAX_STEPS_PER_ADVANCE = 50
 
 @dataclass(frozen=True)
 class Show:
-    """What is on show: robots, arena, start pose, and where they came from."""
+    """What is on show: robots, arena, start pose, and where they came from.
+
+    `runs` names the run each robot came from as the Runs tab lists it, and `sources` are their
+    files (both parallel to `robots`; empty or None: an untrained individual): every panel of
+    the page names the run of the robot it draws and reads its charts from its file."""
 
     title: str
     robots: tuple[RobotSpec, ...]
@@ -34,6 +39,14 @@ class Show:
     fault: tuple[int, tuple[int, ...], str] | None = None  # scheduled (step, sensors, mode)
     life: int = 0  # steps per life, as in training (then the next start pose); 0: endless
     control_period: float = sim.CONTROL_PERIOD_S  # simulated s per step, the run's setting
+    runs: tuple[str, ...] = ()
+    sources: tuple[Path | None, ...] = ()
+
+    def origin(self, index: int) -> tuple[str, Path | None]:
+        """(run name, run file) of robot `index` ("" and None where unknown)."""
+        run = self.runs[index] if index < len(self.runs) else ""
+        source = self.sources[index] if index < len(self.sources) else None
+        return run, source
 
 
 def run_robot(reader: store.RunReader, generation: int = -1) -> RobotSpec:
@@ -78,6 +91,7 @@ class Stage:
         self.new_lives = True  # a new life from the next start pose after the show's life T
         self.noise_sigma = 0.0
         self.learning = LearningSettings()
+        self.selected = 0  # the robot whose graph and inspector are drawn
         self._owed = 0.0  # steps owed to the speed, carried from one advance to the next
         self._listeners: list[Listener] = []
 
@@ -95,10 +109,23 @@ class Stage:
         """The start pose on show (0 before any show)."""
         return self.show.start if self.show is not None else 0
 
-    def present(self, show: Show) -> LiveSession:
-        """Put `show` on the stage: a fresh live session with the current noise and learning."""
+    @property
+    def faults(self) -> tuple[tuple[int, ...], str] | None:
+        """The sensors broken on show now and their mode (None: none broken)."""
+        if self.session is None:
+            return None
+        robot = self.session.snapshot()[0]
+        broken = tuple(int(i) for i in robot.broken.nonzero()[0])
+        if not broken or robot.fault_mode is None:
+            return None
+        return broken, str(robot.fault_mode)
+
+    def present(self, show: Show, keep_faults: bool = False) -> LiveSession:
+        """Put `show` on the stage: a fresh live session with the current noise and learning
+        (and, with `keep_faults`, the sensors broken on show now broken from its first step)."""
         if show.arena not in self.arenas:
             raise DashboardInputError(f"unknown arena {show.arena!r}")
+        faults = self.faults if keep_faults else None
         session = LiveSession(
             self.arenas[show.arena],
             show.robots,
@@ -110,6 +137,10 @@ class Stage:
         )
         if show.fault is not None:
             session.schedule_fault(*show.fault)
+        if faults is not None:
+            session.break_sensors(*faults)
+        if self.selected >= len(show.robots):
+            self.selected = 0
         self.session, self.show = session, show
         for listener in self._listeners:
             listener(show, session)
@@ -121,11 +152,38 @@ class Stage:
         robot: RobotSpec,
         life: int = 0,
         control_period: float = sim.CONTROL_PERIOD_S,
+        run: str = "",
+        source: Path | None = None,
     ) -> LiveSession:
-        """Put another individual on show in the arena and from the start pose on show now."""
+        """Put another individual (of run `run`, file `source`) on show in the arena and from
+        the start pose on show now."""
         return self.present(
-            Show(title, (robot,), self.arena, self.start, life=life, control_period=control_period)
+            Show(
+                title,
+                (robot,),
+                self.arena,
+                self.start,
+                life=life,
+                control_period=control_period,
+                runs=(run,),
+                sources=(source,),
+            )
         )
+
+    @property
+    def source(self) -> Path | None:
+        """The run file of the robot whose graph is drawn (None: none, or nothing on show)."""
+        return self.show.origin(self.selected)[1] if self.show is not None else None
+
+    def select(self, index: int) -> None:
+        """Draw the graph and inspector of robot `index` on show."""
+        robots = self.show.robots if self.show is not None else ()
+        if not 0 <= index < len(robots):
+            raise DashboardInputError(f"robot must be in 1..{len(robots)}, got {index + 1}")
+        self.selected = index
+        if self.show is not None and self.session is not None:
+            for listener in self._listeners:  # the panels draw the chosen robot's
+                listener(self.show, self.session)
 
     def restage(self, arena: str | None = None, start: int | None = None) -> None:
         """Start the show again, in another arena or from another start pose if given.

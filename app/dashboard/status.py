@@ -24,6 +24,8 @@ REFUSALS = (
     neuro.NeuroError,
 )
 """Errors that mean "this value cannot be used": shown on the page, nothing changes."""
+WARNING = "⚠"
+"""How the status line starts when something was refused or failed."""
 
 
 class ProgressBar(Protocol):
@@ -61,12 +63,18 @@ class Status:
         self._markdown.content = f"**Status:** {text}"
 
     def guarded(self, client: viser.ClientHandle | None, action: Callable[[], None]) -> None:
-        """Run a control's action; a bad value is reported on the page and changes nothing."""
+        """Run a control's action; a bad value is reported on the page and changes nothing.
+
+        A warning on the status line lasts until the next action that works: one that leaves
+        the line as it was clears it, so no ⚠ outlives its cause."""
         try:
             with self.lock:
+                before = self.text
                 action()
+                if self.text == before and before.startswith(WARNING):
+                    self.set("ready")
         except REFUSALS as error:
-            self.set(f"⚠ {error}")
+            self.set(f"{WARNING} {error}")
             if client is not None:
                 client.add_notification(
                     "Not applied", str(error), color="red", auto_close_seconds=6.0

@@ -41,10 +41,11 @@ class CompareTab:
 
     def compare(self) -> None:
         names = (self.run_a.value, self.run_b.value)
-        robots = []
+        robots, sources = [], []
         for name in names:
             with open_run(self.runs_dir, name) as reader:
                 robots.append(run_robot(reader))
+                sources.append(reader.path)
         sensors = parse_sensors(self.sensors.value)
         mode = self.mode.value
         step = check(ImplementationSettings, "fault_step", self.fault_step.value, "fault step")
@@ -55,6 +56,8 @@ class CompareTab:
                 self.arena.value,
                 int(self.start.value),
                 fault=(step, sensors, mode),
+                runs=names,
+                sources=tuple(sources),
             )
         )
         self.status.set(f"comparing {names[0]} and {names[1]}")

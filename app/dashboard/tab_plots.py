@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import viser
@@ -30,10 +31,51 @@ class PlotsTab:
     training_line: str = "training: idle"
     implementation_line: str = "implementation: none run"
     fitness_points: int = 0  # generations on the fitness chart
+    fitness_run: str = ""  # the run they are of
+    training_ended: bool = False  # the training line tells of a run that has ended
+    source: Path | None = None  # the run file the fitness and implementation charts are of
+    staged_once: bool = False
 
-    def staged(self, show: Show) -> None:
-        """A new show: one reward curve per robot."""
-        plots.set_reward_series(self.reward, [r.label for r in show.robots])
+    def staged(self, show: Show, selected: int = 0) -> None:
+        """A new show: one reward curve per robot; a show of another run (of the `selected`
+        robot, the one whose graph is drawn) switches the fitness and implementation charts
+        to that run's (or empties them), so no chart names another run than the one on show."""
+        labels = [r.label for r in show.robots]
+        plots.set_reward_series(self.reward, labels)
+        names = [show.origin(i)[0] or label for i, label in enumerate(labels)]
+        title = f"Reward per step · {', '.join(names)}"
+        if self.reward.title != title:
+            self.reward.title = title
+        run, source = show.origin(selected)
+        if self.staged_once and source == self.source:
+            return  # the same run: a new life, another generation, the same charts
+        self.staged_once, self.source = True, source
+        if self.training_ended:
+            self.training_line, self.training_ended = "training: idle", False
+        name = run or labels[selected]
+        if source is None:
+            self.set_fitness(np.zeros(0), np.zeros(0), name)
+            self.clear_implementation(f"implementation: {name} has none")
+            return
+        try:
+            with store.RunReader(source) as reader:
+                history = reader.history()
+                stored = stored_implementation(reader)
+        except store.RunFileError as error:  # e.g. a file cut mid-write: the charts say so
+            self.set_fitness(np.zeros(0), np.zeros(0), f"{name} (unreadable: {error})")
+            self.clear_implementation(f"implementation: {name} unreadable")
+            return
+        self.set_fitness(history.best_fitness, history.mean_fitness, name)
+        if stored is None:
+            self.clear_implementation(f"implementation: none stored in {name}")
+        else:
+            self.show_implementation(f"{name}/{stored[0]}", stored[1])
+
+    def clear_implementation(self, line: str) -> None:
+        """An empty implementation chart, and why."""
+        plots.set_implementation(self.implementation, np.zeros(0), 0)
+        self.implementation.title = plots.IMPLEMENTATION_TITLE
+        self.implementation_line = line
 
     def draw(self, robots: tuple[RobotSnapshot, ...], noise_sigma: float) -> None:
         """The robots' reward curves and the readout."""
@@ -47,33 +89,55 @@ class PlotsTab:
             [
                 line,
                 self.training_line,
-                f"fitness plot: {self.fitness_points} generations",
+                f"fitness plot: {self.fitness_points} generations of {self.fitness_run or '—'}",
                 self.implementation_line,
             ]
         )
 
-    def set_fitness(self, best: np.ndarray, mean: np.ndarray) -> None:
-        """Best and mean fitness per generation."""
-        plots.set_fitness(self.fitness, best, mean)
+    def set_fitness(self, best: np.ndarray, mean: np.ndarray, run: str = "") -> None:
+        """Best and mean fitness per generation of `run`."""
+        plots.set_fitness(self.fitness, best, mean, run=run)
         self.fitness_points = len(best)
+        self.fitness_run = run
 
-    def task_staged(self, task: str, best: np.ndarray, mean: np.ndarray) -> None:
+    def task_staged(self, task: str, best: np.ndarray, mean: np.ndarray, run: str = "") -> None:
         """A task run on show: its returns per generation; the robot's charts emptied."""
-        plots.set_fitness(self.fitness, best, mean, returns=True)
-        self.fitness_points = len(best)
+        plots.set_fitness(self.fitness, best, mean, returns=True, run=run or task)
+        self.fitness_points, self.fitness_run = len(best), run or task
+        self.staged_once = False  # the robot's next show sets its charts again
         plots.set_reward_series(self.reward, [])
         self.implementation.data = tuple(np.zeros(1) for _ in self.implementation.data)
         self.implementation_line = f"implementation: the robot's (none for {task})"
 
     def show_implementation(self, name: str, result: store.Implementation) -> None:
         settings = result.settings
-        plots.set_implementation(self.implementation, result.reward_per_step, settings.fault_step)
+        broken = len(settings.broken_sensors) or settings.break_count
+        plots.set_implementation(
+            self.implementation, result.reward_per_step, settings.fault_step, broken
+        )
+        title = f"{plots.IMPLEMENTATION_TITLE} · {name}"
+        if self.implementation.title != title:
+            self.implementation.title = title
         sensors = ", ".join(f"s{s}" for s in settings.broken_sensors) or "none"
         self.implementation_line = (
             f"implementation: {name} · {len(result.trial_mean_reward)} trials · breaks {sensors} "
             f"({settings.fault_mode}) at {settings.fault_step} · mean reward/step "
             f"{result.mean_reward:.4f}, after the fault {result.mean_after_fault:.4f}"
         )
+
+
+def stored_implementation(
+    reader: store.RunReader,
+) -> tuple[str, store.Implementation] | None:
+    """The implementation phase a run file stores that its chart shows first: the last with a
+    fault (what the chart's fault marker is for), else the last; None if it stores none."""
+    names = reader.implementation_names()
+    if not names:
+        return None
+    results = {name: reader.implementation(name) for name in names}
+    faulted = [n for n, r in results.items() if r.settings.broken_sensors]
+    shown = (faulted or names)[-1]
+    return shown, results[shown]
 
 
 def populate_plots_tab(gui: viser.GuiApi) -> PlotsTab:

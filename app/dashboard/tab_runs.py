@@ -21,12 +21,18 @@ from app.dashboard.controls import (
     parse_sensors,
     whole,
 )
-from app.dashboard.implementation_job import ImplementationJob, ImplementationRequest
+from app.dashboard.implementation_job import (
+    ImplementationJob,
+    ImplementationRequest,
+    JobProgress,
+    trial_steps,
+)
 from app.dashboard.setting_controls import add_choice, add_number, check, implementation_settings
 from app.dashboard.stage import Show, Stage, run_robot
-from app.dashboard.status import Status, set_value
+from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.export import ExportError, check_run, export_replay, export_run
+from app.phases.implementation import default_name
 from app.settings.config import ImplementationSettings, TrainingSettings
 from app.settings.fields import read_setting
 from app.tasks.common import is_task_run
@@ -67,11 +73,19 @@ class RunsTab:
     steps: viser.GuiNumberHandle[int]
     repeats: viser.GuiNumberHandle[int]
     schedule: viser.GuiDropdownHandle[str]
+    noise: viser.GuiNumberHandle[float]  # the trials' σ: the loaded run's implementation σ
+    run_implementation: viser.GuiButtonHandle
+    cancel_implementation: viser.GuiButtonHandle
+    implementation_bar: ProgressBar
+    implementation_text: viser.GuiMarkdownHandle
     loaded: store.RunReader | None = None
+    loaded_name: str = ""  # the loaded run's name, as the runs list gives it
     load_task: Callable[[Path, str], None] | None = None  # a task run goes to the task panel
     robot_only: tuple[Any, ...] = ()  # the controls of a robot run (off for a task run)
     leave_task: Callable[[], None] | None = None  # a robot run loaded: the robot back on show
     implementation: ImplementationJob | None = None
+    implementation_name: str = ""  # run/condition of the implementation job
+    noise_of: store.RunReader | None = None  # the loaded run whose σ the σ field took
     last_export: Path | None = None
     exporting: Future[Path] | None = None  # a replay being exported (a second or so)
     _pool: ThreadPoolExecutor = field(
@@ -84,8 +98,8 @@ class RunsTab:
         self.table.content = runs_table(runs, self.runs_dir)
 
     def load(self, name: str) -> None:
-        """Load a run of the runs dir: its summary, fitness history, stored implementation,
-        fault settings."""
+        """Load a run of the runs dir and put it on show: its best on the stage (a task run:
+        its replay), its summary, fitness history, stored implementation, fault settings."""
         if name != NO_RUNS and self.load_task is not None:
             path = store.resolve_run(self.runs_dir, name)
             if is_task_run(path):
@@ -97,7 +111,8 @@ class RunsTab:
         self._load(open_run(self.runs_dir, name), name)
 
     def load_file(self, path: Path) -> None:
-        """Load a run file another tab found inside the runs dir (an experiment's run)."""
+        """Load a run file another tab found inside the runs dir (an experiment's run) and put
+        it on show."""
         self._load(store.RunReader(path), str(path.relative_to(self.runs_dir).with_suffix("")))
 
     def _load(self, reader: store.RunReader, name: str) -> None:
@@ -105,11 +120,10 @@ class RunsTab:
             self.leave_task()
         if self.loaded is not None:
             self.loaded.close()
-        self.loaded = reader
+        self.loaded, self.loaded_name = reader, name
         if self.run.value != name and name in self.run.options:
             set_value(self.run, name)
         history = reader.history()
-        self.plots.set_fitness(history.best_fitness, history.mean_fitness)
         config = reader.config
         family = family_of(config)
         impls = reader.implementation_names()
@@ -131,13 +145,14 @@ class RunsTab:
         set_value(self.steps, implementation.steps)
         set_value(self.repeats, implementation.repeats)
         set_value(self.schedule, implementation.schedule)
-        if impls:
-            results = {impl: reader.implementation(impl) for impl in impls}
-            # Prefer a stored phase with a fault: that is what the plot's marker is for.
-            faulted = [i for i, r in results.items() if r.settings.broken_sensors]
-            shown = (faulted or impls)[-1]
-            self.plots.show_implementation(f"{name}/{shown}", results[shown])
-        self.status.set(f"loaded run {name}")
+        # One stage: the run's final best goes on show at once, and every panel follows it
+        # (the fitness and implementation charts through the stage's listener).
+        set_value(self.generation, -1)
+        if reader.generations_done == 0:
+            self.status.set(f"loaded run {name}: no generation finished yet, nothing to show")
+            return
+        self.replay()
+        self.status.set(f"loaded run {name}: its final best on show")
 
     def replay(self) -> None:
         """Put the loaded run's best of the chosen generation on show, from the pose on show."""
@@ -149,15 +164,17 @@ class RunsTab:
         training = self.loaded.config.training
         self.stage.present(
             Show(
-                f"best of generation {shown} of run {robot.label}",
+                f"best of generation {shown} of run {self.loaded_name}",
                 (robot,),
                 self.arena.value,
                 self.stage.start,
                 life=training.steps,
                 control_period=training.control_period,
+                runs=(self.loaded_name,),
+                sources=(self.loaded.path,),
             )
         )
-        self.status.set(f"replaying the best of generation {shown} of {robot.label}")
+        self.status.set(f"replaying the best of generation {shown} of {self.loaded_name}")
 
     def export(self, replay: bool = False) -> None:
         """Export the loaded run's best of the chosen generation into `<runs dir>/exports/
@@ -217,6 +234,7 @@ class RunsTab:
             raise DashboardInputError("load a run first")
         if self.implementation is not None and self.implementation.active:
             raise DashboardInputError("an implementation phase is already running")
+        self.follow_loaded()
         request = ImplementationRequest(
             run=self.loaded.path,
             sensors=parse_sensors(self.sensors.value),
@@ -225,28 +243,97 @@ class RunsTab:
             steps=check(ImplementationSettings, "steps", self.steps.value, "steps T"),
             repeats=check(ImplementationSettings, "repeats", self.repeats.value, "repeats"),
             schedule=self.schedule.value,
+            noise_sigma=check(ImplementationSettings, "noise_sigma", self.noise.value, "noise σ"),
         )
         # The whole request against the model here, so a bad value (sensor 9, t' ≥ T) is one
         # message now and no worker starts; the worker builds the same settings again.
-        request.settings(self.loaded.config.implementation)
-        self.implementation = ImplementationJob(request)
-        self.plots.implementation_line = "implementation: running"
-        self.status.set(f"implementation phase of {self.loaded.path.stem} started")
+        settings = request.settings(self.loaded.config.implementation)
+        run = self.run_name(request.run)
+        self.implementation_name = f"{run}/{default_name(settings)}"
+        self.implementation = job = ImplementationJob(request, trial_steps(settings))
+        self.run_implementation.disabled, self.cancel_implementation.disabled = True, False
+        self._show_progress(job.progress())
+        self.status.set(f"implementation phase of {run} started")
+
+    def cancel(self) -> None:
+        """Stop the implementation phase under way (nothing was written: nothing to undo)."""
+        job = self.implementation
+        if job is None or not job.active:
+            raise DashboardInputError("no implementation phase is running")
+        job.cancel()
+        self.follow_implementation()
 
     def follow_implementation(self) -> None:
-        """Plot the implementation phase once its child process is done (or say it failed)."""
+        """Show the implementation phase's progress; plot it once its child process is done
+        (or say it failed or was cancelled) and offer Run again."""
+        self.follow_loaded()
         job = self.implementation
-        if job is None or job.active or job.reported:
+        if job is None or job.reported:
+            return
+        progress = job.progress()
+        self._show_progress(progress)
+        if progress.state in ("starting", "running"):
             return
         job.reported = True
+        self.run_implementation.disabled, self.cancel_implementation.disabled = False, True
+        name, took = self.implementation_name, f"{progress.elapsed:.0f} s"
+        of_loaded = self.of_loaded(job)
+        if progress.state == "cancelled":
+            if of_loaded:
+                self.plots.implementation_line = f"implementation: {name} cancelled"
+            self.status.set(f"implementation cancelled: {name} after {took}, nothing stored")
+            return
         try:
             result = job.result()
         except Exception as error:  # the child's error, whatever it is, belongs on the page
-            self.plots.implementation_line = f"implementation: failed: {error}"
+            if of_loaded:
+                self.plots.implementation_line = f"implementation: {name} failed: {error}"
             self.status.set(f"⚠ implementation failed: {error}")
             return
-        self.plots.show_implementation(job.request.run.stem, result)
-        self.status.set("implementation phase finished")
+        if of_loaded:
+            self.plots.show_implementation(name, result)
+        self.status.set(
+            f"implementation phase finished: {name} in {took}, mean reward/step "
+            f"{result.mean_reward:.4f} (not stored: `gnp-lab implement` stores one"
+            + ("" if of_loaded else "; not plotted: another run is loaded")
+            + ")"
+        )
+
+    def _show_progress(self, progress: JobProgress) -> None:
+        """The Runs tab's bar and line, and the readout's implementation line."""
+        line = f"{self.implementation_name} {progress.describe()}"
+        value = 100.0 * progress.fraction
+        if self.implementation_bar.value != value:
+            set_value(self.implementation_bar, value)
+        job = self.implementation
+        sigma = job.request.noise_sigma if job is not None else None
+        text = f"**Implementation** {line}" + (f" · σ {sigma:g}" if sigma is not None else "")
+        if self.implementation_text.content != text:
+            self.implementation_text.content = text
+        if job is not None and self.of_loaded(job) and progress.state in ("starting", "running"):
+            self.plots.implementation_line = f"implementation: {line}"
+
+    def of_loaded(self, job: ImplementationJob) -> bool:
+        """Whether `job` implements the loaded run: the readout and chart are that run's,
+        another run's phase is only told of in the status."""
+        return self.loaded is not None and self.loaded.path.resolve() == job.request.run.resolve()
+
+    def follow_loaded(self) -> None:
+        """The σ field takes each newly loaded run's own implementation σ (the noise of its
+        trials, as `gnp-lab implement` uses unless --noise is given; the Faults tab's σ is the
+        robot on show's only)."""
+        if self.loaded is self.noise_of:
+            return
+        self.noise_of = self.loaded
+        if self.loaded is not None:
+            set_value(self.noise, self.loaded.config.implementation.noise_sigma)
+
+    def run_name(self, path: Path) -> str:
+        """A run file's name as the Runs tab lists it (relative to the runs dir)."""
+        try:
+            return str(path.relative_to(self.runs_dir).with_suffix(""))
+        except ValueError:
+            return path.stem
 
     def close(self) -> None:
         self._pool.shutdown(wait=False)  # under the lock: Dashboard.stop waited for it before
@@ -295,11 +382,20 @@ def populate_runs_tab(
         steps=add_number(gui, fields["steps"], 1500, "Steps T"),
         repeats=add_number(gui, fields["repeats"], 3, "Repeats per start pose"),
         schedule=add_choice(gui, fields["schedule"], fields["schedule"].default, "ε, α "),
+        # The trials' own σ, from the loaded run (`follow_loaded`), not the Faults tab's.
+        noise=add_number(gui, fields["noise_sigma"], 0.0, "Noise σ (trials)"),
+        run_implementation=gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY),
+        cancel_implementation=gui.add_button(
+            "Cancel implementation", icon=viser.Icon.PLAYER_STOP, disabled=True
+        ),
+        implementation_bar=gui.add_progress_bar(0.0),
+        implementation_text=gui.add_markdown(
+            "Implementation: not run. σ starts at the loaded run's implementation σ."
+        ),
     )
-    run_implementation = gui.add_button("Run implementation", icon=viser.Icon.PLAYER_PLAY)
     tab.robot_only = (
         arena, generation, replay, exports, tab.sensors, tab.mode, tab.fault_step, tab.steps,
-        tab.repeats, tab.schedule, run_implementation,
+        tab.repeats, tab.schedule, tab.noise, tab.run_implementation,
     )  # fmt: skip
 
     actions = {"Refresh list": refresh, "Load": lambda: tab.load(tab.run.value)}
@@ -310,7 +406,8 @@ def populate_runs_tab(
             event.client, lambda: tab.export(replay=exports.value == "Export replay")
         )
     )
-    run_implementation.on_click(status.guard(tab.start_implementation))
+    tab.run_implementation.on_click(status.guard(tab.start_implementation))
+    tab.cancel_implementation.on_click(status.guard(tab.cancel))
     return tab
 
 

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import viser
 
 import sim
 from app.dashboard.controls import DashboardInputError, finite
+from app.dashboard.method_show import CHOICES, show_methods
 from app.dashboard.network import net_markdown
 from app.dashboard.network_view import NetworkView
 from app.dashboard.stage import Show, Stage
@@ -36,14 +38,24 @@ class ShowTab:
     new_lives: viser.GuiCheckboxHandle
     graph_mode: viser.GuiDropdownHandle[str]
     graph_info: viser.GuiMarkdownHandle
+    graph_of: viser.GuiDropdownHandle[str]
     node: viser.GuiDropdownHandle[str]
     inspector: viser.GuiMarkdownHandle
 
+    def select_robot(self, label: str) -> None:
+        """Draw the graph (and the charts) of the robot `label` names."""
+        show = self.stage.show
+        if show is None or label not in robot_labels(show):
+            return
+        index = robot_labels(show).index(label)
+        if index != self.stage.selected:
+            self.stage.select(index)
+
     def staged(self, show: Show) -> None:
-        """A new show: its graph's nodes to inspect (a net: its network; another family: no
-        drawing), the GNP-only controls off without a graph, the dropdowns and the
-        description."""
-        first = show.robots[0]
+        """A new show: the chosen robot's graph and nodes to inspect (a net: its network;
+        another family: no drawing), the GNP-only controls off without a graph, the dropdowns
+        and the description."""
+        first = show.robots[self.stage.selected]
         cfg, net = first.family.graph_config, first.family.network_config
         self.graph.visible, self.network.visible = cfg is not None, net is not None
         self.graph_mode.disabled = self.node.disabled = cfg is None
@@ -59,7 +71,11 @@ class ShowTab:
         # Echo the show in the dropdowns; their callbacks then find nothing to change.
         set_value(self.arena, show.arena)
         set_value(self.start, str(show.start))
-        self.description.content = describe(show)
+        labels = robot_labels(show)
+        self.graph_of.options = labels
+        set_value(self.graph_of, labels[self.stage.selected])
+        self.graph_of.disabled = len(labels) == 1
+        self.description.content = describe(show, self.stage.selected)
         if cfg is not None:
             self.inspect(self.graph.selected or 0)
             return
@@ -78,7 +94,7 @@ class ShowTab:
         show = self.stage.show
         if show is None:
             return
-        family = show.robots[0].family
+        family = show.robots[self.stage.selected].family
         cfg = family.graph_config
         if cfg is None:
             raise DashboardInputError(f"a {family.description} brain has no GNP nodes to inspect")
@@ -136,7 +152,7 @@ class ShowTab:
         session, node = self.stage.session, self.graph.selected
         if session is None or node is None:
             return
-        robot = session.robots[0]
+        robot = session.robots[min(self.stage.selected, len(session.robots) - 1)]
         cfg = robot.family.graph_config
         if cfg is None:
             self.describe_graph()  # no nodes: its inspector stays as staged
@@ -148,9 +164,19 @@ class ShowTab:
 
 
 def populate_show_tab(
-    gui: viser.GuiApi, stage: Stage, status: Status, graph: GraphView, network: NetworkView
+    gui: viser.GuiApi,
+    stage: Stage,
+    status: Status,
+    graph: GraphView,
+    network: NetworkView,
+    runs_dir: Path,
 ) -> ShowTab:
     """Add the Show tab's controls (inside the current tab) and attach their callbacks."""
+    methods = gui.add_button_group("Method on show", CHOICES)
+    gui.add_markdown(
+        "<small>The bundled chapter-5 runs (same preset, seed and 1000 generations): one, or "
+        "all three at once, in the arena, start pose and faults on show now.</small>"
+    )
     tab = ShowTab(
         stage=stage,
         graph=graph,
@@ -179,6 +205,9 @@ def populate_show_tab(
             "this life and the transitions taken lately, darker the more often",
         ),
         graph_info=gui.add_markdown("graph: full"),
+        graph_of=gui.add_dropdown(
+            "Graph of", ("robot 1",), hint="whose graph, inspector and charts are drawn"
+        ),
         node=gui.add_dropdown("Inspect node", ("0 · start",)),
         inspector=gui.add_markdown("Click a node of the graph, or pick one above."),
     )
@@ -189,6 +218,12 @@ def populate_show_tab(
     tab.start.on_update(status.guard(lambda: stage.restage(start=int(tab.start.value))))
     tab.speed.on_update(status.guard(lambda: tab.set_speed(tab.speed.value)))
     restart.on_click(status.guard(stage.restage))
+    methods.on_click(
+        lambda event: status.guarded(
+            event.client, lambda: show_chosen_methods(stage, status, runs_dir, methods.value)
+        )
+    )
+    tab.graph_of.on_update(status.guard(lambda: tab.select_robot(tab.graph_of.value)))
     tab.node.on_update(status.guard(lambda: tab.inspect_label(tab.node.value)))
     tab.graph_mode.on_update(status.guard(lambda: tab.set_graph_mode(tab.graph_mode.value)))
 
@@ -203,11 +238,27 @@ def populate_show_tab(
     return tab
 
 
-def describe(show: Show) -> str:
-    """The Show tab's description of a show: title, robots (in their colours), arena, fault."""
+def show_chosen_methods(stage: Stage, status: Status, runs_dir: Path, choice: str) -> None:
+    show_methods(stage, runs_dir, choice)
+    faults = stage.faults
+    kept = f" with s{', s'.join(map(str, faults[0]))} still broken ({faults[1]})" if faults else ""
+    status.set(f"on show: {choice} (bundled chapter-5 runs){kept}")
+
+
+def robot_labels(show: Show) -> tuple[str, ...]:
+    """One label per robot on show, `1 · demo-rl` (unique even for twice the same run)."""
+    return tuple(
+        f"{i + 1} · {show.origin(i)[0] or robot.label}" for i, robot in enumerate(show.robots)
+    )
+
+
+def describe(show: Show, selected: int = 0) -> str:
+    """The Show tab's description of a show: title, robots (in their colours, the one whose
+    graph is drawn marked), arena, fault."""
     robots = ", ".join(
-        f"<span style='color:{hex_color(ROBOT_COLORS[i])}'>●</span> {r.label} "
-        f"({r.family.description})"
+        f"<span style='color:{hex_color(ROBOT_COLORS[i])}'>●</span> "
+        f"{show.origin(i)[0] or r.label} ({r.family.description})"
+        + (" ← graph" if i == selected and len(show.robots) > 1 else "")
         for i, r in enumerate(show.robots)
     )
     fault = ""

@@ -91,7 +91,7 @@ class TaskPanel:
         self.path, self.name = path, name
         fitness = run.fitness
         config = run.config
-        self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1))
+        self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1), name)
         self.summary.content = (
             f"**{name}**: task **{config.task.id}**, {config.controller.method} "
             f"{'fuzzy' if config.controller.fuzzy else 'crisp'}, population "

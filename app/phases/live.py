@@ -1,4 +1,4 @@
-"""A small live stepping loop: one or two robots, each with its own controller, stepped together.
+"""A small live stepping loop: one to three robots, each with its own controller, stepped together.
 
 The dashboard drives a `LiveSession` from a background thread at a steady rate and draws its
 `snapshot()`; nothing here knows about viser, so the loop is unit-testable. Each robot lives in
@@ -207,6 +207,10 @@ class LiveRobot:
         )
 
 
+MAX_ROBOTS = 3
+"""Robots one live session steps together (RL, BS and CS side by side)."""
+
+
 @dataclass(frozen=True)
 class RobotSpec:
     """What to put on show: a label, a brain family and one individual of it (with a leading
@@ -218,14 +222,14 @@ class RobotSpec:
 
 
 class LiveSession:
-    """One or two robots in the same arena from the same start pose, stepped together.
+    """One to three robots in the same arena from the same start pose, stepped together.
 
     All methods are thread-safe: the dashboard's loop thread calls `step`, GUI callbacks call
     the rest.
 
     Args:
         arena: the arena the robots live in.
-        robots: one or two robots to show.
+        robots: one to MAX_ROBOTS robots to show.
         start: index of the start pose (0..9) in `arena.start_poses`.
         seed: seeds each robot's world and controller streams (the same for every robot).
         noise_sigma: sensor noise σ (Eq. 2.6) applied to what the controllers see (see
@@ -244,8 +248,8 @@ class LiveSession:
         learning: LearningSettings | None = None,
         control_period: float = CONTROL_PERIOD_S,
     ) -> None:
-        if not 1 <= len(robots) <= 2:
-            raise LiveError(f"a live session shows one or two robots, got {len(robots)}")
+        if not 1 <= len(robots) <= MAX_ROBOTS:
+            raise LiveError(f"a live session shows 1 to {MAX_ROBOTS} robots, got {len(robots)}")
         n_starts = len(arena.start_poses)
         if not 0 <= start < n_starts:
             raise LiveError(f"start pose must be in 0..{n_starts - 1}, got {start}")

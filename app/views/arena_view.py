@@ -1,4 +1,4 @@
-"""The arena seen from above: walls, start poses and up to two robots (body, heading, IR rays,
+"""The arena seen from above: walls, start poses and up to three robots (body, heading, IR rays,
 broken sensors, reward-coloured trail).
 
 Everything is drawn with line segments (screen-thick, cheap); per-frame updates assign new arrays
@@ -15,17 +15,19 @@ from app.phases.live import RobotSnapshot
 from app.views import geometry as geo
 from sim.sensors import ir_distances
 
-ROBOT_COLORS = ((30, 110, 220), (225, 110, 20))
-"""Robot 1 blue, robot 2 orange (also their reward curves)."""
+ROBOT_COLORS = ((30, 110, 220), (225, 110, 20), (30, 150, 70))
+"""Robot 1 blue, robot 2 orange, robot 3 green (also their reward curves)."""
 BROKEN_RED = (230, 20, 20)
 WALL_COLOR = (40, 40, 48)
 TRAIL_POINTS = 600
 
 
 class ArenaView:
-    """Walls, start poses and up to two robots (body, heading, rays, faults, trail)."""
+    """Walls, start poses and up to three robots (body, heading, rays, faults, trail)."""
 
-    def __init__(self, server: viser.ViserServer, arena: sim.Arena, max_robots: int = 2):
+    def __init__(
+        self, server: viser.ViserServer, arena: sim.Arena, max_robots: int = len(ROBOT_COLORS)
+    ):
         self._server = server
         self._root = "/arena"
         self._walls = server.scene.add_line_segments(

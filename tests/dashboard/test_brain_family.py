@@ -442,7 +442,8 @@ def test_the_dashboard_shows_it_drives_it_and_implements_it(served: Any, browser
     match = wait_for_line(
         page,
         "on show:",
-        r"implementation: vehicle · 10 trials · breaks s2 \(dead\) at 60 · mean reward/step "
+        r"implementation: vehicle/break-2-dead-[\w.-]+ · 10 trials · breaks s2 \(dead\) at 60 "
+        r"· mean reward/step "
         r"([\d.]+)",
     )
     assert 0.0 <= float(match.group(1)) <= 1.0

@@ -195,7 +195,8 @@ def test_load_a_saved_run_replay_and_implement(page: Any, screenshots: Path) -> 
     press(page, "Run implementation")
     match = wait_for(
         page,
-        r"implementation: bs · 10 trials · breaks s2, s3 \(dead\) at 100 · mean reward/step "
+        r"implementation: bs/break-2-3-dead-fixed · 10 trials · breaks s2, s3 \(dead\) at 100 "
+        r"· mean reward/step "
         r"([\d.]+), after the fault ([\d.]+)",
     )
     assert 0.0 <= float(match.group(1)) <= 1.0

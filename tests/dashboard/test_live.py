@@ -107,8 +107,10 @@ def test_bad_requests_are_refused_and_change_nothing(arena: sim.Arena) -> None:
         session.schedule_fault(5, [], "dead")
     with pytest.raises(LiveError, match="start pose"):
         LiveSession(arena, [individual("RL")], start=10)
-    with pytest.raises(LiveError, match="one or two robots"):
-        LiveSession(arena, [individual("RL")] * 3)
+    with pytest.raises(LiveError, match="1 to 3 robots, got 4"):
+        LiveSession(arena, [individual("RL")] * 4)
+    with pytest.raises(LiveError, match="1 to 3 robots, got 0"):
+        LiveSession(arena, [])
     session.step(1)
     assert not session.snapshot()[0].broken.any()
     assert session.robots[0].world.noise_sigma == 0.0

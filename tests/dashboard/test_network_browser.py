@@ -98,7 +98,8 @@ def test_a_neural_run_on_the_stage_shows_its_network(
     match = wait_for_line(
         page,
         "on show:",
-        r"implementation: elman · 10 trials · breaks s2, s3 \(dead\) at 60 · mean reward/step "
+        r"implementation: elman/break-2-3-dead-[\w.-]+ · 10 trials · breaks s2, s3 \(dead\) at 60 "
+        r"· mean reward/step "
         r"([\d.]+)",
     )
     assert 0.0 <= float(match.group(1)) <= 1.0

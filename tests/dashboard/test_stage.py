@@ -98,10 +98,20 @@ def test_swap_in_keeps_the_arena_and_start_pose(cs: RobotSpec) -> None:
     stage.swap_in("first", cs)  # nothing on show yet: the training arena, pose 0
     assert (stage.arena, stage.start) == ("training", 0)
     stage.restage(arena="implementation", start=6)
-    session = stage.swap_in("best of generation 1", cs, life=600, control_period=0.032)
-    assert stage.show == Show(
-        "best of generation 1", (cs,), "implementation", 6, life=600, control_period=0.032
+    session = stage.swap_in(
+        "best of generation 1", cs, life=600, control_period=0.032, run="r", source=Path("r.h5")
     )
+    assert stage.show == Show(
+        "best of generation 1",
+        (cs,),
+        "implementation",
+        6,
+        life=600,
+        control_period=0.032,
+        runs=("r",),
+        sources=(Path("r.h5"),),
+    )
+    assert stage.source == Path("r.h5") and stage.show.origin(1) == ("", None)
     assert_at(session, stage.arenas["implementation"].start_poses[6])
 
 
