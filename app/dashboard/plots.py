@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import viser
-from viser.uplot import Axis
+from viser.uplot import Axis, Legend
 
 import sim
 from app.phases.live import RobotSnapshot
@@ -25,6 +25,8 @@ BIN = 10
 REWARD_RANGE = (0.0, 1.08)
 """A reward per step (and so a fitness, Eq. 2.8) lies in 0..1: headroom keeps the 1.0 tick."""
 REWARD_TICKS = (0.25, 0.5)
+REWARD_AXIS: Axis = {"scale": "y", "incrs": REWARD_TICKS, "space": 16}
+"""The reward (and fitness) axis: ticks 16 pixels apart still get their values (short charts)."""
 BROKEN_AXIS: Axis = {
     "scale": "n",
     "side": 1,
@@ -32,12 +34,17 @@ BROKEN_AXIS: Axis = {
     "splits": tuple(float(n) for n in range(0, sim.N_SENSORS + 1, 2)),
     "stroke": "#e61414",
     "grid": {"show": False},
-    "size": 28,
+    "size": 26,
+    "labelSize": 14,
+    "labelFont": "11px system-ui, sans-serif",
 }
 """The broken-sensor count's own axis, on the right: its dashed line is read there, never
 against the reward's scale on the left."""
-BROKEN_SCALE = {"n": {"range": (0.0, float(sim.N_SENSORS))}}
+BROKEN_SCALE = {"n": {"range": (0.0, REWARD_RANGE[1] * sim.N_SENSORS)}}
+"""All sensors broken level with a reward of 1, with the reward's headroom (the top tick shows)."""
 X_NOT_TIME: dict[str, Any] = {"x": {"time": False}}
+LABELS_ONLY: Legend = {"live": False}
+"""A legend of the series' names only (no values under the cursor): one line, not two."""
 WHOLE_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0)
 """Tick spacings for a generation or step axis (no 2.5th generation)."""
 FAULT_STYLE: dict[str, Any] = {"stroke": "#e61414", "dash": (6.0, 4.0), "width": 1.5}
@@ -83,8 +90,9 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         series=series,  # type: ignore[arg-type]
         title="Reward per step (robots on show)",
         scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}, **BROKEN_SCALE},
-        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}, BROKEN_AXIS),
-        aspect=1.9,
+        axes=({"incrs": WHOLE_STEPS}, REWARD_AXIS, BROKEN_AXIS),
+        legend=LABELS_ONLY,
+        aspect=2.2,
     )
 
 
@@ -147,8 +155,9 @@ def fitness_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         ),
         title=FITNESS_TITLE,
         scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}},
-        axes=({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS}),
-        aspect=2.3,
+        axes=({"incrs": WHOLE_STEPS}, REWARD_AXIS),
+        legend=LABELS_ONLY,
+        aspect=3.2,
     )
 
 
@@ -174,10 +183,10 @@ def set_fitness(
         # The x range too: a chart re-made for new scales may keep the last run's otherwise.
         x: dict[str, Any] = {"time": False, "range": (0.0, float(max(1, len(best) - 1)))}
         plot.scales = {"x": x, "y": {"range": (low, high)}}  # type: ignore[assignment]
-        plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y"})
+        plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y", "space": 16})
     elif not (plot.title or "").startswith(FITNESS_TITLE):  # back from a task run: robot scale
         plot.scales = {**X_NOT_TIME, "y": {"range": REWARD_RANGE}}
-        plot.axes = ({"incrs": WHOLE_STEPS}, {"scale": "y", "incrs": REWARD_TICKS})
+        plot.axes = ({"incrs": WHOLE_STEPS}, REWARD_AXIS)
     if plot.title != title:
         plot.title = title
     generations = np.arange(len(best), dtype=np.float64)
@@ -211,8 +220,9 @@ def implementation_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
         series=series,
         title=IMPLEMENTATION_TITLE,
         scales={**X_NOT_TIME, **BROKEN_SCALE},
-        axes=({}, {}, BROKEN_AXIS),
-        aspect=2.3,
+        axes=({}, REWARD_AXIS, {**BROKEN_AXIS, "space": 16, "label": "broken"}),
+        legend=LABELS_ONLY,
+        aspect=3.2,
     )
 
 

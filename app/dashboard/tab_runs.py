@@ -359,10 +359,8 @@ def populate_runs_tab(
     run = gui.add_dropdown("Run", (NO_RUNS,))
     buttons = gui.add_button_group("Run file", ("Refresh list", "Load"))
     summary = gui.add_markdown("No run loaded.")
-    arena = gui.add_dropdown("Replay in", sim.ARENA_NAMES, initial_value="training")
-    generation = gui.add_number("Generation (−1 = last)", -1, step=1)
-    replay = gui.add_button("Replay best individual", icon=viser.Icon.PLAYER_PLAY)
-    exports = gui.add_button_group("Export", ("Export", "Export replay"))
+    # The implementation phase first: Load already puts the run's final best on show, so the
+    # phase's Run button is what must fit a 720-pixel-high window; replays and exports follow.
     gui.add_markdown("**Implementation phase** (implementation arena, online Sarsa)")
     fields = implementation_settings()
     tab = RunsTab(
@@ -373,8 +371,6 @@ def populate_runs_tab(
         table=table,
         run=run,
         summary=summary,
-        arena=arena,
-        generation=generation,
         sensors=gui.add_text("Break sensors", "2,3"),
         mode=add_choice(gui, fields["fault_mode"], fields["fault_mode"].default, "Mode"),
         # Bounds and hints from the model; the values are short for a look in the page.
@@ -392,7 +388,12 @@ def populate_runs_tab(
         implementation_text=gui.add_markdown(
             "Implementation: not run. σ starts at the loaded run's implementation σ."
         ),
+        arena=gui.add_dropdown("Replay in", sim.ARENA_NAMES, initial_value="training"),
+        generation=gui.add_number("Generation (−1 = last)", -1, step=1),
     )
+    replay = gui.add_button("Replay best individual", icon=viser.Icon.PLAYER_PLAY)
+    exports = gui.add_button_group("Export", ("Export", "Export replay"))
+    arena, generation = tab.arena, tab.generation
     tab.robot_only = (
         arena, generation, replay, exports, tab.sensors, tab.mode, tab.fault_step, tab.steps,
         tab.repeats, tab.schedule, tab.noise, tab.run_implementation,
