@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import sim
 from app.cli.parser import UsageError
-from app.cli.train import Bar, workers_option
+from app.cli.train import Bar, warm, workers_option
 from app.settings.cli_options import (
     given_settings,
 )
@@ -34,14 +34,15 @@ def cmd_implement(args: argparse.Namespace) -> int:
         )
     path = resolve_run(args.runs_dir, args.run)
     with RunReader(path) as run:
-        stored = run.config.implementation
+        stored = run.config
+    warm(stored)
     # A fixed set and k random sensors exclude each other: the option given replaces the other.
     if "broken_sensors" in changes and count is None:
         changes["break_count"] = 0
     if count is not None and "broken_sensors" not in changes:
         changes["broken_sensors"] = ()
     config = build_config(
-        {"implementation": stored.model_dump()},
+        {"implementation": stored.implementation.model_dump()},
         {"implementation": changes},
         source="implementation options",
     )

@@ -8,10 +8,12 @@ start at once (bench/cli_startup.py).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from app.cli.parser import PROG, UsageError, build_parser, chosen_command
 from app.system.exit_codes import EXIT_BROKEN_PIPE, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE
@@ -27,6 +29,10 @@ HANDLERS: dict[str, tuple[str, str]] = {
     "replay": ("app.tasks.cli", "replay"),
 }
 """Each command's handler: (module, function), imported when the command runs."""
+
+COMPILING_COMMANDS = ("train", "implement", "replay")
+"""The commands that may compile numba's kernels (the first run on a machine): what numba
+compiles while they run is said on stderr (`app.phases.warm.CompileWatch`)."""
 
 USER_ERRORS: tuple[tuple[str, str], ...] = (
     ("app.settings.config", "ConfigError"),
@@ -50,6 +56,20 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     )
 
 
+def _compiles_said(command: str | None, words: list[str]) -> contextlib.AbstractContextManager[Any]:
+    """Say on stderr what numba compiles while a `COMPILING_COMMANDS` command builds its
+    options, is imported and runs (kernel by kernel unless --quiet); nothing on a warm cache."""
+    if command not in COMPILING_COMMANDS:
+        return contextlib.nullcontext()
+    from app.phases.warm import CompileWatch
+
+    def say(line: str) -> None:
+        sys.stderr.write(f"{PROG}: {line}\n")
+        sys.stderr.flush()
+
+    return CompileWatch(say, each="--quiet" not in words)
+
+
 def _handler(command: str) -> Callable[[argparse.Namespace], int]:
     module, function = HANDLERS[command]
     handler: Callable[[argparse.Namespace], int] = getattr(
@@ -65,6 +85,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run `gnp-lab`; returns the exit status."""
     words = list(sys.argv[1:] if argv is None else argv)
     command = chosen_command(words)
+    with _compiles_said(command, words):
+        return _run(command, words)
+
+
+def _run(command: str | None, words: list[str]) -> int:
     try:
         args = build_parser(() if command is None else (command,)).parse_args(words)
     except SystemExit as stop:  # --help, or a usage error already reported on one line

@@ -105,6 +105,15 @@ def workers_option(option: int | None) -> int:
     return workers
 
 
+def warm(config: RunConfig) -> None:
+    """Compile (or load) the run's kernels in this process before its workers need them; the
+    compile, on a cold cache only, is said by the command's `CompileWatch`."""
+    from app.phases.warm import compiles_done, warm_up
+
+    warm_up([config])
+    compiles_done()
+
+
 def _interrupted(stop: Exception, path: Path) -> int:
     sys.stderr.write(f"{PROG}: interrupted: {stop}; continue with: {PROG} train --resume {path}\n")
     return EXIT_INTERRUPTED
@@ -132,6 +141,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             config, start = run.config, run.generations_done
             if run.finished:
                 raise RunFileError(f"{path} is a finished run; there is nothing to resume")
+        warm(config)
         bar = GenerationBar(config.training.generations, start, args.quiet)
         try:
             training.resume(path, workers=workers, progress=bar)
@@ -155,6 +165,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         path = Path(args.out) if args.out else new_run_path(args.runs_dir, stem, config.seed, now)
         if path.exists():
             raise RunFileError(f"{path} already exists; choose another --out or --resume it")
+        warm(config)
         bar = GenerationBar(config.training.generations, 0, args.quiet)
         try:
             training.train(config, path, workers=workers, progress=bar)

@@ -8,16 +8,24 @@ life). The page stays responsive. Pause and resume take effect between generatio
 once (the generation under way is dropped, the file keeps every complete one and can be
 resumed; the job is "stopping" until its thread ends); the page follows the run file as it is
 written (SWMR).
+
+Before the first generation, a run whose kernels numba's cache lacks (the first run on a
+machine) compiles them in a child process (`python -m app.phases.warm`), kernel by kernel in
+`phase`, so that the page can say so and stay live; on a warm cache that costs a fraction of a
+second and says nothing.
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
 from typing import Literal
 
 from app.phases.training import Control, Interrupted, train
+from app.phases.warm import COMPILING, kernels_warm
 from app.settings.config import RunConfig
 from app.system.workers import default_workers
 
@@ -43,6 +51,10 @@ class TrainingJob:
         self.started = time.monotonic()
         self._paused_at: float | None = None
         self._paused_total = 0.0
+        self.phase = (
+            ""  # while numba compiles: what it is doing (`COMPILING`), then that it is done
+        )
+        self.compiling = False
         self._thread = threading.Thread(
             target=self._run, args=(workers or default_workers(),), name="training", daemon=True
         )
@@ -50,6 +62,7 @@ class TrainingJob:
 
     def _run(self, workers: int) -> None:
         try:
+            self._compile()
             train(self.config, self.out, workers=workers, local=False, control=self._control)
             self._outcome = "finished"
         except Interrupted as stop:
@@ -58,6 +71,47 @@ class TrainingJob:
         except Exception as error:  # shown on the page, on one line
             self._error = str(error).splitlines()[0] if str(error) else type(error).__name__
             self._outcome = "failed"
+
+    def _compile(self) -> None:
+        """Compile the run's kernels in a child process if numba's cache lacks them, its
+        progress in `phase`.
+
+        Raises:
+            Interrupted: stopped while compiling (no generation done).
+        """
+        if kernels_warm([self.config]):
+            return
+        self.compiling = True
+        self.phase = f"{COMPILING}..."
+        child = subprocess.Popen(
+            [sys.executable, "-m", "app.phases.warm"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        assert child.stdin is not None and child.stdout is not None
+        child.stdin.write(self.config.model_dump_json())
+        child.stdin.close()
+        lines = child.stdout
+
+        def read() -> None:
+            for line in lines:
+                self.phase = line.strip()
+
+        reader = threading.Thread(target=read, name="compile progress", daemon=True)
+        reader.start()
+        try:
+            while child.poll() is None:
+                if self._control.stopping.is_set():
+                    child.terminate()
+                    child.wait()
+                    raise Interrupted(0)
+                time.sleep(0.1)
+        finally:
+            reader.join(5)
+            self.compiling = False
+        # a child that failed leaves its kernels to the workers: the run says why it fails
 
     @property
     def state(self) -> JobState:

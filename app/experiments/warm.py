@@ -11,35 +11,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tempfile
-from pathlib import Path
 from typing import Any
 
 from distributed import WorkerPlugin
 
 from app.brains.registry import family_of
+from app.phases.warm import warm_up
 from app.settings.config import RunConfig
-from app.settings.loading import build_config
 
-
-def warm_up(configs: list[RunConfig]) -> None:
-    """Train and implement a tiny run of each config's controller in this process: every
-    kernel the lab's tasks call gets compiled (or loaded from numba's cache)."""
-    from app.phases.implementation import implement
-    from app.phases.training import train
-
-    with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
-        for i, config in enumerate(configs):
-            brain = config.model_dump(include={"controller", "neuro", "family"})
-            tiny = build_config(
-                brain,
-                {"training": {"population": 4, "generations": 1, "steps": 2, "noise_sigma": 1,
-                              "physics": config.training.physics}},
-                {"implementation": {"steps": 2, "repeats": 1, "fault_step": 1, "break_count": 1}},
-            )  # fmt: skip
-            path = Path(folder) / f"warm{i}.h5"
-            train(tiny, path, workers=1)
-            implement(path, tiny.implementation, name="warm", workers=1)
+__all__ = ["WarmWorkers", "controllers", "warm_up"]
 
 
 def _kernels(config: RunConfig) -> str:
