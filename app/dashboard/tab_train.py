@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
-import numpy as np
 import viser
 
 from app.brains.registry import family_of, names
@@ -27,8 +26,12 @@ from app.dashboard.stage import Stage
 from app.dashboard.status import ProgressBar, Status, set_value
 from app.dashboard.tab_plots import PlotsTab
 from app.dashboard.training_job import JobState, TrainingJob
+from app.experiments.planning import training_steps
+from app.experiments.results import core_steps_per_second
+from app.phases.lives import shards
 from app.settings.config import DEFAULT_BRAIN, PRESET_NAMES, RunConfig
 from app.settings.loading import load_preset, train_settings
+from app.system.workers import default_workers
 
 FIRST = (
     "controller.method",
@@ -57,6 +60,52 @@ def enabled_actions(state: JobState | None) -> dict[str, bool]:
     }
 
 
+@dataclass(frozen=True)
+class Estimate:
+    """What a training run should cost, from its size and the lab's measured rate."""
+
+    robot_steps: int  # population × generations × steps
+    steps_per_core_second: float  # `app.experiments.results.core_steps_per_second`
+    workers: int  # the processes that share its lives
+
+    @property
+    def core_hours(self) -> float:
+        return self.robot_steps / self.steps_per_core_second / 3600
+
+    @property
+    def seconds(self) -> float:
+        """Wall time on `workers` idle cores."""
+        return self.core_hours * 3600 / self.workers
+
+    def describe(self) -> str:
+        return (
+            f"**Estimate** (before Start): about {duration(self.seconds)} on {self.workers} "
+            f"idle core{'s' if self.workers > 1 else ''}, {self.core_hours:.2g} core-hours: "
+            f"{self.robot_steps / 1e6:,.4g} M robot-steps (population × generations × steps) "
+            f"at the lab's measured {self.steps_per_core_second / 1e6:.2g} M per core-second"
+        )
+
+
+def estimate(config: RunConfig, workers: int | None = None) -> Estimate:
+    """The cost of training `config` on `workers` processes (default: one per core, as the
+    tab's runs; never more than the population's shards)."""
+    workers = min(workers or default_workers(), len(shards(config.training)))
+    return Estimate(
+        robot_steps=training_steps(config),
+        steps_per_core_second=core_steps_per_second(config.training.physics),
+        workers=max(1, workers),
+    )
+
+
+def duration(seconds: float) -> str:
+    """`40 s`, `12 min`, `3.4 h`."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
 @dataclass
 class TrainTab:
     """The Train tab's handles, and the training it started (if any)."""
@@ -72,14 +121,27 @@ class TrainTab:
     buttons: dict[str, viser.GuiButtonHandle]
     progress: ProgressBar
     summary: viser.GuiMarkdownHandle
+    cost: viser.GuiMarkdownHandle  # the estimate beside Start
     job: TrainingJob | None = None
     follower: TrainingFollower | None = None
+    stage_run: Path | None = None  # the run on show that the training's bests may replace
 
     def apply_preset(self, name: str) -> None:
         """Fill the fields with a preset's values."""
         if name not in PRESET_NAMES:
             return
         self.settings.show(load_preset(name))
+
+    def show_estimate(self) -> None:
+        """The estimate of the run the controls describe (or why there is none)."""
+        try:
+            config = training_config(self.preset.value, self.settings.values(), self.brain.value)
+        except DashboardInputError as error:
+            text = f"**Estimate**: none until the settings are valid ({error})"
+        else:
+            text = estimate(config).describe()
+        if self.cost.content != text:
+            self.cost.content = text
 
     def sync_buttons(self) -> None:
         """Enable the buttons that can act on the training as it is now."""
@@ -97,8 +159,9 @@ class TrainTab:
         self.close()  # a run that ended but was not yet followed to its end
         self.job = TrainingJob(config, out)
         self.follower = TrainingFollower(out, config)
-        self.plots.set_fitness(np.zeros(0), np.zeros(0))
-        self.plots.training_line = f"training: started {out.name}"
+        # The stage follows this run from its first best on, unless another is put on show.
+        self.stage_run = self.stage.source
+        self.plots.training_line = f"training: started {out.stem}"
         self.status.set(f"training {out.stem} started")
         self.sync_buttons()
 
@@ -120,23 +183,31 @@ class TrainTab:
         state = job.state  # before reading: a finished job's file is complete
         progress = follower.poll(state, job.elapsed(), job.error() if state == "failed" else "")
         best = progress.best
-        if best is not None:
+        on_show = self.stage.source
+        if best is not None and on_show in (self.stage_run, job.out):
             self.stage.swap_in(
                 f"best of generation {best.generation} (training {job.out.stem})",
                 best.robot,
                 life=best.life,
                 control_period=best.control_period,
+                run=job.out.stem,
+                source=job.out,
             )
+            self.stage_run = on_show = job.out
         history = progress.history
-        if history is not None and len(history.best_fitness) != self.plots.fitness_points:
-            self.plots.set_fitness(history.best_fitness, history.mean_fitness)
+        drawn = self.plots.fitness_points
+        if on_show == job.out and history is not None and len(history.best_fitness) != drawn:
+            self.plots.set_fitness(history.best_fitness, history.mean_fitness, job.out.stem)
         line = progress.describe()
-        self.plots.training_line = f"training: {line}"
+        if job.phase and (job.compiling or not progress.generations):
+            line = f"{job.phase} · {job.elapsed():.0f} s"  # numba's first compile, then done
+        self.plots.training_line = f"training {job.out.stem}: {line}"
         set_value(self.progress, 100.0 * progress.fraction)
         self.summary.content = line[:1].upper() + line[1:]
         if not progress.ended:
             return
         self.job = self.follower = None
+        self.plots.training_ended = True  # its line goes once another run is on show
         self.sync_buttons()
         self.on_run_ended()
         if state == "failed":
@@ -176,6 +247,7 @@ def populate_train_tab(
     with gui.add_folder("All settings", expand_by_default=False):
         rest = [s for s in everything if s.key not in FIRST]
         settings.controls.update(add_controls(gui, rest, quick).controls)
+    cost = gui.add_markdown("")
     buttons = {name: gui.add_button(name, disabled=name != "Start") for name in ACTIONS}
     tab = TrainTab(
         stage=stage,
@@ -189,9 +261,18 @@ def populate_train_tab(
         buttons=buttons,
         progress=gui.add_progress_bar(0.0),
         summary=gui.add_markdown("Not training."),
+        cost=cost,
     )
 
-    tab.preset.on_update(lambda _: tab.apply_preset(tab.preset.value))
+    def preset_changed(_: object) -> None:
+        tab.apply_preset(tab.preset.value)
+        tab.show_estimate()
+
+    tab.preset.on_update(preset_changed)
+    tab.brain.on_update(lambda _: tab.show_estimate())
+    for control in settings.controls.values():
+        control.on_update(lambda _: tab.show_estimate())
+    tab.show_estimate()
     buttons["Start"].on_click(status.guard(tab.start))
     for name in ACTIONS[1:]:
         buttons[name].on_click(status.guard(partial(tab.act, name.lower())))

@@ -45,6 +45,16 @@ FAULT_EFFECTS = ("fault_effect", "relative_fault_effect")
 # same bits as pymunk, physics-equivalence); pymunk runs cost about 4.4x more (0.46 M/s,
 # ch3-bs-rl at thesis, before #31).
 CORE_STEPS_PER_SECOND = 2.0e6
+PYMUNK_CORE_STEPS_PER_SECOND = 0.46e6
+"""`CORE_STEPS_PER_SECOND` of a run on pymunk's physics (the measure above)."""
+
+
+def core_steps_per_second(physics: str) -> float:
+    """The lab's measured simulated steps per CPU second of a run on `physics`
+    (`training.physics`)."""
+    return CORE_STEPS_PER_SECOND if physics == "analytic" else PYMUNK_CORE_STEPS_PER_SECOND
+
+
 CONVERGENCE_SHARE = 0.9  # convergence: the first generation at 90% of the run's final fitness
 
 
