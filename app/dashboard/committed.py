@@ -247,6 +247,14 @@ def read_values(path: Path, arms: set[str]) -> Values:
     return values
 
 
+def shelf_signature(root: Path = DOCS) -> tuple[tuple[str, int, int], ...]:
+    """What `read_shelf` would read, as (file, mtime, size): equal signatures, equal shelves."""
+    if not root.is_dir():
+        return ()
+    files = sorted([*root.glob(f"*/{REPORT}"), *root.glob(f"*/{VALUES}")])
+    return tuple((str(f), f.stat().st_mtime_ns, f.stat().st_size) for f in files)
+
+
 def read_shelf(root: Path = DOCS) -> Shelf:
     """Every report folder under `root` (sorted by name); a folder that cannot be read is a
     problem, the rest are read on."""

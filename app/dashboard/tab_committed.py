@@ -10,13 +10,21 @@ from __future__ import annotations
 
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import viser
 
 from app.dashboard import committed_view as cv
-from app.dashboard.committed import DOCS, CommittedError, CommittedReport, Shelf, read_shelf
+from app.dashboard.committed import (
+    DOCS,
+    CommittedError,
+    CommittedReport,
+    Shelf,
+    read_shelf,
+    shelf_signature,
+)
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import Status, set_value
 from app.dashboard.tab_runs import set_options
@@ -24,6 +32,18 @@ from app.dashboard.tab_runs import set_options
 BLANK = np.full((1, 1, 4), 255, dtype=np.uint8)
 
 Read = tuple[Shelf, str, str]  # the shelf, its reports table, its answers table
+_READ: dict[tuple[Path, tuple[Any, ...]], tuple[Shelf, str]] = {}
+
+
+def read_once(root: Path) -> tuple[Shelf, str]:
+    """The shelf and its answers table, read again only when a report file changed (every
+    dashboard of a process shares them: the answers load every shipped spec)."""
+    key = (root, shelf_signature(root))
+    if key not in _READ:
+        shelf = read_shelf(root)
+        _READ.clear()
+        _READ[key] = (shelf, cv.answers_table(shelf))
+    return _READ[key]
 
 
 @dataclass
@@ -55,11 +75,11 @@ class CommittedSection:
             self._read.add_done_callback(self._landed)
 
     def _read_shelf(self) -> Read:
-        shelf = read_shelf()
+        shelf, answers = read_once(DOCS)
         if self.pages is None and not shelf.missing and not self._closed:
             self.pages = cv.PageServer(DOCS)
         url = self.pages.url if self.pages else ""
-        return shelf, cv.reports_table(shelf, url), cv.answers_table(shelf)
+        return shelf, cv.reports_table(shelf, url), answers
 
     def choose(self, experiment: str, scale: str) -> None:
         """Show the committed report of `experiment` at `scale`, if there is one."""

@@ -142,7 +142,6 @@ def test_start_an_experiment_follow_it_and_load_its_run(
     # One of its runs on the stage.
     choose(page, "Run (arm-seed)", "BS-seed1")
     press(page, "Load run on stage")
-    page.get_by_text("replaying the best of generation 1 of BS-seed1").first.wait_for()
     wait_for_line(page, "on show:", r"^on show: step \d+ · BS-seed1: reward/step")
     assert (runs / "experiments" / NAME / "summary-smoke.h5").is_file()
     title = page.get_by_text("Training: best fitness").first  # the charts, then the table
@@ -161,7 +160,7 @@ def test_an_adaptive_run_shows_its_stages_and_verdicts(
     _, url, runs = served
     page = open_page(browser, url)
     page.get_by_role("tab", name="Experiments").click()
-    expect(catalogue_table(page)).to_contain_text(NAME)
+    expect(catalogue_table(page)).to_contain_text(NAME, timeout=TIMEOUT_MS)
     choose(page, "Experiment", NAME)
     choose(page, "Scale", SCALE)
     adaptive = field(page, "Adaptive")

@@ -194,3 +194,17 @@ def test_the_pages_are_served(tmp_path: Path) -> None:
             assert answer.read() == b"<p>the page</p>"
     finally:
         server.close()
+
+
+def test_the_reports_are_read_again_only_when_a_file_changed(tmp_path: Path) -> None:
+    from app.dashboard.committed import shelf_signature
+    from app.dashboard.tab_committed import read_once
+
+    folder = copy_report(tmp_path, "ch2-reward-source-small")
+    first = read_once(tmp_path)
+    assert read_once(tmp_path) is first and len(first[0].reports) == 1
+    before = shelf_signature(tmp_path)
+    (folder / "values.csv").write_text("arm,seed,condition,metric,value\n")
+    assert shelf_signature(tmp_path) != before
+    shelf, _ = read_once(tmp_path)
+    assert shelf.problems == () and shelf.reports[0].values == {}
