@@ -52,6 +52,8 @@ def _most_generations() -> int:
 
 
 MOST_GENERATIONS = _most_generations()
+TABLE_ROWS = 4.5
+"""Rows of the runs table in view; more scroll inside it."""
 
 
 @dataclass
@@ -435,4 +437,7 @@ def runs_table(runs: Sequence[store.RunSummary], runs_dir: Path) -> str:
             continue
         done = f"{r.generations_done}/{r.generations}" + ("" if r.finished else " …")
         rows.append(f"| {r.name} | {run_kind(r)} | {done} | {r.best_fitness:.4f} |")
-    return "\n".join(rows)
+    # A long list scrolls in its own box, so the controls below keep their place on the page.
+    return f"<div style='max-height: {TABLE_ROWS * 1.6}em; overflow-y: auto'>\n\n" + (
+        "\n".join(rows) + "\n\n</div>"
+    )

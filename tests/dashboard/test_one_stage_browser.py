@@ -138,3 +138,25 @@ def test_the_graph_opens_simplified_and_compare_offers_two_runs(page: Any) -> No
     a = field(page, "Run A (blue)").input_value()
     b = field(page, "Run B (orange)").input_value()
     assert a != b, (a, b)
+
+
+def test_at_1280_by_720_the_implementation_phase_is_in_view(
+    browser: Any, page: Any, screenshots: Path
+) -> None:
+    small = open_page(browser, page.url, {"width": 1280, "height": 720})
+    try:
+        wait_for_line(small, "on show:", r"on show: step \d+")
+        small.get_by_role("tab", name="Runs").click()
+        button = small.get_by_role("button", name="Run implementation")
+        button.wait_for()
+        box = button.bounding_box()
+        assert box is not None and box["y"] + box["height"] <= 720, box
+        chart = small.locator(".u-title", has_text="Implementation phase").first.bounding_box()
+        assert chart is not None and chart["y"] + 80 <= 720, (
+            chart
+        )  # its curve shows, not its title only
+        labels = small.locator(".u-label").all_inner_texts()
+        assert "sensors broken" in labels, labels  # the count is read on its own axis
+        small.screenshot(path=str(screenshots / "runs-1280x720.png"))
+    finally:
+        small.close()
