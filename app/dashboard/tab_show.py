@@ -14,6 +14,7 @@ from app.dashboard.network import net_markdown
 from app.dashboard.network_view import NetworkView
 from app.dashboard.stage import Show, Stage
 from app.dashboard.status import Status, hex_color, set_value
+from app.phases.implementation import fault_text
 from app.views.arena_view import ROBOT_COLORS
 from app.views.genome import genome_view, node_label, node_markdown
 from app.views.graph_counts import FULL, GRAPH_MODES, SIMPLIFIED, WINDOW
@@ -241,7 +242,7 @@ def populate_show_tab(
 def show_chosen_methods(stage: Stage, status: Status, runs_dir: Path, choice: str) -> None:
     show_methods(stage, runs_dir, choice)
     faults = stage.faults
-    kept = f" with s{', s'.join(map(str, faults[0]))} still broken ({faults[1]})" if faults else ""
+    kept = f", {fault_text(*faults, None)} still" if faults else ""
     status.set(f"on show: {choice} (bundled chapter-5 runs){kept}")
 
 
