@@ -14,6 +14,7 @@ from pydantic import ValidationError
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.settings.config import ConfigError, preset_layer
 from app.settings.loading import build_config, describe_problems
+from app.settings.user_files import loads_toml, read_text
 
 SHIPPED_PACKAGE = "app.experiments.shipped"
 
@@ -81,18 +82,14 @@ def _check_fracnetics(spec: ExperimentSpec, scale: str, source: str) -> None:
 
 
 def load_file(path: str | Path) -> ExperimentSpec:
-    """An experiment TOML file."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ExperimentError(f"experiment file not found: {path}") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as error:
-        raise ExperimentError(f"cannot read experiment file {path}: {error}") from None
-    except tomllib.TOMLDecodeError as error:
-        message = f"experiment file {path} is not valid TOML: {error}"
-        raise ExperimentError(message.replace("\n", " ")) from None
-    return parse(data, str(path))
+    """An experiment TOML file (a regular file of at most `MAX_TEXT_BYTES`).
+
+    Raises:
+        ExperimentError: missing, not a regular file, too large, not TOML or not valid.
+    """
+    what = "experiment file"
+    text = read_text(path, ExperimentError, what)
+    return parse(loads_toml(text, ExperimentError, f"{what} {path}"), str(path))
 
 
 def shipped_names() -> tuple[str, ...]:

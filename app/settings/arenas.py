@@ -10,14 +10,13 @@ it (command line, a config or experiment file: `read_arena_paths`), as a regular
 from __future__ import annotations
 
 import json
-import os
-import stat
 from functools import cache, lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import sim
+from app.settings.user_files import loads_json, read_bytes
 from sim.arena import ArenaSpec, arena_from_spec
 
 MAX_ARENA_BYTES = 256 * 1024
@@ -54,30 +53,10 @@ def read_arena_file(path: str | Path) -> dict[str, Any]:
     Raises:
         sim.ArenaError: naming the file and the problem.
     """
-    path = Path(path)
-    try:
-        # O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused just below.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    except FileNotFoundError:
-        raise sim.ArenaError(f"{path}: arena file not found") from None
-    except OSError as error:
-        raise sim.ArenaError(f"{path}: cannot read arena file: {error.strerror}") from None
-    with os.fdopen(fd, "rb") as handle:
-        info = os.fstat(handle.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise sim.ArenaError(f"{path}: an arena file must be a regular file")
-        if info.st_size > MAX_ARENA_BYTES:
-            raise sim.ArenaError(
-                f"{path}: arena file of {info.st_size} bytes, more than the "
-                f"{MAX_ARENA_BYTES // 1024} KiB an arena file may have"
-            )
-        data = handle.read(MAX_ARENA_BYTES + 1)
-    if len(data) > MAX_ARENA_BYTES:  # it grew meanwhile
-        raise sim.ArenaError(f"{path}: arena file larger than {MAX_ARENA_BYTES // 1024} KiB")
-    try:
-        raw = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise sim.ArenaError(f"{path}: not a JSON arena file: {error}") from None
+    what = "arena file"
+    raw = loads_json(
+        read_bytes(path, sim.ArenaError, what, MAX_ARENA_BYTES), sim.ArenaError, f"{what} {path}"
+    )
     try:
         spec = ArenaSpec.model_validate(raw)
     except ValueError as error:

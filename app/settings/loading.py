@@ -6,8 +6,6 @@ Every problem is a `ConfigError` on one line naming the field, what it allows an
 
 from __future__ import annotations
 
-import json
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,6 +23,7 @@ from app.settings.config import (
     preset_layer,
 )
 from app.settings.fields import Setting, sections, settings_of
+from app.settings.user_files import loads_json, loads_toml, read_text
 
 
 def describe_problems(error: ValidationError, limit: int | None = None) -> str:
@@ -49,6 +48,22 @@ def _format_errors(error: ValidationError, source: str) -> str:
     return f"invalid configuration in {source}: " + describe_problems(error)
 
 
+def _check_tables(layer: Mapping[str, Any], source: str) -> None:
+    """Refuse a section of the config (e.g. `training`) given a value that is not a table:
+    merged with another layer's table it would otherwise be dropped without a word.
+
+    Raises:
+        ConfigError: naming the section and the value.
+    """
+    for name, _ in sections(RunConfig):
+        value = layer.get(name)
+        if value is not None and not isinstance(value, Mapping):
+            raise ConfigError(
+                f"invalid configuration in {source}: {name}: a table of settings, "
+                f"not a single value (got {value!r})"
+            )
+
+
 def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     merged = dict(base)
     for key, value in overrides.items():
@@ -71,9 +86,9 @@ def stored_config(text: str) -> RunConfig:
     """A `RunConfig` as stored in a file (JSON), settings it predates taking LEGACY_DEFAULTS.
 
     Raises:
-        ValueError: not JSON, or an invalid config.
+        ValueError: not JSON (or too large or deep, see `loads_json`), or an invalid config.
     """
-    data = json.loads(text)
+    data = loads_json(text, ValueError, "the stored config")
     if not isinstance(data, dict):
         raise ValueError("a stored config is a JSON object")
     for (section, key), value in LEGACY_DEFAULTS.items():
@@ -91,6 +106,7 @@ def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> R
     """
     merged: dict[str, Any] = {}
     for layer in layers:
+        _check_tables(layer, source)
         merged = _merge(merged, layer)
     merged = read_arena_paths(merged)  # user input: arena files are read here, and only here
     try:
@@ -100,19 +116,14 @@ def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> R
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file into a dict, with a clear error for a missing or malformed file."""
-    path = Path(path)
-    try:
-        with path.open("rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise ConfigError(f"config file not found: {path}") from None
-    except IsADirectoryError:
-        raise ConfigError(f"config path is a directory: {path}") from None
-    except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"config file {path} is not valid TOML: {error}") from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"config file {path} is not UTF-8 text") from None
+    """Read a TOML file into a dict: a regular file of at most `MAX_TEXT_BYTES`, with one line
+    for a missing, special, too large or malformed file.
+
+    Raises:
+        ConfigError: naming the file and the problem.
+    """
+    what = "config file"
+    return loads_toml(read_text(path, ConfigError, what), ConfigError, f"{what} {path}")
 
 
 def load_preset(name: str) -> RunConfig:

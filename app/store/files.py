@@ -22,6 +22,8 @@ from typing import IO
 
 import h5py
 
+from app.settings.user_files import check_regular
+
 # The HDF5 1.10 file format: the oldest with SWMR, and what h5dump of Debian 12 (1.10.8) reads.
 LIBVER = ("v110", "v110")
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -163,12 +165,10 @@ def open_for_read(path: Path) -> h5py.File:
     short file is tried again for up to `SETTLE_SECONDS` before it is called truncated.
 
     Raises:
-        RunFileError: the file is missing, not HDF5, truncated or otherwise unreadable.
+        RunFileError: the file is missing, not a regular file, not HDF5, truncated or otherwise
+            unreadable.
     """
-    if not path.exists():
-        raise RunFileError(f"run file not found: {path}")
-    if not path.is_file():
-        raise RunFileError(f"not a file: {path}")
+    check_regular(path, RunFileError, "run file")
     if not h5py.is_hdf5(path):
         raise RunFileError(f"not an HDF5 file: {path}")
     deadline = time.monotonic() + SETTLE_SECONDS
