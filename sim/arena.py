@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -25,6 +25,9 @@ _EPS = 1e-9
 # inline from a run file someone sent.
 MAX_POINTS = 1000
 MAX_OBSTACLES = 100
+MAX_COORDINATE_MM = 1e6
+"""Largest |coordinate| of a point or start pose (and |heading|, in degrees): far beyond any
+arena (``MAX_EXTENT_MM``), and small enough that the geometry's products cannot overflow."""
 
 
 class ArenaError(ValueError):
@@ -35,17 +38,21 @@ class _Spec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_MM, le=MAX_COORDINATE_MM)]
+Point = tuple[Coordinate, Coordinate]
+
+
 class StartPoseSpec(_Spec):
     name: str = Field(min_length=1)
-    x: float
-    y: float
-    heading_deg: float
+    x: Coordinate
+    y: Coordinate
+    heading_deg: Coordinate
 
 
 class ObstacleSpec(_Spec):
     name: str = Field(min_length=1)
     shape: Literal["polygon", "polyline"]
-    points: list[tuple[float, float]] = Field(min_length=2, max_length=MAX_POINTS)
+    points: list[Point] = Field(min_length=2, max_length=MAX_POINTS)
 
 
 class ArenaSpec(_Spec):
@@ -53,7 +60,7 @@ class ArenaSpec(_Spec):
 
     name: str = Field(min_length=1)
     description: str = ""
-    outer_wall: list[tuple[float, float]] = Field(min_length=4, max_length=MAX_POINTS)
+    outer_wall: list[Point] = Field(min_length=4, max_length=MAX_POINTS)
     """A closed polyline: the last point repeats the first."""
     obstacles: list[ObstacleSpec] = Field(default=[], max_length=MAX_OBSTACLES)
     start_poses: list[StartPoseSpec] = Field(min_length=N_START_POSES, max_length=N_START_POSES)
@@ -133,6 +140,8 @@ def load_arena(name_or_path: str | Path) -> Arena:
         raw = json.loads(text)
     except json.JSONDecodeError as err:
         raise ArenaError(f"{source}: not valid JSON: {err}") from None
+    except RecursionError:
+        raise ArenaError(f"{source}: JSON nested too deep") from None
     try:
         spec = ArenaSpec.model_validate(raw)
     except ValidationError as err:
@@ -176,8 +185,8 @@ def arena_from_spec(spec: ArenaSpec, source: str = "arena") -> Arena:
     outer_pts = np.asarray(spec.outer_wall, dtype=np.float64)
     if not np.array_equal(outer_pts[0], outer_pts[-1]):
         raise ArenaError(
-            f"{where}: outer_wall is not closed: it starts at {tuple(outer_pts[0])} "
-            f"but ends at {tuple(outer_pts[-1])} (repeat the first point at the end)"
+            f"{where}: outer_wall is not closed: it starts at {_shown(outer_pts[0])} "
+            f"but ends at {_shown(outer_pts[-1])} (repeat the first point at the end)"
         )
     outer = outer_pts[:-1]
     _check_simple(outer, closed=True, what=f"{where}: outer_wall")
@@ -303,13 +312,18 @@ def _any_proper_crossing(segs: np.ndarray, others: np.ndarray) -> bool:
     return any(_proper_crossing(s[0], s[1], o[0], o[1]) for s in segs for o in others)
 
 
+def _shown(point: np.ndarray) -> str:
+    """A point as a message shows it: "(400, 0)"."""
+    return "(" + ", ".join(f"{float(v):g}" for v in point) + ")"
+
+
 def _check_simple(points: np.ndarray, closed: bool, what: str) -> None:
     segs = _segments(points, closed)
     lengths = np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1)
     if np.any(lengths <= _EPS):
         k = int(np.argmax(lengths <= _EPS))
         raise ArenaError(
-            f"{what}: segment {k} has zero length (repeated point {tuple(segs[k, 0])})"
+            f"{what}: segment {k} has zero length (repeated point {_shown(segs[k, 0])})"
         )
     n = len(segs)
     for i in range(n):
@@ -330,8 +344,8 @@ def _check_simple(points: np.ndarray, closed: bool, what: str) -> None:
                     raise ArenaError(f"{what} is self-intersecting: segments {i} and {j} overlap")
             elif segments_touch(a, b, c, d):
                 raise ArenaError(
-                    f"{what} is self-intersecting: segment {i} {tuple(a)}–{tuple(b)} "
-                    f"meets segment {j} {tuple(c)}–{tuple(d)}"
+                    f"{what} is self-intersecting: segment {i} {_shown(a)}–{_shown(b)} "
+                    f"meets segment {j} {_shown(c)}–{_shown(d)}"
                 )
 
 
