@@ -76,17 +76,53 @@ def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray
         if len(subs) != m:
             raise GnpError(f"node {i} has {len(subs)} sub nodes, the gnp settings say {m}")
         for p, sub in enumerate(subs):
-            arrays["function"][0, i, p] = sub["function"]
-            arrays["mu_beta"][0, i, p] = sub["beta"]
-            arrays["mu_alpha"][0, i, p] = sub["alpha"]
-            arrays["speed"][0, i, p] = sub["speed"]
-            arrays["credit"][0, i, p] = sub["credit"]
-            arrays["q_ss"][0, i, p] = sub["q_ss"]
-            arrays["q_cs"][0, i, p] = (sub["q_cs"]["normal"], sub["q_cs"]["credit"])
+            where = f"node {i} sub node {p}"
+            for key, field in _GENES:
+                arrays[field][0, i, p] = _number(sub[key], f"{where}: {key}", whole=True)
+            arrays["q_ss"][0, i, p] = _number(sub["q_ss"], f"{where}: q_ss")
+            q_cs = sub["q_cs"]
+            arrays["q_cs"][0, i, p] = (
+                _number(q_cs["normal"], f"{where}: q_cs.normal"),
+                _number(q_cs["credit"], f"{where}: q_cs.credit"),
+            )
             for b, branch in enumerate(_BRANCHES):
-                arrays["conn"][0, i, p, b] = sub["next"][branch]
-                arrays["q_bs"][0, i, p, b] = sub["q_bs"][branch]
+                arrays["conn"][0, i, p, b] = _numbers(sub["next"][branch], f"{where}: next", True)
+                arrays["q_bs"][0, i, p, b] = _numbers(sub["q_bs"][branch], f"{where}: q_bs")
     return arrays
+
+
+_GENES = (
+    ("function", "function"),
+    ("beta", "mu_beta"),
+    ("alpha", "mu_alpha"),
+    ("speed", "speed"),
+    ("credit", "credit"),
+)
+"""A sub node's integer genes: (key in the document, population field)."""
+
+
+def _number(value: Any, where: str, whole: bool = False) -> float:
+    """A number of the document (never a string or a boolean, which numpy would convert).
+
+    Raises:
+        GnpError: naming where it is and what it is.
+    """
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if number and abs(value) <= _LARGEST and (not whole or float(value).is_integer()):
+        return float(value)
+    shown = repr(value) if len(repr(value)) < 40 else type(value).__name__
+    raise GnpError(f"{where} must be {'an integer' if whole else 'a number'}, got {shown}")
+
+
+_LARGEST = 1e300
+"""Largest magnitude read (a larger integer does not fit a float; genes are checked later)."""
+
+
+def _numbers(values: Any, where: str, whole: bool = False) -> list[float]:
+    """A list of numbers of the document (see `_number`)."""
+    if not isinstance(values, list):
+        raise GnpError(f"{where} must be a list of numbers, got {values!r}")
+    return [_number(v, where, whole) for v in values]
 
 
 def controller_from_body(gnp_entry: Any, nodes: Any) -> tuple[GnpConfig, Population]:

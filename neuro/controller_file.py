@@ -40,8 +40,15 @@ def net_from_body(net_entry: Any, arrays: Any) -> tuple[NetConfig, dict[str, np.
         KeyError, TypeError, ValueError: the entries are malformed.
     """
     cfg = _NET.validate_python(net_entry)
-    loaded = {
-        name: np.array(values, dtype=field_dtype(name))[None] for name, values in arrays.items()
-    }
+    loaded = {name: _numbers(name, values)[None] for name, values in arrays.items()}
     check_arrays(cfg, loaded)
     return cfg, loaded
+
+
+def _numbers(name: str, values: Any) -> np.ndarray:
+    """An array of the document as its field's dtype: numbers only (no strings or booleans,
+    which numpy would convert), in a rectangular nest of lists."""
+    given = np.array(values)
+    if given.dtype.kind not in "iuf":
+        raise NeuroError(f"net array {name!r} must hold numbers, got {given.dtype}")
+    return given.astype(field_dtype(name))

@@ -23,6 +23,7 @@ import numpy as np
 
 import gnp
 import neuro
+from app.settings.user_files import loads_json, read_text
 
 
 class ControllerFileError(ValueError):
@@ -109,16 +110,14 @@ def load_controller(path: str | Path) -> Controller:
     """Read a controller file of either family, checked: a `GnpController` or a `NetController`.
 
     Raises:
-        ControllerFileError: the file is missing, not JSON, not a controller of a known format
+        ControllerFileError: the file is missing, not a regular file, too large or deep (see
+            `app.settings.user_files`), not JSON, not a controller of a known format
             and version, or holds an invalid genome or net (the message names the problem).
     """
     path = Path(path)
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ControllerFileError(f"controller file not found: {path}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ControllerFileError(f"{path} is not a JSON controller file: {error}") from None
+    what = "controller file"
+    text = read_text(path, ControllerFileError, what)
+    document = loads_json(text, ControllerFileError, f"{what} {path}")
     name = document.get("format") if isinstance(document, dict) else None
     form = FORMATS.get(name) if isinstance(name, str) else None
     if form is None:
@@ -130,9 +129,11 @@ def load_controller(path: str | Path) -> Controller:
             f"{path} is {form.name} version {document.get('version')!r}; "
             f"this gnp-lab reads version {form.version}"
         )
+    settings = document.get("settings", {})
+    if not isinstance(settings, dict):
+        raise ControllerFileError(f"{path}: settings must be a JSON object")
     try:
         config, body = document[form.config_key], document[form.body_key]
-        settings = dict(document.get("settings", {}))
         if form is _GNP:
             return GnpController(*gnp.controller_from_body(config, body), settings)
         return NetController(*neuro.net_from_body(config, body), settings)

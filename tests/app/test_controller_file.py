@@ -79,7 +79,7 @@ def test_bad_controller_files_say_what_is_wrong(tmp_path: Path) -> None:
     good = json.loads(save_controller(tmp_path / "c.json", GnpController(cfg, pop)).read_text())
     cases = {
         "not found": None,
-        "not a JSON controller file": "{oops",
+        "is not JSON": "{oops",
         "not a gnp-lab controller": json.dumps({"hello": 1}),
         "version 7": json.dumps(dict(good, version=7)),
         "has 60 nodes": json.dumps(dict(good, nodes=good["nodes"][:-1])),
