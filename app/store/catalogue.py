@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -11,8 +10,10 @@ import h5py
 import numpy as np
 
 from app.settings.config import RunConfig
+from app.settings.user_files import check_regular, loads_json
 from app.store.files import TASK_RUN_FORMAT, RunFileError
 from app.store.reader import RunReader
+from app.store.validation import check_progress, plain_dataset
 
 SUFFIX = ".h5"
 
@@ -104,6 +105,10 @@ def list_runs(runs_dir: str | Path) -> list[RunSummary]:
 
 def _summary(path: Path) -> RunSummary:
     name = path.name[: -len(SUFFIX)]
+    try:
+        check_regular(path, RunFileError, "run file")  # a FIFO named *.h5 would hang h5py
+    except RunFileError as error:
+        return RunSummary(name=name, path=path, error=str(error))
     task = _task_summary(path, name)
     if task is not None:
         return task
@@ -137,11 +142,17 @@ def _task_summary(path: Path, name: str) -> RunSummary | None:
             return None
         task = str(handle.attrs.get("task", "?"))
         try:
-            config = json.loads(str(handle.attrs["config"]))
-            done = int(handle.attrs["generations_done"])
-            fitness = handle["history/fitness"][:done]
+            config = loads_json(handle.attrs["config"], RunFileError, "its config")
             generations = int(config["training"]["generations"])
-        except (KeyError, ValueError, TypeError, OSError) as error:
+            done = check_progress(
+                "generations_done", handle.attrs["generations_done"], 0, generations, path
+            )
+            fitness = plain_dataset(handle, "history/fitness")
+            if fitness.ndim != 2 or fitness.shape[0] < done or fitness.dtype.kind != "f":
+                raise RunFileError(f"history/fitness is {fitness.shape} {fitness.dtype}")
+            rows = fitness[:done]
+            best = float(rows.max()) if rows.size else float("nan")
+        except (RunFileError, KeyError, ValueError, TypeError, OverflowError, OSError) as error:
             return RunSummary(name=name, path=path, task=task, error=f"task run: {error}")
         return RunSummary(
             name=name,
@@ -149,6 +160,6 @@ def _task_summary(path: Path, name: str) -> RunSummary | None:
             generations_done=done,
             generations=generations,
             finished=done >= generations,
-            best_fitness=float(fitness.max()) if fitness.size else float("nan"),
+            best_fitness=best,
             task=task,
         )

@@ -17,8 +17,10 @@ import gnp
 from app.loop.recording import Trajectory
 from app.settings.config import ImplementationSettings
 from app.settings.loading import describe_problems, stored_config
+from app.settings.user_files import loads_json
 from app.store.files import RunFileError, open_for_read
 from app.store.schema import FORMAT, SCHEMA_VERSION
+from app.store.validation import check_implementation, check_progress, check_run_layout
 
 _T = TypeVar("_T")
 
@@ -80,7 +82,7 @@ class RunReader:
         except RunFileError:
             self._file.close()
             raise
-        except (KeyError, OSError, ValueError, TypeError) as error:
+        except (KeyError, OSError, ValueError, TypeError, OverflowError) as error:
             self._file.close()
             raise RunFileError(f"corrupt run file {self.path}: {error}") from None
 
@@ -105,8 +107,14 @@ class RunReader:
         except ValueError as error:
             raise RunFileError(f"{self.path} holds an invalid config: {error}") from None
         self.seed = int(attrs["seed"])
+        if self.seed != self.config.seed:
+            raise RunFileError(f"{self.path}: seed {self.seed}, its config's {self.config.seed}")
         self.package_version = str(attrs["package_version"])
-        self.term_names = tuple(str(t) for t in attrs["reward_terms"])
+        self.term_names = tuple(str(t) for t in np.atleast_1d(attrs["reward_terms"]))
+        try:
+            check_run_layout(self._file, self.config, self.term_names)
+        except RunFileError as error:
+            raise RunFileError(f"{self.path}: {error}") from None
         # The inode of the open file (not of the path, which a rename may have moved on).
         self._inode = os.fstat(self._file.id.get_vfd_handle()).st_ino
 
@@ -177,7 +185,9 @@ class RunReader:
         return np.asarray(self._dataset(name)[()])
 
     def _generations_done(self) -> int:
-        return int(self._read("progress/generations_done"))
+        done = self._read("progress/generations_done")
+        generations = self.config.training.generations
+        return check_progress("progress/generations_done", done, 0, generations, self.path)
 
     @property
     def generations_done(self) -> int:
@@ -187,7 +197,13 @@ class RunReader:
     @property
     def finished(self) -> bool:
         """True once training completed and the final elite was recorded."""
-        return self._steady(lambda: bool(self._read("progress/finished")))
+        return self._steady(
+            lambda: bool(
+                check_progress(
+                    "progress/finished", self._read("progress/finished"), 0, 1, self.path
+                )
+            )
+        )
 
     @property
     def gnp_config(self) -> gnp.GnpConfig:
@@ -244,14 +260,22 @@ class RunReader:
     def best_genome(self, generation: int = -1) -> tuple[gnp.GnpConfig, gnp.Population]:
         """(config, a 1-individual population) of a generation's best."""
         cfg = self.gnp_config
-        return cfg, gnp.population_from_arrays(cfg, self.best_genome_arrays(generation))
+        try:
+            return cfg, gnp.population_from_arrays(cfg, self.best_genome_arrays(generation))
+        except gnp.GnpError as error:
+            raise RunFileError(f"{self.path.name}: an invalid genome: {error}") from None
 
     def checkpoint(self) -> tuple[int, dict[str, np.ndarray]] | None:
         """(next generation to evaluate, full population arrays) of the last checkpoint."""
         return self._steady(self._checkpoint)
 
     def _checkpoint(self) -> tuple[int, dict[str, np.ndarray]] | None:
-        slot, generation = (int(v) for v in self._read("progress/checkpoint"))
+        slot_value, generation_value = self._read("progress/checkpoint")
+        slot = check_progress("progress/checkpoint slot", slot_value, -1, 1, self.path)
+        generations = self.config.training.generations
+        generation = check_progress(
+            "progress/checkpoint generation", generation_value, 0, generations, self.path
+        )
         if slot < 0:
             return None
         group = f"checkpoint/slot{slot}"
@@ -281,6 +305,8 @@ class RunReader:
     def implementation_names(self) -> list[str]:
         """Names of the implementation phases stored in this run."""
         group = self._file.get("implementation")
+        if group is not None and not isinstance(group, h5py.Group):
+            raise RunFileError(f"{self.path.name}: implementation is not a group")
         return sorted(group) if group is not None else []
 
     def implementation(self, name: str, recorded: bool = True) -> Implementation:
@@ -292,11 +318,26 @@ class RunReader:
 
     def _implementation(self, name: str, recorded: bool) -> Implementation:
         base = f"implementation/{name}"
-        attrs = self._file[base].attrs
+        group = self._file[base]
+        if not isinstance(group, h5py.Group):
+            raise RunFileError(f"{self.path.name}: {base} is not a group")
+        attrs = group.attrs
+        what = f"{self.path.name}: the settings of {base}"
+        settings = ImplementationSettings.model_validate(
+            loads_json(attrs["settings"], RunFileError, what)
+        )
+        try:
+            check_implementation(group, self.term_names)
+        except RunFileError as error:
+            raise RunFileError(f"{self.path.name}: {error}") from None
+        generations = self.config.training.generations
+        generation = check_progress(
+            f"{base} generation", attrs["generation"], 0, generations - 1, self.path
+        )
         return Implementation(
             name=name,
-            settings=ImplementationSettings.model_validate_json(attrs["settings"]),
-            generation=int(attrs["generation"]),
+            settings=settings,
+            generation=generation,
             reward_per_step=self._read(f"{base}/reward_per_step"),
             trial_mean_reward=self._read(f"{base}/trial_mean_reward"),
             trial_mean_after_fault=self._read(f"{base}/trial_mean_after_fault"),

@@ -17,10 +17,14 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from pydantic import ValidationError
 
 import gnp
+from app.settings.loading import describe_problems
+from app.settings.user_files import check_regular, loads_json
 from app.store.files import LIBVER, RunFileError
 from app.store.schema import package_version
+from app.store.validation import check_progress, plain_dataset, plain_group
 from app.tasks.common import FORMAT
 from app.tasks.config import TaskRunConfig
 
@@ -146,12 +150,16 @@ class TaskRun:
 
 
 def read_task_run(path: str | Path) -> TaskRun:
-    """Read a task run file's settings and history.
+    """Read a task run file's settings and history, checked: a regular file, its config valid
+    JSON of bounded size and depth, `generations_done` within the config's generations and the
+    rows held, every history dataset of the shape and type the config gives.
 
     Raises:
-        RunFileError: missing, not a task run, or of an unknown schema version.
+        RunFileError: missing, not a task run, of an unknown schema version, or holding
+            contents of the wrong kind (named).
     """
     path = Path(path)
+    check_regular(path, RunFileError, "run file")
     try:
         handle = h5py.File(path, "r", locking=False)
     except OSError as error:
@@ -159,18 +167,44 @@ def read_task_run(path: str | Path) -> TaskRun:
     with handle:
         if handle.attrs.get("format") != FORMAT:
             raise RunFileError(f"{path} is not a task run file")
-        version = int(handle.attrs["schema_version"])
-        if version != SCHEMA_VERSION:
-            raise RunFileError(f"{path} is task run schema {version}; this reads {SCHEMA_VERSION}")
-        config = TaskRunConfig.model_validate_json(str(handle.attrs["config"]))
-        done = int(handle.attrs["generations_done"])
-        history = handle["history"]
-        return TaskRun(
-            path=path,
-            config=config,
-            generation_done=done,
-            fitness=history["fitness"][:done],
-            epsilon=history["epsilon"][:done],
-            alpha=history["alpha"][:done],
-            package_version=str(handle.attrs["package_version"]),
-        )
+        try:
+            return _task_run(path, handle)
+        except ValidationError as error:
+            problems = describe_problems(error, limit=3)
+            raise RunFileError(f"{path} holds an invalid config: {problems}") from None
+        except (KeyError, ValueError, TypeError, OverflowError, OSError) as error:
+            raise RunFileError(f"corrupt task run file {path}: {error}") from None
+
+
+def _task_run(path: Path, handle: h5py.File) -> TaskRun:
+    version = int(handle.attrs["schema_version"])
+    if version != SCHEMA_VERSION:
+        raise RunFileError(f"{path} is task run schema {version}; this reads {SCHEMA_VERSION}")
+    text = handle.attrs["config"]
+    config = TaskRunConfig.model_validate(loads_json(text, RunFileError, f"{path}: config"))
+    generations, population = config.training.generations, config.training.population
+    done = check_progress(
+        "generations_done", handle.attrs["generations_done"], 0, generations, path
+    )
+    fitness = plain_dataset(handle, "history/fitness")
+    rows = fitness.shape[0] if fitness.ndim == 2 else -1
+    if fitness.shape != (rows, population) or rows < done or fitness.dtype.kind != "f":
+        raise RunFileError(f"{path}: history/fitness is {fitness.shape} {fitness.dtype}")
+    columns = {name: plain_dataset(handle, f"history/{name}") for name in ("epsilon", "alpha")}
+    for name, dataset in columns.items():
+        if dataset.shape != (rows,) or dataset.dtype.kind != "f":
+            raise RunFileError(f"{path}: history/{name} is {dataset.shape} {dataset.dtype}")
+    best = plain_group(handle, "history/best")
+    for name in best:
+        genes = plain_dataset(best, name)
+        if genes.ndim < 1 or genes.shape[0] < done or genes.dtype.kind not in "biuf":
+            raise RunFileError(f"{path}: history/best/{name} is {genes.shape} {genes.dtype}")
+    return TaskRun(
+        path=path,
+        config=config,
+        generation_done=done,
+        fitness=fitness[:done],
+        epsilon=columns["epsilon"][:done],
+        alpha=columns["alpha"][:done],
+        package_version=str(handle.attrs["package_version"]),
+    )

@@ -139,11 +139,11 @@ def test_a_run_missing_a_dataset_is_a_run_file_error(tmp_path: Path, finished_ru
     shutil.copy(finished_run, broken)
     with h5py.File(broken, "a") as handle:
         del handle["generations/fitness"]
-    with RunReader(broken) as run, pytest.raises(RunFileError, match="corrupt run file"):
-        run.history()
+    with pytest.raises(RunFileError, match="generations/fitness is missing"):
+        RunReader(broken)  # checked against the layout when opened (issue #47)
     (summary,) = list_runs(tmp_path)  # the listing reports it instead of failing
     assert summary.name == "broken"
-    assert summary.error is not None and "'fitness' doesn't exist" in summary.error
+    assert summary.error is not None and "fitness is missing" in summary.error
 
 
 def test_list_and_resolve(tmp_path: Path, finished_run: Path) -> None:
