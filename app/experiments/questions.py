@@ -15,9 +15,10 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.experiments.results import VERDICTS
 from app.experiments.spec import ExperimentError
-from app.experiments.spec_loading import load_shipped
+from app.experiments.spec_loading import load_shipped, shipped_names
 
 QUESTIONS_FILE = "questions.toml"
+DECISIVE = "-decisive"  # the pre-registered experiment asking the same question: NAME-decisive
 
 
 class Question(BaseModel):
@@ -29,6 +30,24 @@ class Question(BaseModel):
     experiment: str = Field(description="the shipped experiment that asks it")
     claim: str = Field(description="the name of the claim whose verdict answers it")
     also: tuple[str, ...] = Field(default=(), description="the experiment's other claims on it")
+    decisive: str | None = Field(
+        None,
+        description="'experiment: claim' of the decisive (pre-registered, thesis-scale) design "
+        "that asks it, where its names differ from this question's (default: the claim of the "
+        "same name in EXPERIMENT-decisive, if it is shipped)",
+    )
+
+    def decisive_claim(self) -> tuple[str, str] | None:
+        """(experiment, claim) of the decisive design asking this question, if one does."""
+        if self.decisive is not None:
+            name, _, claim = self.decisive.partition(":")
+            return name.strip(), claim.strip()
+        name = self.experiment + DECISIVE
+        if name in shipped_names() and any(
+            c.name == self.claim for c in load_shipped(name).comparisons
+        ):
+            return name, self.claim
+        return None
 
 
 class Questions(BaseModel):
@@ -51,6 +70,13 @@ def load_questions() -> tuple[Question, ...]:
             raise ExperimentError(
                 f"{QUESTIONS_FILE}: {question.experiment} has no claim {', '.join(unknown)}"
             )
+        if question.decisive is not None:
+            name, claim = question.decisive_claim() or ("", "")
+            spec = load_shipped(name)
+            if spec.design is None or claim not in {c.name for c in spec.comparisons}:
+                raise ExperimentError(
+                    f"{QUESTIONS_FILE}: {question.decisive!r} is not a decisive design's claim"
+                )
     return questions
 
 
@@ -115,29 +141,23 @@ def tally(comparisons: list[dict[str, Any]]) -> str:
     return "; ".join(p for p in parts if p) or "—"
 
 
-DECISIVE = "-decisive"  # the pre-registered experiment asking the same question: NAME-decisive
-
-
-def decisive_cell(
-    reports: dict[tuple[str, str], dict[str, Any]], experiment: str, claim: str
-) -> str:
-    """The answering claim's verdict in the decisive experiment of the same question, if it
-    asks it: its verdict, 'exploratory', 'not run yet', or '—' where there is none."""
-    from app.experiments.spec_loading import load_shipped, shipped_names
-
-    name = experiment + DECISIVE
-    if name not in shipped_names():
-        return "—"
-    spec = load_shipped(name)
-    declared = next((c for c in spec.comparisons if c.name == claim), None)
-    if declared is None:
-        return "—"
+def decisive_cell(reports: dict[tuple[str, str], dict[str, Any]], question: Question) -> str:
+    """The question's verdict in the decisive design that asks it (from its committed report
+    at `thesis` scale): its verdict, 'exploratory', 'running: NAME, no look yet' before its
+    first look's report, or 'no decisive design' where none asks it."""
+    found_claim = question.decisive_claim()
+    if found_claim is None:
+        return "none (no decisive design asks it)"
+    name, claim = found_claim
+    declared = next(c for c in load_shipped(name).comparisons if c.name == claim)
+    which = f"`{claim}`" if claim != question.claim else ""
     found = _claims(reports.get((name, "thesis"))).get(claim)
     if found is None or not ran(found):
-        return f"not run yet ({declared.family})"
+        return f"running: {name}, no look yet ({declared.family}{', ' if which else ''}{which})"
+    where = f"{name}: {which}, " if which else ""
     if declared.family == "exploratory":
-        return f"exploratory ({runs_text(found)})"
-    return answer(found)
+        return f"exploratory ({where}{runs_text(found)})"
+    return f"{verdict_words(found)} ({where}{runs_text(found)})"
 
 
 class AnswerRow(NamedTuple):
@@ -166,7 +186,7 @@ def answer_rows(reports: dict[tuple[str, str], dict[str, Any]]) -> list[AnswerRo
                 f"{question.experiment}: `{question.claim}`",
                 answer(small.get(question.claim)),
                 answer(thesis.get(question.claim)) if thesis else "—",
-                decisive_cell(reports, question.experiment, question.claim),
+                decisive_cell(reports, question),
                 measured(small.get(question.claim)),
                 tally(others),
             )

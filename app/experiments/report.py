@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.experiments.estimates import Stopping, all_data, relative_reading, stopping
 from app.experiments.margins import Margin, margin_of
 from app.experiments.provenance import Declared, declared
 from app.experiments.results import (
@@ -75,6 +76,13 @@ class ClaimStats:
     # The same claim analysed the other way (paired by seed if declared unpaired, and back),
     # at the verdict's level: a sensitivity check beside the verdict. None within one arm.
     other_pairing: tuple[Interval, Verdict] | None = None
+    # A primary claim judged over looks: its Δ corrected for stopping (estimates.py), and its
+    # Δ on every seed both sides ran with their count, where that is more than it was judged on.
+    stopping: Stopping | None = None
+    all_data: tuple[float, int] | None = None
+    # A fault-effect claim read against each side's own no-fault level (relative_fault_effect):
+    # an unadjusted interval at level α on every judged seed, exploratory.
+    relative: Interval | None = None
 
     @property
     def verdict(self) -> str:
@@ -193,8 +201,10 @@ def post_hoc(
 
     A held or reversed rests on the claim alone; a ruled out (and an equivalence verdict) on
     its margin too, which is pre-registered only if it was declared before the data and the
-    declared margin (`declared_margin`, in units) alone gives the same verdict: the margin rule
-    of `app.experiments.margins` came after every report before issue #30. None: unknown
+    declared margin alone gives the same verdict: `declared_margin` is what the margin rule of
+    `app.experiments.margins` makes of the declared margin without the thesis's values (None
+    where no run could reach it), since that rule came after every report before issue #30 and
+    a verdict resting on the thesis's difference rests on it. None: unknown
     (a claim the history does not know) or not a verdict (exploratory).
     """
     if origin is None or judged.verdict == "exploratory":
@@ -265,7 +275,8 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
             thesis_a, thesis_b = _thesis_value(results, key_a), _thesis_value(results, key_b)
             margin = margin_of(c, METRICS[c.metric], thesis_a, thesis_b, mean_b)
             margins[i].append(margin)
-            declared_margins[i].append(c.margin_for(mean_b))
+            # The declared margin alone, through the same rule (reachability included).
+            declared_margins[i].append(margin_of(c, METRICS[c.metric], None, None, mean_b).value)
             claims.append(ClaimData(a[:n], b_look, c.direction, c.paired, margin.value))
         looks.append(claims)
     judged = _judge_families(results.comparisons, looks, design, alpha)
@@ -292,9 +303,23 @@ def analyse(results: ExperimentResults, alpha: float = ALPHA) -> ExperimentRepor
             data = dataclasses.replace(looks[j.look][i], paired=not c.paired)
             iv = interval(data, j.level)
             other = (iv, decide(iv, c.direction, margin.value))
+        sequential = bool(results.looks) and c.family == "primary"
+        last_planned = len(made) == len(design.looks)
+        claim_looks = [look[i] for look in looks]
         claims_out.append(
             ClaimStats(
-                pairs[i], float(adjusted[i]), j, margin.value, need, margin, origin, late, other
+                pairs[i],
+                float(adjusted[i]),
+                j,
+                margin.value,
+                need,
+                margin,
+                origin,
+                late,
+                other,
+                stopping(claim_looks, j, last_planned) if sequential else None,
+                all_data(*values[i], (j.interval.n_a, j.interval.n_b)) if sequential else None,
+                relative_reading(results, c, alpha),
             )
         )
     return ExperimentReport(

@@ -7,6 +7,7 @@ from dataclasses import asdict
 from typing import Any
 
 from app.experiments.report import (
+    ClaimStats,
     ComparisonReport,
     ExperimentReport,
     Need,
@@ -15,7 +16,17 @@ from app.experiments.report import (
 )
 from app.experiments.results import Arm, ThesisValue
 from app.experiments.sequential import POWER
-from app.experiments.stats import ArmSummary
+from app.experiments.stats import ArmSummary, PairStats
+
+#: What the p-values of a report are: a report judged over looks shows none.
+P_VALUES = {
+    True: "none: judged over looks (group-sequential); a fixed-sample p would contradict them",
+    False: "fixed-sample (one look): one-tailed t and rank tests, Holm-adjusted two-sided t",
+}
+STOPPING_METHOD = (
+    "median-unbiased under the stagewise ordering (Jennison & Turnbull 2000, §8.4), and "
+    "conditional on the stopping look (Troendle & Yu 1999), normal approximation"
+)
 
 
 def json_number(x: float) -> float | None:
@@ -47,7 +58,52 @@ def _need_json(need: Need | None) -> dict[str, Any] | None:
     }
 
 
-def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
+def _stopping_json(claim: ClaimStats) -> dict[str, Any] | None:
+    """Δ at the stopping look, corrected for stopping, and on all the data (estimates.py)."""
+    found = claim.stopping
+    if found is None:
+        return None
+    more = claim.all_data
+    return {
+        "look": found.look + 1,
+        "stopped": found.stopped,
+        "at_look": json_number(found.at_look),
+        "median_unbiased": json_number(found.median_unbiased),
+        "conditional": json_number(found.conditional),
+        "method": STOPPING_METHOD,
+        "all_data": None
+        if more is None
+        else {"difference": json_number(more[0]), "seeds": more[1]},
+    }
+
+
+def _relative_json(claim: ClaimStats, alpha: float) -> dict[str, Any] | None:
+    iv = claim.relative
+    if iv is None:
+        return None
+    return {
+        "metric": "relative_fault_effect",
+        "difference": json_number(iv.difference),
+        "low": json_number(iv.low),
+        "high": json_number(iv.high),
+        "level": 1 - alpha,
+        "runs": [iv.n_a, iv.n_b],
+        "family": "exploratory",
+    }
+
+
+def _tests_json(s: PairStats, sequential: bool) -> dict[str, Any]:
+    """The t and rank tests; their fixed-sample p-values only in a one-look report (a report
+    judged over looks rests on its boundaries, which a fixed-sample p would contradict)."""
+    t_test: dict[str, Any] = {"test": s.tests[0], "t": json_number(s.t), "df": json_number(s.df)}
+    rank_test: dict[str, Any] = {"test": s.tests[1], "statistic": json_number(s.rank_statistic)}
+    if not sequential:
+        t_test |= {"p": json_number(s.p), "p_opposite": json_number(s.p_opposite)}
+        rank_test |= {"p": json_number(s.rank_p)}
+    return {"t_test": t_test, "rank_test": rank_test}
+
+
+def _comparison_json(report: ComparisonReport, sequential: bool, alpha: float) -> dict[str, Any]:
     s, claim, c = report.stats, report.claim, report.comparison
     iv = claim.judged.interval
     return {
@@ -97,19 +153,10 @@ def _comparison_json(report: ComparisonReport) -> dict[str, Any]:
             "verdict": claim.other_pairing[1],
         },
         "paired": s.paired,
-        "t_test": {
-            "test": s.tests[0],
-            "t": json_number(s.t),
-            "df": json_number(s.df),
-            "p": json_number(s.p),
-            "p_opposite": json_number(s.p_opposite),
-        },
-        "rank_test": {
-            "test": s.tests[1],
-            "statistic": json_number(s.rank_statistic),
-            "p": json_number(s.rank_p),
-        },
-        "holm_p": json_number(claim.holm_p),
+        **_tests_json(s, sequential),
+        **({} if sequential else {"holm_p": json_number(claim.holm_p)}),
+        "stopping": _stopping_json(claim),
+        "relative_reading": _relative_json(claim, alpha),
         "prob_improvement": json_number(s.prob_improvement),
         "hedges_g": json_number(s.hedges_g),
         "notes": list(s.notes),
@@ -137,6 +184,7 @@ def stages_json(report: ExperimentReport) -> list[dict[str, Any]]:
 def to_json(report: ExperimentReport) -> dict[str, Any]:
     """The report as a JSON-ready dict (NaN and infinities become null)."""
     results = report.results
+    sequential = bool(results.looks)
     return {
         "experiment": results.name,
         "description": results.description,
@@ -162,7 +210,8 @@ def to_json(report: ExperimentReport) -> dict[str, Any]:
             for c in results.conditions
         ],
         "tally": tally(report),
-        "comparisons": [_comparison_json(c) for c in report.comparisons],
+        "p_values": P_VALUES[sequential],
+        "comparisons": [_comparison_json(c, sequential, report.alpha) for c in report.comparisons],
         "thesis": [
             {
                 "arm": v.arm,

@@ -22,6 +22,7 @@ from app.experiments.report import (
 )
 from app.experiments.report_json import stages_json, to_json
 from app.experiments.report_text import (
+    estimate_rows,
     format_number,
     interval_level,
     interval_text,
@@ -31,6 +32,7 @@ from app.experiments.report_text import (
     provenance_text,
     seeds_text,
     sensitivity_text,
+    stopping_text,
 )
 from app.experiments.results import METRICS, VERDICT_COLOURS, VERDICTS, Arm, ExperimentResults
 from app.experiments.values import VALUES_COLUMNS, write_values_csv
@@ -94,7 +96,7 @@ def tally_text(report: ExperimentReport) -> str:
     return "; ".join(parts + ([f"{explored} exploratory"] if explored else [])) or "none"
 
 
-def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str:
+def _comparison_html(report: ComparisonReport, figure: FigureFile | None, sequential: bool) -> str:
     s, claim, c = report.stats, report.claim, report.comparison
     sides = [_arm_name(report.arm_a), _arm_name(report.arm_b)]
     if c.within_arm:  # one arm: each side says its metric or condition
@@ -131,15 +133,23 @@ def _comparison_html(report: ComparisonReport, figure: FigureFile | None) -> str
         ("declared (commits)", provenance_text(claim)),
         ("the other analysis, same level", sensitivity_text(claim)),
         ("runs (a, b); look", f"{claim.runs[0]}, {claim.runs[1]}; {claim.judged.look + 1}"),
+        *estimate_rows(claim),
         (f"{t_test} t (df)", f"{format_number(s.t)} ({format_number(s.df)})"),
-        (f"{t_test} p, one-tailed (other direction)",
-         f"{format_number(s.p)} ({format_number(s.p_opposite)})"),
-        (f"{rank_test} {'W+' if s.paired else 'U'} (p, one-tailed)",
-         f"{format_number(s.rank_statistic)} ({format_number(s.rank_p)})"),
-        (f"Holm-adjusted two-sided {t_test} p", format_number(claim.holm_p)),
+    ]  # fmt: skip
+    if sequential:  # judged over looks: no fixed-sample p beside the verdict
+        rows.append((f"{rank_test} {'W+' if s.paired else 'U'}", format_number(s.rank_statistic)))
+    else:
+        rows += [
+            (f"{t_test} p, one-tailed (other direction), fixed-sample",
+             f"{format_number(s.p)} ({format_number(s.p_opposite)})"),
+            (f"{rank_test} {'W+' if s.paired else 'U'} (p, one-tailed, fixed-sample)",
+             f"{format_number(s.rank_statistic)} ({format_number(s.rank_p)})"),
+            (f"Holm-adjusted two-sided {t_test} p, fixed-sample", format_number(claim.holm_p)),
+        ]  # fmt: skip
+    rows += [
         ("P(improvement)", format_number(s.prob_improvement)),
         ("Hedges' g", format_number(s.hedges_g)),
-    ]  # fmt: skip
+    ]
     if claim.need is not None:
         rows.append(("seeds per arm for 80% power: thesis's effect, ours", need_text(claim.need)))
     stats_rows = "".join(f'<tr><td>{_e(k)}</td><td class="num">{_e(v)}</td></tr>' for k, v in rows)
@@ -241,9 +251,29 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
         f"<figcaption><b>{_e(f.title)}.</b> {_e(f.caption)}</figcaption></figure>"
         for f in figures.overview
     )
+    sequential = bool(results.looks)
     comparisons = "".join(
-        _comparison_html(c, f) for c, f in zip(report.comparisons, figures.runs, strict=True)
+        _comparison_html(c, f, sequential)
+        for c, f in zip(report.comparisons, figures.runs, strict=True)
     )
+    corrected = "".join(
+        _row(_e(c.comparison.name), _e(stopping_text(c.claim)))
+        for c in report.of_family("primary")
+        if c.claim.stopping is not None
+    )
+    if corrected:
+        stages += (
+            "<h3>Estimates corrected for stopping</h3><p>Δ at the look that decided each "
+            "primary claim is biased away from 0 (a claim stops when its data happen to show "
+            "a large Δ). Beside it: the median-unbiased estimate under the stagewise ordering "
+            "(Jennison &amp; Turnbull 2000, §8.4), the one given the look it stopped at "
+            "(conditional; Troendle &amp; Yu 1999), both from the claim's own boundaries under "
+            "the normal approximation, and Δ on every seed both sides ran where the design ran "
+            "more (descriptive). None of them changes a verdict.</p><table>"
+            + _row("claim", "Δ at the stopping look; corrected; all the data", header=True)
+            + corrected
+            + "</table>"
+        )
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>{_e(results.name)} ({_e(results.scale)})</title>
@@ -275,9 +305,11 @@ labelled <i>post hoc</i> and counted apart. "The other analysis" is the same cla
 seed when it is declared unpaired (and unpaired when paired), at the verdict's level: a
 sensitivity check, not a verdict. Mann–Whitney U (Wilcoxon signed-rank when paired),
 P(improvement) = P(X<sub>a</sub> &gt; X<sub>b</sub>) + ½ P(X<sub>a</sub> = X<sub>b</sub>)
-(rliable) and Hedges' g describe each claim too; a sequential report shows no fixed-sample
-adjusted p, which its boundaries would contradict. Unfinished runs (NaN) are left out and
-counted.</p>
+(rliable) and Hedges' g describe each claim too; a report judged over looks shows no
+fixed-sample p (its boundaries would contradict it), a one-look report labels its p-values
+fixed-sample. A claim on a fault's cost is also read against each side's own no-fault level
+(relative_fault_effect, exploratory, an unadjusted 95% interval). Unfinished runs (NaN) are
+left out and counted.</p>
 <h2>Verdicts</h2>
 {summary}
 {stages}

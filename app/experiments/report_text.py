@@ -95,3 +95,46 @@ def need_text(need: Need) -> str:
         f"{one(need.seeds_at_thesis, need.core_hours_at_thesis)}, "
         f"{one(need.seeds_at_ours, need.core_hours_at_ours)}"
     )
+
+
+def stopping_text(claim: ClaimStats) -> str:
+    """'+0.0873 at look 3; corrected: +0.0842 (stagewise), +0.07 (given look 3); all the data
+    (100 seeds): +0.0760'."""
+    found = claim.stopping
+    if found is None:
+        return "–"
+    given = f"given look {found.look + 1}" if found.stopped else "given the last look"
+    text = (
+        f"{format_number(found.at_look)} at look {found.look + 1}; corrected: "
+        f"{format_number(found.median_unbiased)} (stagewise median-unbiased), "
+        f"{format_number(found.conditional)} ({given})"
+    )
+    if claim.all_data is not None:
+        difference, seeds = claim.all_data
+        text += f"; all the data ({seeds} seeds both sides ran): {format_number(difference)}"
+    return text
+
+
+def relative_text(claim: ClaimStats) -> str:
+    """'+1.94 percentage points [+0.25, +3.64] (100, 100 runs)': a fault's cost relative to
+    each side's own no-fault level, a minus its b."""
+    iv = claim.relative
+    if iv is None:
+        return "–"
+    return (
+        f"{100 * iv.difference:+.2f} percentage points [{100 * iv.low:+.2f}, "
+        f"{100 * iv.high:+.2f}] ({iv.n_a}, {iv.n_b} runs)"
+    )
+
+
+def estimate_rows(claim: ClaimStats) -> list[tuple[str, str]]:
+    """The page's rows of a claim's estimates beside its verdict's Δ (where it has them)."""
+    rows = []
+    if claim.stopping is not None:
+        rows.append(("Δ corrected for stopping (its look; all the data)", stopping_text(claim)))
+    if claim.relative is not None:
+        rows.append(
+            ("against each side's no-fault level (exploratory, unadjusted 95%)",
+             relative_text(claim))
+        )  # fmt: skip
+    return rows

@@ -71,16 +71,33 @@ def thesis_text(comparison: dict[str, Any]) -> str:
     )
 
 
-def _ours(comparison: dict[str, Any]) -> str:
+def _ours(comparison: dict[str, Any], decisive: bool = False) -> str:
+    """Our means and Δ [interval]; in a decisive design's table Δ corrected for stopping and on
+    all the data; for a fault's cost its reading against each side's no-fault level."""
     a, b, interval = comparison["a"], comparison["b"], comparison["interval"]
     if a["mean"] is None or b["mean"] is None:
         return "not run"
-    if interval["low"] is None:
-        return f"{a['mean']:.3f} vs {b['mean']:.3f}, Δ {comparison['difference']:+.3f}"
-    return (
-        f"{a['mean']:.3f} vs {b['mean']:.3f}, Δ {comparison['difference']:+.3f} "
-        f"[{interval['low']:+.3f}, {interval['high']:+.3f}]"
-    )
+    text = f"{a['mean']:.3f} vs {b['mean']:.3f}, Δ {comparison['difference']:+.3f}"
+    if interval["low"] is not None:
+        text += f" [{interval['low']:+.3f}, {interval['high']:+.3f}]"
+    stopping = comparison.get("stopping")
+    if decisive and stopping and stopping["median_unbiased"] is not None:
+        text += (
+            f"; corrected for stopping at look {stopping['look']}: "
+            f"{stopping['median_unbiased']:+.3f} (median-unbiased), "
+            f"{stopping['conditional']:+.3f} (given the look)"
+        )
+        if stopping["all_data"]:
+            more = stopping["all_data"]
+            text += f"; all {more['seeds']} seeds per arm: Δ {more['difference']:+.3f}"
+    relative = comparison.get("relative_reading")
+    if relative and relative["low"] is not None:
+        text += (
+            f"; against each side's no-fault level (exploratory): "
+            f"{100 * relative['difference']:+.2f} pp [{100 * relative['low']:+.2f}, "
+            f"{100 * relative['high']:+.2f}]"
+        )
+    return text
 
 
 def _verdict(comparison: dict[str, Any]) -> str:
@@ -152,7 +169,7 @@ def claims_tables(
             for found, scale in zip(by_scale, scales, strict=True):
                 same = found.get(claim)
                 missing = ["—", f"not in the {scale} report"]
-                row += [_ours(same), _verdict(same)] if same else missing
+                row += [_ours(same, spec.design is not None), _verdict(same)] if same else missing
             out.append("| " + " | ".join(_cell(c) for c in row) + " |")
         out.append("")
     return "\n".join(out) + ("\n" if out else "")

@@ -242,6 +242,9 @@ class ClaimVerdict:
     level: float  # two-sided nominal level of that interval
     look: int  # 0-based look that decided it (or the last look for undecided ones)
     family_level: float  # α / r: the claim's Holm share when it was decided (or at the end)
+    # The nominal level of the claim's interval at each look up to `look` (the last one it was
+    # judged at, within a look's Holm steps): its stopping boundaries, for estimates.py.
+    look_levels: tuple[float, ...] = ()
 
 
 _FREES: tuple[Verdict, ...] = ("held", "reversed")  # the verdicts that hand their share on
@@ -268,6 +271,7 @@ def judge(
     m = len(looks[0])
     fractions = design.fractions
     decided: dict[int, ClaimVerdict] = {}
+    seen: dict[int, list[float]] = {i: [] for i in range(m)}  # per claim, its level per look
     # Claims never testable (a side with fewer than 2 runs at the last look) hold no share.
     testable = {i for i in range(m) if interval(looks[-1][i], alpha).tested}
 
@@ -283,10 +287,11 @@ def judge(
             level = nominal_level(fractions[: k + 1], k, share)
             newly = {}
             for i in open_claims:
+                seen[i][k:] = [level]
                 iv = interval(claims[i], level)
                 verdict = decide(iv, claims[i].direction, claims[i].margin)
                 if verdict != "undecided":
-                    newly[i] = ClaimVerdict(verdict, iv, level, k, share)
+                    newly[i] = ClaimVerdict(verdict, iv, level, k, share, tuple(seen[i]))
             if not newly:
                 break
             decided.update(newly)
@@ -299,7 +304,8 @@ def judge(
             out.append(decided[i])
         else:
             iv = interval(looks[last][i], level)
-            out.append(ClaimVerdict("undecided", iv, level, last, share))
+            levels = (*seen[i][:last], level) if i in testable else ()
+            out.append(ClaimVerdict("undecided", iv, level, last, share, levels))
     return tuple(out)
 
 

@@ -36,7 +36,8 @@ def read_values_csv(
     """`template` (the experiment's results shape, e.g. `collect` of an empty folder) with the
     scalar values of a `values.csv` in place of its own, over the seeds the file holds.
 
-    Metrics the file lacks (added to the experiment since) stay NaN; curves stay empty.
+    Metrics the file lacks (added to the experiment since) are left out (their claims read as
+    not run, and the file is written back as it was); curves stay empty.
 
     Raises:
         ExperimentError: the file is missing, not a values table, or names an arm, metric or
@@ -66,7 +67,10 @@ def read_values_csv(
             )
     seeds = tuple(sorted({run for _, run, _, _, _ in parsed}))
     row_of = {run: i for i, run in enumerate(seeds)}
-    scalars = {key: np.full(len(seeds), np.nan) for key in template.scalars}
+    # The template's keys of the metrics the file holds: a metric added to the experiment since
+    # (none of its values in the file) is left out, not written back as a column of NaN.
+    held = {metric for _, _, _, metric, _ in parsed}
+    scalars = {key: np.full(len(seeds), np.nan) for key in template.scalars if key[0] in held}
     for arm, run, condition, metric, value in parsed:
         key = (metric, arm, condition)
         scalars.setdefault(key, np.full(len(seeds), np.nan))[row_of[run]] = (

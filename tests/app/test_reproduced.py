@@ -113,8 +113,8 @@ def test_claims_are_matched_by_name_across_scales(tmp_path: Path) -> None:
     rows = [line.removesuffix(" |") for line in section.splitlines() if line.startswith("| ")]
     claims = [row.split(" | ")[0].removeprefix("| ") for row in rows[1:]]
     assert isinstance(small["comparisons"], list)
-    questions = [c["claim"] for c in small["comparisons"] if c["kind"] == "question"]
-    assert claims == [*questions, extra["claim"]]
+    asked = [c["claim"] for c in small["comparisons"] if c["kind"] == "question"]
+    assert claims == [*asked, extra["claim"]]
     for row in rows[1:-1]:  # the same claim at both scales: the same numbers twice
         cells = row.split(" | ")
         assert cells[2] == cells[4] and cells[3] == cells[5]
@@ -204,7 +204,8 @@ def test_a_question_takes_its_answering_claims_verdict_and_tallies_the_rest(
     runs = by_name["after-1-sensor"]["runs"]
     assert cells[2] == f"**reversed** ({runs[0]} + {runs[1]} runs)"
     assert cells[3] == "—"  # no thesis-scale report in this folder
-    assert cells[4] == "not run yet (primary)"  # the decisive experiment asks it too
+    # the decisive experiment asks it too, without a report in this folder
+    assert cells[4] == "running: ch3-bs-rl-decisive, no look yet (primary)"
     assert cells[6] == "1 held, 1 ruled out, 1 undecided; post hoc: 1 ruled out |"
     fifth = next(line for line in page.splitlines() if "`training-fitness-CS-BS`" in line)
     assert fifth.split(" | ")[2:4] == ["not run", "—"]  # ch5 has no report here
