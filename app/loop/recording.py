@@ -42,6 +42,24 @@ def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
     return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
 
 
+LIFE_COLUMNS = {
+    "poses": 3,
+    "readings": sim.N_SENSORS,
+    "observations": sim.N_SENSORS,
+    "commands": 2,
+    "terms": len(sim.TERM_NAMES),
+}
+"""The float64 columns a recorded life holds per step, beside its trace."""
+
+
+def life_bytes(k: int, steps: int, layout: TraceLayout) -> int:
+    """Memory `TrajectoryRecorder(k, steps, layout)` allocates."""
+    per_step = 8 * sum(LIFE_COLUMNS.values()) + sum(
+        int(np.prod(shape)) * np.dtype(dtype).itemsize for shape, dtype in layout.values()
+    )
+    return k * steps * per_step
+
+
 class TrajectoryRecorder:
     """Fills a `Trajectory` of the first k robots of a batch, one step at a time.
 
@@ -53,13 +71,7 @@ class TrajectoryRecorder:
     def __init__(self, k: int, steps: int, layout: TraceLayout) -> None:
         self.k = k
         self._t = 0  # the next step to record
-        self._arrays = {
-            "poses": np.zeros((k, steps, 3)),
-            "readings": np.zeros((k, steps, sim.N_SENSORS)),
-            "observations": np.zeros((k, steps, sim.N_SENSORS)),
-            "commands": np.zeros((k, steps, 2)),
-            "terms": np.zeros((k, steps, len(sim.TERM_NAMES))),
-        }
+        self._arrays = {name: np.zeros((k, steps, n)) for name, n in LIFE_COLUMNS.items()}
         self._trace = {
             field: np.zeros((k, steps, *shape), dtype) for field, (shape, dtype) in layout.items()
         }

@@ -25,7 +25,7 @@ import numpy as np
 import sim
 from app.brains.contract import BrainFamily
 from app.brains.registry import family_of
-from app.loop.recording import Trajectory, TrajectoryRecorder
+from app.loop.recording import Trajectory, TrajectoryRecorder, life_bytes
 from app.loop.rollout import Batch, rollout
 from app.loop.seeds import broken_sensor_draws, trial_seeds
 from app.settings.arenas import arena_of, new_world
@@ -36,6 +36,7 @@ from app.store import (
     RunReader,
     add_implementation,
 )
+from app.system.memory import check_memory
 from app.system.workers import share_out
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
@@ -222,6 +223,10 @@ def run_implementation(
     n_starts = len(arena.start_poses)
     trials = trial_count(settings)
     recorded = min(settings.recorded_trials, trials)
+    life = life_bytes(recorded, settings.steps, family.trace_layout)
+    check_memory(
+        life, f"recording {recorded} trials of {settings.steps} steps", ImplementationError
+    )
     parts = trial_worlds(trials, recorded)
     report = progress or (lambda done, total: None)
     total = parts[-1].stop * settings.steps

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from app.brains.registry import family_of
+from app.loop.recording import TraceLayout, life_bytes
 from app.phases.generations import (
     Control,
     GenerationSummary,
@@ -19,7 +22,8 @@ from app.phases.generations import (
     start_run,
 )
 from app.settings.config import RunConfig
-from app.store import RunReader
+from app.store import RunReader, RunTemplate
+from app.system.memory import COPIES, check_memory, size_text
 from app.system.workers import default_workers
 
 # What callers of the phase meet (its errors, its progress, its stop), imported from their rooms.
@@ -57,6 +61,7 @@ def train(
     """
     family = family_of(config)
     template = family.run_template()
+    check_training_memory(template, family.trace_layout)
     return start_run(config, out, template, family.first, workers, local, progress, control)
 
 
@@ -78,4 +83,20 @@ def resume(
     """
     with RunReader(path) as run:
         family = family_of(run.config)
+    check_training_memory(family.run_template(), family.trace_layout)
     return resume_run(path, family.rebuild, workers, local, progress, control)
+
+
+def check_training_memory(template: RunTemplate, layout: TraceLayout) -> None:
+    """Refuse a run whose population cannot be held in this machine's memory (`COPIES` copies
+    of it, and the elite's recorded life), before any of it is allocated.
+
+    Raises:
+        TrainingError: one line giving the memory needed and available.
+    """
+    training = template.config.training
+    individual = sum(np.asarray(a).nbytes for a in template.genome.values())
+    life = life_bytes(1, training.steps, layout)
+    needed = COPIES * training.population * individual + life
+    what = f"training {training.population} individuals of {size_text(individual)}"
+    check_memory(needed, what, TrainingError)

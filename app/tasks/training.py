@@ -30,6 +30,8 @@ from app.phases.generations import (
     run_generations,
     stop_on_signals,
 )
+from app.system.memory import COPIES, check_memory
+from app.tasks.common import TaskError
 from app.tasks.config import TaskRunConfig
 from app.tasks.faults import ObservationFault
 from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, live
@@ -139,6 +141,10 @@ def train_task(
         Interrupted: Ctrl-C / SIGTERM / a stop; the file holds every complete generation.
     """
     config.gnp_config()  # a bad task fails before any file is made
+    population = config.training.population
+    check_memory(
+        population * COPIES * individual_bytes(config), f"{population} individuals", TaskError
+    )
     control = control or Control()
     with stop_on_signals(control):  # a stop before generation 0's checkpoint leaves no file
         evolution = task_evolution(config, first_population(config))
@@ -215,3 +221,28 @@ def replay_task(
     """One episode of `replay_episodes`, from `seed`."""
     lives = replay_episodes(path, [seed], generation, faults, learn, epsilon)
     return Replay(float(lives.returns[0]), int(lives.lengths[0]))
+
+
+EPISODE_BYTES = 64 * 1024
+"""Memory an episode of a replayed batch takes beside its clone: its environment and records
+(a generous bound for the classic-control tasks)."""
+
+
+def individual_bytes(config: TaskRunConfig) -> int:
+    """Bytes of one individual's arrays (genome and Q tables) for the run's GNP settings."""
+    cfg = config.gnp_config()
+    return sum(
+        int(np.prod(shape)) * np.dtype(gnp.field_dtype(name)).itemsize
+        for name, shape in gnp.field_shapes(cfg).items()
+    )
+
+
+def check_episodes_memory(config: TaskRunConfig, episodes: int) -> None:
+    """Refuse replaying `episodes` episodes at once if their clones and environments cannot be
+    held in this machine's memory.
+
+    Raises:
+        TaskError: one line giving the memory needed and available.
+    """
+    needed = episodes * (individual_bytes(config) + EPISODE_BYTES)
+    check_memory(needed, f"{episodes} episodes at once", TaskError)
