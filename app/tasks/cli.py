@@ -20,10 +20,12 @@ from app.tasks.store import read_task_run
 from app.tasks.training import (
     GenerationSummary,
     Interrupted,
+    check_episodes_memory,
     replay_episodes,
     resume_task,
     train_task,
 )
+from sim.gym_env import SEED_BOUND
 
 _TASK_KEYS = ("obs_low", "obs_high", "act_low", "act_high")
 
@@ -135,6 +137,11 @@ def replay(args: argparse.Namespace) -> int:
     faults = (ObservationFault(args.fault_step, features, args.fault_mode),) if features else ()
     if args.episodes < 1:
         raise ConfigError(f"--episodes must be at least 1, got {args.episodes}")
+    if args.seed < 0 or args.seed + args.episodes > SEED_BOUND:
+        raise ConfigError(
+            f"--seed: the seeds SEED..SEED+K-1 must lie in 0..{SEED_BOUND - 1}, got {args.seed}"
+        )
+    check_episodes_memory(read_task_run(path).config, args.episodes)
     seeds = list(range(args.seed, args.seed + args.episodes))
     epsilon = 0.0 if args.greedy else None
     lives = replay_episodes(path, seeds, args.generation, faults, epsilon=epsilon)

@@ -60,7 +60,13 @@ class TaskSettings(_Frozen):
 
 def make_env(task: str, render_mode: str | None = None) -> gym.Env:
     """`gymnasium.make(task)` (with `render_mode` if given: the dashboard's "rgb_array"), an
-    unknown or unusable id as one TaskError line."""
+    unknown or unusable id as one TaskError line. Gymnasium's `module:id` form is refused: it
+    would import any module named (code run at import), and a task is a registered id."""
+    if ":" in task:
+        raise TaskError(
+            f"task {task!r}: give a registered Gymnasium id (e.g. CartPole-v1); the "
+            "module:id form, which imports a module, is not accepted"
+        )
     try:
         return gym.make(task) if render_mode is None else gym.make(task, render_mode=render_mode)
     except gym.error.DependencyNotInstalled as error:
