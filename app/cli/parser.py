@@ -62,6 +62,8 @@ def _assignment(text: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw  # a bare word: a string
+    except RecursionError:  # tomllib recurses into nested arrays and inline tables
+        raise argparse.ArgumentTypeError(f"{key.strip()}: a value nested too deep") from None
     return key.strip().split("."), value
 
 

@@ -11,7 +11,8 @@ from typing import Any
 import h5py
 
 from app.settings.cli_options import add_run_name, add_runs_dir
-from app.store.files import TASK_RUN_FORMAT
+from app.settings.user_files import check_regular
+from app.store.files import TASK_RUN_FORMAT, RunFileError
 from sim import FAULT_MODES
 
 FORMAT = TASK_RUN_FORMAT
@@ -23,7 +24,12 @@ class TaskError(ValueError):
 
 
 def is_task_run(path: str | Path) -> bool:
-    """Whether `path` is a task run file (False for anything else, a robot run included)."""
+    """Whether `path` is a task run file (False for anything else, a robot run included, and
+    for what is not a regular file: h5py would wait on a FIFO)."""
+    try:
+        check_regular(path, RunFileError, "run file")
+    except RunFileError:
+        return False
     try:
         with h5py.File(path, "r", locking=False) as handle:
             return bool(handle.attrs.get("format") == FORMAT)
