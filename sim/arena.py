@@ -7,14 +7,15 @@ from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from sim import rays
 from sim.khepera import BODY_RADIUS_MM
-from sim.sensors import WallGrid, wall_grid
+
+if TYPE_CHECKING:
+    from sim.sensors import WallGrid
 
 ARENA_NAMES: tuple[str, ...] = ("implementation", "training")
 N_START_POSES = 10
@@ -92,6 +93,8 @@ class Arena:
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Whether points (..., 2) lie in free space: inside the outer wall, outside solids."""
+        from sim import rays  # numba's kernels: imported when an arena is used, not defined
+
         flat = _as_points(points)
         inside = np.empty(len(flat), dtype=bool)
         rays.in_polygon(flat, np.ascontiguousarray(self.outer), inside)
@@ -103,6 +106,8 @@ class Arena:
 
     def clearance(self, points: np.ndarray) -> np.ndarray:
         """Distance (...,) from points (..., 2) to the nearest wall, mm."""
+        from sim import rays
+
         flat = _as_points(points)
         out = np.empty(len(flat))
         rays.wall_distances(flat, self.wall_table, out)
@@ -111,11 +116,15 @@ class Arena:
     @cached_property
     def wall_table(self) -> np.ndarray:
         """The walls as ``sim.rays.wall_table`` rows, for the numba kernels."""
+        from sim import rays
+
         return rays.wall_table(self.walls)
 
     @cached_property
     def wall_grid(self) -> WallGrid:
         """The walls near each cell, for ``sim.sensors.ir_readings`` (built once per arena)."""
+        from sim.sensors import wall_grid
+
         return wall_grid(self.walls)
 
 

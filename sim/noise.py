@@ -6,13 +6,14 @@ a robot's draws depend on nothing but its own key and clock (see docs/decisions.
 """
 
 import math
-from typing import Literal, get_args
 
 import numba as nb
 import numpy as np
 
 from sim.kernel_cache import KHEPERA_CONSTANTS, drop_stale_cache
 from sim.khepera import IR_MAX, N_SENSORS
+from sim.kinds import NOISE_STREAMS
+from sim.kinds import NoiseStream as NoiseStream  # still importable from here
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -23,17 +24,6 @@ _BLOCK_NORMAL = 0  # blocks 0..3: one Box–Muller pair each, for sensors 2b and
 _BLOCK_UNIFORM = 4  # blocks 4..7: two uniforms each, for random faults of sensors 2b, 2b + 1
 _BLOCK_ZIGGURAT = 8  # blocks 8..15: one ziggurat normal each, for sensor j (ziggurat-v1)
 _INV_2_53 = 1.0 / 9007199254740992.0
-
-NoiseStream = Literal["box-muller-v1", "ziggurat-v1"]
-NOISE_STREAMS: tuple[NoiseStream, ...] = get_args(NoiseStream)
-"""How the sensor noise's normal draws are made from a robot's stream; its code in the kernels
-is its index here. ``box-muller-v1`` (the default, every run before the setting): one
-Box–Muller pair per two sensors, glibc's ``log``, ``sqrt`` and ``sincos``. ``ziggurat-v1``: one
-ziggurat draw per sensor (Doornik's ZIGNOR, 128 layers), from its own 64-bit hash of
-(key, step, sensor): a table look-up and a multiply 98.8% of the time. Both are exact N(0, 1)
-draws up to float64, from the same (key, step) counters, so a robot's noise still depends on
-nothing but its key and clock; they give different numbers. A new way of drawing is a new
-name, never a change to an old one (docs/decisions.md: A faster noise stream)."""
 
 
 def noise_stream_code(stream: str) -> int:

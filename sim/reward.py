@@ -1,25 +1,18 @@
 """The reward of Eq. 2.7, as named terms."""
 
-from typing import Literal, get_args
-
 import numba as nb
 import numpy as np
 
 from sim.kernel_cache import KHEPERA_CONSTANTS, drop_stale_cache
 from sim.khepera import MAX_COMMAND, N_SENSORS
+from sim.kinds import C_FROM as C_FROM  # C_FROM, CFrom: still importable from here
+from sim.kinds import TERM_NAMES
+from sim.kinds import CFrom as CFrom
 
 NEAR_WALL_MAX = 1000.0
 """C = 0 if any reading reaches this (touching a wall)."""
 NEAR_WALL_MIN = 100.0
 """C = 0 unless some reading exceeds this (a wall is near)."""
-
-CFrom = Literal["true", "observed"]
-"""What C of Eq. 2.7 is judged from: the true readings, or what the controller sees."""
-C_FROM: tuple[CFrom, ...] = get_args(CFrom)
-"""The values of `CFrom`, in order."""
-
-TERM_NAMES = ("reward", "reward/speed", "reward/straightness", "reward/near_wall")
-"""The named reward terms, in the order of `reward_table`'s columns (the store's order)."""
 
 
 @nb.njit(cache=True)

@@ -4,7 +4,6 @@ or moved by the analytic physics (``sim.analytic``)."""
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Literal, get_args
 
 import numpy as np
 import pymunk
@@ -14,14 +13,10 @@ from sim.analytic import AnalyticBodies
 from sim.arena import Arena
 from sim.faults import FAULT_MODES, Fault, FaultMode, WorldError, check_sensors, mode_code
 from sim.khepera import BODY_RADIUS_MM, CONTROL_PERIOD_S, N_SENSORS
+from sim.kinds import PHYSICS, NoiseStream, Physics
 from sim.loop import WorldArrays
-from sim.noise import NoiseStream
 from sim.spaces import SOLVER_ITERATIONS, Chunk, copy_layout
 
-Physics = Literal["pymunk", "analytic"]
-PHYSICS: tuple[Physics, ...] = get_args(Physics)
-"""The world's physics: pymunk (the reference) or analytic (numba, for sweeps; see
-``sim.analytic``)."""
 DEFAULT_SUBSTEPS = 3
 """Physics steps per control period. A robot at full speed moves 75 mm/s · 64 ms / 3 = 1.6 mm
 per substep, which bounds how far it can enter a wall before chipmunk sees the contact."""
