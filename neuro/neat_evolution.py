@@ -24,36 +24,9 @@ from typing import Any
 import neat
 import numpy as np
 from neat.graphs import required_for_output
-from pydantic import BaseModel, ConfigDict, Field
 
+from neuro.neat_params import NeatParams as NeatParams  # still importable from here
 from neuro.nets import N_INPUTS, N_OUTPUTS, NeuroError, RecurrentConfig, zeros
-
-
-class NeatParams(BaseModel):
-    """The NEAT settings we expose (the rest of the INI is fixed in `ini_text`).
-
-    Defaults follow neat-python's own examples (e.g. its XOR config), with 2 elites per species.
-    """
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-    max_hidden: int = Field(
-        default=32, ge=0, le=256, description="hidden nodes a genome may use (dense capacity)"
-    )
-    compatibility_threshold: float = Field(default=3.0, gt=0.0, le=100.0)
-    conn_add_prob: float = Field(default=0.5, ge=0.0, le=1.0)
-    conn_delete_prob: float = Field(default=0.5, ge=0.0, le=1.0)
-    node_add_prob: float = Field(default=0.2, ge=0.0, le=1.0)
-    node_delete_prob: float = Field(default=0.2, ge=0.0, le=1.0)
-    weight_mutate_rate: float = Field(default=0.8, ge=0.0, le=1.0)
-    weight_mutate_power: float = Field(default=0.5, ge=0.0, le=10.0)
-    elitism: int = Field(default=2, ge=0, le=1000, description="elites kept per species")
-    survival_threshold: float = Field(default=0.2, gt=0.0, le=1.0)
-    max_stagnation: int = Field(default=20, ge=1, le=100_000)
-    species_elitism: int = Field(default=2, ge=0, le=1000)
-
-    def net_config(self) -> RecurrentConfig:
-        """The dense net every genome of this search is run as."""
-        return RecurrentConfig(max_hidden=self.max_hidden)
 
 
 def ini_text(params: NeatParams, pop_size: int) -> str:
