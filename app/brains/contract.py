@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import copy
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 from pydantic import BaseModel, ValidationError
@@ -24,10 +24,12 @@ from pydantic import BaseModel, ValidationError
 import gnp
 import neuro
 from app.loop.recording import TraceLayout
-from app.loop.rollout import Controllers
 from app.settings.config import ConfigError, RunConfig
 from app.settings.loading import describe_problems
 from app.store import RunReader, RunTemplate
+
+if TYPE_CHECKING:
+    from app.loop.rollout import Controllers  # the fused loop's numba: imported by a family's lives
 
 
 class Evolution(Protocol):

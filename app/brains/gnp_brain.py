@@ -9,18 +9,20 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import gnp
 from app.brains.contract import BrainFamily
 from app.loop.recording import TraceLayout, gnp_trace
-from app.loop.rollout import GnpControllers
 from app.loop.seeds import evolution_rng, init_rng
 from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig, TrainingSettings
 from app.store import RunTemplate
 from app.store.controller_file import GnpController, controller_document
+
+if TYPE_CHECKING:
+    from app.loop.rollout import GnpControllers
 
 
 def initial_population(config: RunConfig) -> gnp.Population:
@@ -222,6 +224,8 @@ class GnpFamily(BrainFamily):
         return gnp.population_from_arrays(self.cfg, arrays)
 
     def controllers(self, individuals: gnp.Population, engine_seeds: np.ndarray) -> GnpControllers:
+        from app.loop.rollout import GnpControllers  # numba's: run lists describe a run without it
+
         return GnpControllers(self.cfg, individuals, engine_seeds)
 
     @property

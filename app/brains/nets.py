@@ -28,8 +28,7 @@ from app.loop.seeds import optimiser_seed
 from app.settings.config import NeuroSettings, RunConfig
 from app.store import RunFileError, RunTemplate
 from app.store.controller_file import NetController, controller_document
-from neuro.cmaes import Cmaes
-from neuro.neat_evolution import NeatParams, NeatSearch
+from neuro.neat_params import NeatParams
 
 
 @dataclass(frozen=True)
@@ -105,6 +104,8 @@ class Optimiser(Protocol):
 
 class _CmaesOptimiser:
     def __init__(self, settings: NeuroSettings, population: int, seed: int) -> None:
+        from neuro.cmaes import Cmaes  # pycma: imported when a run evolves, not when it is listed
+
         self.net = neuro.ElmanConfig(hidden=settings.hidden)
         self.es = Cmaes(self.net.n_params, settings.sigma0, population, optimiser_seed(seed))
 
@@ -287,5 +288,7 @@ class NeatFamily(NetFamily):
         return f"{self.name}: NEAT net, ≤ {self.settings.neat.max_hidden} hidden nodes"
 
     def make_optimiser(self) -> Optimiser:
+        from neuro.neat_evolution import NeatSearch  # neat-python: imported when a run evolves
+
         population = self.config.training.population
         return NeatSearch(self.settings.neat, population, optimiser_seed(self.config.seed))

@@ -57,8 +57,9 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 
 def _compiles_said(command: str | None, words: list[str]) -> contextlib.AbstractContextManager[Any]:
-    """Say on stderr what numba compiles while a `COMPILING_COMMANDS` command builds its
-    options, is imported and runs (kernel by kernel unless --quiet); nothing on a warm cache."""
+    """Say on stderr what numba compiles while a `COMPILING_COMMANDS` command is imported and
+    runs (kernel by kernel unless --quiet); nothing on a warm cache. Its options are built
+    before, without numba (the watch imports it), so its `--help` imports none."""
     if command not in COMPILING_COMMANDS:
         return contextlib.nullcontext()
     from app.phases.warm import CompileWatch
@@ -84,9 +85,7 @@ def _handler(command: str) -> Callable[[argparse.Namespace], int]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `gnp-lab`; returns the exit status."""
     words = list(sys.argv[1:] if argv is None else argv)
-    command = chosen_command(words)
-    with _compiles_said(command, words):
-        return _run(command, words)
+    return _run(chosen_command(words), words)
 
 
 def _run(command: str | None, words: list[str]) -> int:
@@ -97,7 +96,7 @@ def _run(command: str | None, words: list[str]) -> int:
     try:
         # SIGTERM ends a command as Ctrl-C does: its worker pool and Dask cluster are closed,
         # its temporary files removed, and it says so on one line.
-        with interrupted_by_signals():
+        with interrupted_by_signals(), _compiles_said(command, words):
             status = _handler(args.command)(args)
         sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
         return status

@@ -26,10 +26,10 @@ from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
 from gnp.config import GenerationProgress
-from neuro.neat_evolution import NeatParams
+from neuro.neat_params import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
-from sim.reward import CFrom
+from sim.kinds import CFrom
 
 ScheduleKind = Literal["fixed", "changing"]
 
