@@ -9,7 +9,10 @@ what the `gnp-lab` script does), twice per round and side by side:
 - **eager**: the same entry point after importing, first, every module `app/cli/main.py` imported
   at its top before it turned lazy (commit b8b20ec: numba through `sim` and `gnp`, the commands'
   modules, Dask's experiment CLI, the export) and building every command's options, as its
-  parser did. That is the old start-up's work, timed in this tree with this numba cache.
+  parser did. That is the old start-up's work, timed in this tree with this numba cache. Since
+  then `sim`, `gnp` and `neuro` turned lazy too (their `__init__`s import no submodule, issue #43
+  item 4), so the eager side imports, by name, the submodules those `__init__`s imported, and
+  the fused loop `app.brains` imported at its top.
 
 Reported per command: the best wall and CPU seconds of the rounds (children's user + system
 time, less noisy than wall time on a shared machine) and eager / lazy. The target (issue #43):
@@ -28,8 +31,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 EAGER_MODULES = (
-    "gnp",
-    "sim",
+    *("gnp.config", "gnp.controller_file", "gnp.engine", "gnp.evolution", "gnp.methods"),
+    *("gnp.population", "gnp.schedules"),
+    *("sim.arena", "sim.check", "sim.faults", "sim.khepera", "sim.noise", "sim.reward"),
+    *("sim.sensors", "sim.world"),
+    *("neuro.controller_file", "neuro.nets", "neuro.neat_evolution"),
+    "app.loop.rollout",
     "app.cli.implement",
     "app.cli.runs",
     "app.cli.serve",
@@ -42,7 +49,7 @@ EAGER_MODULES = (
     "app.tasks.common",
 )
 """What `app/cli/main.py` imported at its top at commit b8b20ec (directly or through the old
-parser, which imported these too)."""
+parser, which imported these too), the eager package `__init__`s' submodules named."""
 
 LAZY = "import sys; from app.cli import main; sys.exit(main())"
 EAGER = (
@@ -76,6 +83,7 @@ def main() -> None:
         "gnp-lab runs --help": ["runs", "--help"],
         "gnp-lab runs": ["runs", "--runs-dir", args.runs_dir],
         "gnp-lab train --help": ["train", "--help"],
+        "gnp-lab implement --help": ["implement", "--help"],
     }
     run(LAZY, ["--help"])  # numba's cache and the OS's file cache filled before timing
     run(EAGER, ["--help"])
@@ -91,7 +99,7 @@ def main() -> None:
     for name in cases:
         (lazy_wall, lazy_cpu), (eager_wall, eager_cpu) = best[(name, "lazy")], best[(name, "eager")]
         print(
-            f"  {name:22} lazy {lazy_wall:5.2f} / {lazy_cpu:5.2f}   "
+            f"  {name:26} lazy {lazy_wall:5.2f} / {lazy_cpu:5.2f}   "
             f"eager {eager_wall:5.2f} / {eager_cpu:5.2f}   "
             f"eager / lazy {eager_wall / lazy_wall:4.1f}× wall, {eager_cpu / lazy_cpu:4.1f}× CPU"
         )
