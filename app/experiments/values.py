@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from app.experiments.results import METRICS, ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
+from app.settings.user_files import read_text
 
 VALUES_COLUMNS = ("arm", "seed", "condition", "metric", "value")
 
@@ -44,20 +46,24 @@ def read_values_csv(
             condition the experiment does not have.
     """
     path = Path(path)
+    text = read_text(path, ExperimentError, "values file")
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except (OSError, UnicodeDecodeError) as error:
-        raise ExperimentError(f"cannot read values file {path}: {error}") from None
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as error:
+        raise ExperimentError(f"{path} is not a values table: {error}") from None
     if not rows or tuple(rows[0]) != VALUES_COLUMNS:
         raise ExperimentError(f"{path} is not a values table (columns {', '.join(VALUES_COLUMNS)})")
+    if len(rows) < 2:
+        raise ExperimentError(f"{path} holds no values (only its header)")
     arms = {a.name for a in spec.arms}
     conditions = {c.name for c in spec.conditions} | {""}
     parsed: list[tuple[str, int, str, str, float]] = []
     for number, row in enumerate(rows[1:], start=2):
         try:
-            arm, seed, condition, metric, text = row
-            parsed.append((arm, int(seed), condition, metric, float(text)))
+            arm, seed, condition, metric, cell = row
+            if int(seed) < 0:
+                raise ValueError("a negative seed")
+            parsed.append((arm, int(seed), condition, metric, float(cell)))
         except ValueError:
             raise ExperimentError(f"{path}, line {number}: not a row of values: {row}") from None
         if arm not in arms or condition not in conditions or metric not in METRICS:

@@ -71,7 +71,7 @@ def test_bad_file(
             1,
             "at most --max-seeds",
         ),
-        (["report", "ch3-bs-rl", "--from-values", "gone.csv"], 1, "cannot read values file"),
+        (["report", "ch3-bs-rl", "--from-values", "gone.csv"], 1, "values file not found"),
     ],
 )
 def test_bad_arguments(
