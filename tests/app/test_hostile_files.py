@@ -24,6 +24,7 @@ from app.store.controller_file import ControllerFileError, load_controller
 from app.system.memory import available_memory
 
 TIMEOUT = 120
+ROOT = Path(__file__).resolve().parents[2]
 DEEP = "[" * 100_000 + "]" * 100_000
 
 
@@ -136,7 +137,7 @@ def test_a_deep_or_huge_arena_is_one_line(tmp_path: Path) -> None:
     deep = tmp_path / "deep.json"
     deep.write_text(DEEP)
     one_line(gnp_lab("train", "--set", f'training.arena="{deep}"', "--print-config"), "deep")
-    arena = json.loads(Path("sim/arenas/training.json").read_text())
+    arena = json.loads((ROOT / "sim" / "arenas" / "training.json").read_text())
     arena["outer_wall"][1] = [1e300, arena["outer_wall"][1][1]]
     far = tmp_path / "far.json"
     far.write_text(json.dumps(arena))
