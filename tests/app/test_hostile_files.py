@@ -35,7 +35,7 @@ def gnp_lab(*words: str | Path, cwd: Path | None = None) -> subprocess.Completed
         capture_output=True,
         text=True,
         timeout=TIMEOUT,
-        cwd=cwd,
+        cwd=cwd or ROOT,
         check=False,
     )
 
