@@ -18,10 +18,12 @@ from typing import Literal
 
 import h5py
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from app.settings.user_files import check_regular, loads_json
 from app.store.files import LIBVER, RunFileError
 from app.store.schema import package_version
+from app.store.validation import check_progress, plain_dataset
 from app.tasks.common import FORMAT
 from app.tasks.config import TaskRunConfig
 from app.tasks.fracnetics_arm import FracneticsSettings
@@ -63,6 +65,7 @@ def read_peer(path: str | Path) -> PeerResult:
     Raises:
         RunFileError: unreadable, or not a task experiment's run file.
     """
+    check_regular(path, RunFileError, "run file")
     try:
         handle = h5py.File(path, "r", locking=False)
     except OSError as error:
@@ -70,18 +73,38 @@ def read_peer(path: str | Path) -> PeerResult:
     with handle:
         if handle.attrs.get("format") not in (FORMAT, FRACNETICS_FORMAT):
             raise RunFileError(f"{path} is not a task experiment's run file")
-        config = TaskRunConfig.model_validate_json(str(handle.attrs["config"]))
-        done = int(handle.attrs["generations_done"])
-        fitness = handle["history/fitness"][:done]
-        test = handle["test/returns"][()] if "test" in handle else None
-        return PeerResult(
-            peer_json=str(handle.attrs.get("peer", "")),
-            run=config,
-            generations_done=done,
-            generations=config.training.generations,
-            best_curve=fitness.max(axis=1) if done else np.zeros(0),
-            test_returns=test,
-        )
+        try:
+            return _peer(Path(path), handle)
+        except (ValidationError, KeyError, ValueError, TypeError, OverflowError, OSError) as error:
+            text = str(error).splitlines()[0] if str(error) else type(error).__name__
+            raise RunFileError(f"corrupt task run file {path}: {text}") from None
+
+
+def _peer(path: Path, handle: h5py.File) -> PeerResult:
+    """`read_peer` of an open file, checked: its config, `generations_done` within the config's
+    generations and the rows held, a (rows, population) float fitness table."""
+    config = TaskRunConfig.model_validate(
+        loads_json(handle.attrs["config"], RunFileError, "config")
+    )
+    generations = config.training.generations
+    done = check_progress(
+        "generations_done", handle.attrs["generations_done"], 0, generations, path
+    )
+    table = plain_dataset(handle, "history/fitness")
+    if table.ndim != 2 or table.shape[0] < done or table.dtype.kind != "f":
+        raise RunFileError(f"{path}: history/fitness is {table.shape} {table.dtype}")
+    fitness = table[:done]
+    test = (
+        np.asarray(plain_dataset(handle, "test/returns")[()], float) if "test" in handle else None
+    )
+    return PeerResult(
+        peer_json=str(handle.attrs.get("peer", "")),
+        run=config,
+        generations_done=done,
+        generations=config.training.generations,
+        best_curve=fitness.max(axis=1) if done else np.zeros(0),
+        test_returns=test,
+    )
 
 
 def _write_test(path: Path, peer: PeerRun, returns: np.ndarray) -> None:
