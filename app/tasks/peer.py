@@ -91,7 +91,7 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
         "generations_done", handle.attrs["generations_done"], 0, generations, path
     )
     table = plain_dataset(handle, "history/fitness")
-    if table.ndim != 2 or table.shape[0] < done or table.dtype.kind != "f":
+    if table.ndim != 2 or table.shape[0] < done or table.dtype.kind not in "iuf":
         raise RunFileError(f"{path}: history/fitness is {table.shape} {table.dtype}")
     fitness = table[:done]
     test = (
