@@ -201,7 +201,7 @@ class TrainTab:
         line = progress.describe()
         if job.phase and (job.compiling or not progress.generations):
             line = f"{job.phase} · {job.elapsed():.0f} s"  # numba's first compile, then done
-        self.plots.training_line = f"training {job.out.stem}: {line}"
+        self.plots.training_line = f"training: {line} · run {job.out.stem}"
         set_value(self.progress, 100.0 * progress.fraction)
         self.summary.content = line[:1].upper() + line[1:]
         if not progress.ended:

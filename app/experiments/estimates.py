@@ -129,9 +129,13 @@ def median_unbiased(
             return float(special.ndtr((delta * info[0] - edge) / math.sqrt(info[0])))
         step = math.sqrt(info[k] - info[k - 1])
         s = grids[k - 1]
-        ratio = np.exp(delta * s - delta**2 * info[k - 1] / 2)
+        # The sub-density under Δ, density × likelihood ratio, in logs: far out a density that
+        # underflowed to 0 meets a ratio that overflows, and 0 × inf would be NaN.
+        with np.errstate(divide="ignore"):
+            log_density = np.log(densities[k - 1])
+        exponent = np.minimum(log_density + delta * s - delta**2 * info[k - 1] / 2, 700.0)
         reach = special.ndtr((s + delta * (info[k] - info[k - 1]) - edge) / step)
-        return float(_mass(s, densities[k - 1] * ratio * reach))
+        return float(_mass(s, np.exp(exponent) * reach))
 
     def stagewise(delta: float) -> float:
         """P_Δ(an outcome at least as high as the observed one, stagewise) − ½."""
@@ -216,7 +220,10 @@ def stopping(
     if not all(x > 0 for x in se) or any(y <= x for x, y in zip(se[1:], se, strict=False)):
         return None
     estimate = judged.interval.difference
-    corrected, given = median_unbiased(estimate, se, lower, upper)
+    try:
+        corrected, given = median_unbiased(estimate, se, lower, upper)
+    except ValueError:  # no root in reach (e.g. a handful of runs, degenerate bounds)
+        return None  # the report shows no corrected estimate rather than a wrong one
     return Stopping(estimate, corrected, given, k_stop, stopped)
 
 

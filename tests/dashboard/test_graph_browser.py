@@ -50,6 +50,10 @@ def test_the_simplified_graph_draws_less_and_still_marks_the_walk(
     url = f"http://127.0.0.1:{dashboard.server.get_port()}"
     page = open_page(browser, url, {"width": 1600, "height": 900})
 
+    wait_for_line(page, "graph: ", r"graph: simplified · ")  # the page opens on what it runs
+    assert graph.mode == SIMPLIFIED
+    choose(page, "Graph", FULL)
+    until(lambda: graph.mode == FULL)
     full_pattern = r"graph: full · (\d+) nodes · (\d+) connections · (\d+) line"
     full_line = wait_for_line(page, "graph: ", full_pattern)
     full = graph.drawn()
