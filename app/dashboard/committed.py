@@ -10,7 +10,6 @@ and the others are read on. An installed package has no checkout: `Shelf.missing
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +23,7 @@ from app.experiments.results import VERDICTS
 from app.experiments.spec import SCALES
 from app.experiments.values import VALUES_COLUMNS
 from app.settings.loading import describe_problems
+from app.settings.user_files import loads_json, read_text
 
 REPORT, VALUES, PAGE = "report.json", "values.csv", "index.html"
 EXPLORATORY = "exploratory"  # an exploratory claim's "verdict": an interval, never a verdict
@@ -209,9 +209,9 @@ def read_report(folder: Path) -> CommittedReport:
     """
     path = folder / REPORT
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = loads_json(read_text(path, CommittedError, REPORT), CommittedError, REPORT)
         report = Report.model_validate(raw)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+    except CommittedError as error:
         raise CommittedError(f"{REPORT}: cannot be read ({error})") from None
     except ValidationError as error:
         raise CommittedError(f"{REPORT} is not a report: {describe_problems(error, 3)}") from None

@@ -23,6 +23,7 @@ from app.experiments.spec_loading import load_file, load_shipped, shipped_names
 from app.experiments.spec_tables import check_name
 from app.phases.generations import Interrupted
 from app.settings.cli_options import add_quiet, add_runs_dir
+from app.settings.user_files import loads_json, read_text
 from app.system.exit_codes import EXIT_INTERRUPTED
 from app.system.signals import interrupted_by_signals
 
@@ -285,10 +286,11 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
 def _planned_looks(values: Path) -> tuple[int, ...]:
     """The looks an adaptive report planned, from the report.json beside its values.csv (none:
     one look): a report written again from its values judges them over the same looks."""
+    path = values.parent / "report.json"
     try:
-        report = json.loads((values.parent / "report.json").read_text())
+        report = loads_json(read_text(path, ExperimentError, "report"), ExperimentError, str(path))
         looks = tuple(int(n) for n in report.get("looks_planned") or ())
-    except (OSError, ValueError, TypeError, AttributeError):
+    except (ExperimentError, ValueError, TypeError, AttributeError):
         return ()
     return looks if len(looks) > 1 else ()  # one planned look: a plain, one-look report
 

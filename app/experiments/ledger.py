@@ -30,6 +30,7 @@ from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.experiments.values import read_values_csv
 from app.settings.config import ImplementationSettings, RunConfig
+from app.settings.user_files import loads_json, read_text
 
 #: The version of the bits a run produces. Bump it with any change that alters a run's values
 #: (the engine, the world, the controller, a default); the tests that pin committed values to the
@@ -127,9 +128,12 @@ def load(spec: ExperimentSpec, scale: str, folder: str | Path) -> Ledger:
             whose config is not the one this spec gives it (the spec changed since).
     """
     folder = Path(folder)
+    what = f"ledger {folder / FILE}"
     try:
-        document: dict[str, Any] = json.loads((folder / FILE).read_text())
-    except (OSError, ValueError) as error:
+        document: dict[str, Any] = loads_json(
+            read_text(folder / FILE, ExperimentError, "ledger"), ExperimentError, what
+        )
+    except ExperimentError as error:
         raise ExperimentError(f"no readable ledger in {folder}: {error}") from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
         raise ExperimentError(f"{folder / FILE} is not a gnp-lab experiment ledger")

@@ -17,15 +17,15 @@ from __future__ import annotations
 
 import dataclasses
 import html
-import json
 from pathlib import Path
 
 from app.experiments import harvest, layout, ledger
 from app.experiments.ledger import Ledger
 from app.experiments.results import ExperimentResults
-from app.experiments.spec import ExperimentSpec
+from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.experiments.summary import SummaryError, read_summary
 from app.experiments.values import write_values_csv
+from app.settings.user_files import loads_json, read_text
 
 
 def first_seeds(results: ExperimentResults, n: int) -> ExperimentResults:
@@ -68,9 +68,11 @@ def carried_and_judged(
 def judged_from_values(results: ExperimentResults, values: Path) -> ExperimentResults | None:
     """The seeds of `results` (read from `values`) that the report beside them judged: up to
     its last look made; None when it made none."""
+    path = values.parent / "report.json"
     try:
-        made = json.loads((values.parent / "report.json").read_text()).get("looks_made") or []
-    except (OSError, ValueError, AttributeError):
+        report = loads_json(read_text(path, ExperimentError, "report"), ExperimentError, str(path))
+        made = report.get("looks_made") or []
+    except (ExperimentError, AttributeError):
         return None
     return first_seeds(results, int(made[-1])) if made else None
 

@@ -12,7 +12,6 @@ with the committed reports.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +22,7 @@ from app.experiments.questions import answers_table, ran, runs_text, tally, verd
 from app.experiments.results import FAULT_EFFECTS
 from app.experiments.spec import SCALES, ExperimentError, ExperimentSpec
 from app.experiments.spec_loading import load_shipped, shipped_names
+from app.settings.user_files import loads_json, read_text
 
 PAGE = "README.md"
 TITLE = "# The thesis, reproduced\n"
@@ -42,9 +42,11 @@ def load_reports(folder: Path) -> dict[tuple[str, str], dict[str, Any]]:
     reports = {}
     for path in sorted(folder.glob("*/report.json")):
         try:
-            report = json.loads(path.read_text())
+            report = loads_json(
+                read_text(path, ExperimentError, "report"), ExperimentError, str(path)
+            )
             key = (str(report["experiment"]), str(report["scale"]))
-        except (OSError, ValueError, KeyError, TypeError) as error:
+        except (ExperimentError, KeyError, TypeError) as error:
             raise ExperimentError(f"{path} is not an experiment report: {error}") from None
         if path.parent.name != f"{key[0]}-{key[1]}":
             raise ExperimentError(f"{path} holds {key[0]} at {key[1]} scale: rename its folder")

@@ -34,6 +34,7 @@ from app.experiments.results import (
     ThesisValue,
 )
 from app.experiments.spec import ExperimentError
+from app.settings.user_files import loads_json
 from app.store import package_version
 from app.store.space import DiskFullError, require_space
 
@@ -116,7 +117,7 @@ def _table(handle: h5py.File, kind: str) -> dict[tuple[str, str, str], np.ndarra
 
 
 def _items(attrs: Any, key: str, kind: type) -> tuple[Any, ...]:
-    return tuple(kind(**item) for item in json.loads(attrs[key]))
+    return tuple(kind(**item) for item in loads_json(attrs[key], SummaryError, f"attribute {key}"))
 
 
 def read_summary(path: str | Path) -> ExperimentResults:

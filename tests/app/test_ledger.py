@@ -102,3 +102,14 @@ def test_every_committed_ledger_loads_on_this_checkout(folder: str) -> None:
     name, scale = folder.rsplit("-", 1)
     held = ledger.load(load_shipped(name), scale, ledger.DOCS / folder)
     assert held.runs  # its runs count as finished here: the spec and the bits are the same
+
+
+@pytest.mark.parametrize(
+    ("ledger_text", "problem"), [("[" * 100_000, "nested 100000 deep"), ("{", "is not JSON")]
+)
+def test_a_hostile_ledger_is_refused_in_one_line(
+    tmp_path: Path, ledger_text: str, problem: str
+) -> None:
+    (tmp_path / ledger.FILE).write_text(ledger_text)
+    with pytest.raises(ExperimentError, match=f"no readable ledger in .*{problem}"):
+        ledger.load(parse(tiny_data(), "tiny"), "smoke", tmp_path)

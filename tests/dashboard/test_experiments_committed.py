@@ -5,6 +5,7 @@ report.json files (docs/experiments/NAME-SCALE/)."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import urllib.request
 from pathlib import Path
@@ -106,6 +107,8 @@ def copy_report(root: Path, name: str = DECISIVE) -> Path:
     ("damage", "problem"),
     [
         (lambda f: (f / "report.json").write_text("{not json"), "report.json: cannot be read"),
+        (lambda f: (f / "report.json").write_text("[" * 100_000), "nested 100000 deep"),
+        (lambda f: (f / "report.json").unlink() or os.mkfifo(f / "report.json"), "regular file"),
         (lambda f: (f / "report.json").write_text('{"experiment": "x"}'), "is not a report"),
         (lambda f: (f / "values.csv").unlink(), "values.csv: cannot be read"),
         (lambda f: (f / "values.csv").write_text("a,b\n1,2\n"), "is not a values table"),
