@@ -41,6 +41,13 @@ def set_value(handle: Any, value: object) -> None:
     handle.value = value
 
 
+def _origin(action: Callable[[], None]) -> object:
+    """What identifies a control's action across its calls: its code (a lambda made anew for
+    each event, or a bound method, has the same code every time)."""
+    function = getattr(action, "__func__", action)
+    return getattr(function, "__code__", function)
+
+
 def hex_color(color: tuple[int, int, int]) -> str:
     return "#{:02x}{:02x}{:02x}".format(*color)
 
@@ -56,6 +63,7 @@ class Status:
     def __init__(self, gui: viser.GuiApi, lock: threading.RLock) -> None:
         self.lock = lock
         self.text = "starting"
+        self._warned_by: object = None  # the code of the action whose refusal is on the line
         self._markdown = gui.add_markdown("**Status:** starting")
 
     def set(self, text: str) -> None:
@@ -65,16 +73,19 @@ class Status:
     def guarded(self, client: viser.ClientHandle | None, action: Callable[[], None]) -> None:
         """Run a control's action; a bad value is reported on the page and changes nothing.
 
-        A warning on the status line lasts until the next action that works: one that leaves
-        the line as it was clears it, so no ⚠ outlives its cause."""
+        A warning lasts until its cause ends: the same control's action works again (one that
+        says nothing of its own clears the line), or another action puts its own words there.
+        Another control that works silently leaves it: its cause is still there."""
         try:
             with self.lock:
                 before = self.text
                 action()
-                if self.text == before and before.startswith(WARNING):
+                fixed = _origin(action) == self._warned_by
+                if self.text == before and before.startswith(WARNING) and fixed:
                     self.set("ready")
         except REFUSALS as error:
             self.set(f"{WARNING} {error}")
+            self._warned_by = _origin(action)
             if client is not None:
                 client.add_notification(
                     "Not applied", str(error), color="red", auto_close_seconds=6.0

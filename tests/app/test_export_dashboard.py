@@ -68,18 +68,25 @@ def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path)
         server.stop()
 
 
-def test_a_failed_replay_export_leaves_no_folder(finished_run: Path, tmp_path: Path) -> None:
-    """A run whose elite life cannot be read: the replay fails, and neither the replay's folder
-    nor the `exports` folder made for it stays behind (it used to leave `exports/` empty)."""
-    import h5py
+def test_a_failed_replay_export_leaves_no_folder(
+    finished_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A replay whose writing fails half-way (its elite life unreadable, as a file damaged after
+    it was opened would be; a file damaged before is refused when opened): neither the replay's
+    folder nor the `exports` folder made for it stays behind (it used to leave `exports/`
+    empty)."""
     import viser
 
     from app.dashboard.app import Dashboard
+    from app.export import replay
     from app.store import RunFileError
 
+    def half_written(reader: object, folder: Path) -> None:
+        (folder / "index.html").write_text("<html>")  # something written before the failure
+        raise RunFileError("corrupt run file tiny.h5: elite/poses unreadable")
+
+    monkeypatch.setattr(replay, "write_replay", half_written)
     shutil.copy(finished_run, tmp_path / "tiny.h5")
-    with h5py.File(tmp_path / "tiny.h5", "r+") as handle:
-        del handle["elite/poses"]  # loading and replaying the best never read it; a replay does
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     dashboard = Dashboard(server, tmp_path, "tiny")
     try:
