@@ -41,7 +41,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             raise UsageError(
                 f"--host {args.host} lets other machines reach the dashboard, which has no "
                 "login and runs training, exports and experiments as you; keep 127.0.0.1 and "
-                "use an SSH tunnel (ssh -L 8080:127.0.0.1:8080 HOST), or add --allow-remote"
+                f"use an SSH tunnel (ssh -L {args.port}:127.0.0.1:{args.port} HOST), or add "
+                "--allow-remote"
             )
         sys.stderr.write(
             f"{PROG}: WARNING: the dashboard on {args.host} has no login: anyone who can "

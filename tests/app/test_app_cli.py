@@ -99,6 +99,8 @@ def test_train_implement_and_inspect(
         (["serve", "--host", "no-such-host.invalid"], ["not an address of this machine"]),
         # TEST-NET-1 (RFC 5737): no address of this machine (a bind attempt only, no traffic).
         (["serve", "--host", "192.0.2.1"], ["cannot listen on --host '192.0.2.1'"]),
+        # every interface, no --allow-remote: refused, the tunnel hint names the port asked for
+        (["serve", "--host", "0.0.0.0", "--port", "8123"], ["ssh -L 8123:127.0.0.1:8123"]),
     ],
 )
 def test_user_mistakes(
