@@ -33,6 +33,12 @@ JudgmentPair = Literal["joint", "independent"]
 #: Progress of Eq. 4.1–4.2 at generation g = 0..G−1: "last-generation-min" (g/(G−1), so the
 #: first evaluated generation uses max and the last uses min) or "g-over-G" (g/G, as printed).
 GenerationProgress = Literal["last-generation-min", "g-over-G"]
+#: How ε-greedy breaks a tie among the maxima: "random" (uniformly, one more draw: the thesis's
+#: reading, the robot's) or "first" (the lowest index, no draw: with ε = 0 a walk is then a
+#: function of its inputs, so learning off (ε = α = 0) is a deterministic policy).
+TieBreak = Literal["random", "first"]
+#: Bound on an initial Q value (Q tables are float32).
+Q0_MAX = 1e6
 
 
 class GnpError(ValueError):
@@ -75,6 +81,19 @@ class GnpConfig(BaseModel):
         ge=1,
         le=127,
         description="outputs processing nodes set (the robot's 2 wheels), each in −10..10",
+    )
+    q0: float = Field(
+        default=0.0,
+        ge=-Q0_MAX,
+        le=Q0_MAX,
+        description="initial value of every Q table entry (Q_SS, Q_BS, Q_CS) of generation 0; "
+        "below the returns a task pays (e.g. −1/(1−γ) where every step pays −1) an untried "
+        "sub node is not preferred to a tried one",
+    )
+    tie_break: TieBreak = Field(
+        default="random",
+        description="ε-greedy among equal maxima: random (a draw) or first (the lowest index; "
+        "learning off, ε = α = 0, is then deterministic)",
     )
 
     @cached_property
@@ -119,10 +138,25 @@ class GnpConfig(BaseModel):
         """Inputs and outputs are the robot's (8 sensors, 2 wheels)."""
         return self.n_inputs == N_SENSORS and self.n_outputs == N_WHEELS
 
+    def task_settings(self) -> dict[str, object]:
+        """The settings made for tasks (`TASK_SETTINGS`) that differ from their defaults: a
+        controller document names only these, so the robot's documents read as before."""
+        dump = self.model_dump()
+        return {
+            name: dump[name]
+            for name in TASK_SETTINGS
+            if dump[name] != type(self).model_fields[name].default
+        }
+
     @property
     def max_visits_per_step(self) -> int:
         """Longest possible node sequence in one world step: the start node + 5 unit nodes."""
         return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
+
+
+TASK_SETTINGS = ("q0", "tie_break")
+"""`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
+runs, documents and bits as before)."""
 
 
 class EvolutionConfig(BaseModel):

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from gnp.config import JUDGMENT, PROCESSING, START, GnpConfig, GnpError
+from gnp.config import JUDGMENT, PROCESSING, START, TASK_SETTINGS, GnpConfig, GnpError
 from gnp.population import Population, population_from_arrays
 
 _TYPE_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}
@@ -53,6 +53,9 @@ def controller_body(cfg: GnpConfig, individual: Population) -> tuple[dict[str, A
     entry = cfg.model_dump()
     if cfg.io_defaults:  # the robot's 8 inputs and 2 outputs: documents as before the settings
         del entry["n_inputs"], entry["n_outputs"]
+    for name in TASK_SETTINGS:  # a task's settings only where they are not the defaults
+        if name not in cfg.task_settings():
+            del entry[name]
     return entry, nodes
 
 

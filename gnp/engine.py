@@ -24,7 +24,7 @@ import numpy as np
 
 from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
-from gnp.methods import FIRST_STAGE_ONLY, TRAITS
+from gnp.methods import FIRST_STAGE_ONLY, TIE_FIRST, TRAITS
 from gnp.population import Population, record_dtype
 from gnp.rng import seed_states
 
@@ -311,7 +311,7 @@ def step(
         count = np.zeros(n, TRACE_DTYPE)
     else:
         visits, count = _NO_TRACE, _NO_COUNT
-    run_kernel(_KERNEL_CODE[cfg.method], cfg, pop, state, obs, rew, rates, learn, visits, count)
+    run_kernel(method_code(cfg), cfg, pop, state, obs, rew, rates, learn, visits, count)
     if trace:
         return state.wheels.copy(), step_trace(visits, count)
     return state.wheels.copy(), None
@@ -342,8 +342,13 @@ def kernel_arguments(
 
 
 def method_code(cfg: GnpConfig) -> int:
-    """The kernel's code of `cfg`'s method, both stages on."""
-    return _KERNEL_CODE[cfg.method]
+    """The kernel's code of `cfg`'s method, both stages on, with its tie-break's flag."""
+    return _KERNEL_CODE[cfg.method] | _tie_code(cfg)
+
+
+def _tie_code(cfg: GnpConfig) -> int:
+    """The kernel's flag of `cfg.tie_break` (`TIE_FIRST` for "first", else 0)."""
+    return TIE_FIRST if cfg.tie_break == "first" else 0
 
 
 def check_population(cfg: GnpConfig, pop: Population, state: EngineState) -> None:
@@ -405,7 +410,8 @@ def _first_stage_only(
         first = conn[..., 0].copy()
         conn[..., 0] = np.take_along_axis(conn, greedy[..., None], axis=-1)[..., 0]
     try:
-        run_kernel(FIRST_STAGE_ONLY, cfg, pop, state, obs, rew, rates, learn, visits, count)
+        code = FIRST_STAGE_ONLY | _tie_code(cfg)
+        run_kernel(code, cfg, pop, state, obs, rew, rates, learn, visits, count)
     finally:
         if bs:
             conn[..., 0] = first

@@ -20,6 +20,7 @@ from numba.extending import intrinsic
 from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, STEP_BUDGET
 from gnp.methods import BRANCH_SELECTION as _BS  # `method` is `MethodTraits.kernel_code`
 from gnp.methods import CREDIT as _CS
+from gnp.methods import TIE_FIRST as _TIE_FIRST
 from gnp.population import CACHE_LINE, record_dtype
 from gnp.rng import next_uniform
 
@@ -96,11 +97,14 @@ def _ix(i):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tuple[np.uint64, int]:
+def _egreedy(
+    q: np.ndarray, start: int, k: int, eps: float, s: np.uint64, first: int
+) -> tuple[np.uint64, int]:
     """ε-greedy over the k action values q[start : start + k]: (new stream state, chosen index).
 
     Draw u; if u < ε pick uniformly among all actions, else uniformly among the maxima (one
-    more draw only when there is a tie). Reads by flat index rather than through a slice: a
+    more draw only when there is a tie), or, when `first` is non-zero, the first maximum (no
+    draw: `GnpConfig.tie_break` "first"). Reads by flat index rather than through a slice: a
     slice costs reference counting in the hot loop.
     """
     s, u = next_uniform(s)
@@ -117,7 +121,7 @@ def _egreedy(q: np.ndarray, start: int, k: int, eps: float, s: np.uint64) -> tup
         elif value == best:
             ties += 1
     pick = 0
-    if ties > 1:
+    if ties > 1 and not first:
         s, v = next_uniform(s)
         pick = min(int(v * ties), ties - 1)
     for a in range(k):
@@ -157,6 +161,7 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
     rate_row = 0 if rates.shape[0] == 1 else c
     eps, lr = rates[rate_row, 0], rates[rate_row, 1]
     s = rng[i]
+    first = method & _TIE_FIRST
     node = walk[i, 0]
     while node == 0:  # the start node: costs nothing, runs once per episode
         if trace:
@@ -173,10 +178,10 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
     pend_r = reward[i] if used == 0 and pn >= 0 and pc != 1 else 0.0
     record = c * n_nodes + node
     q, h, b = record * r32, record * r16, record * record_bytes
-    s, p = _egreedy(words32, q + ss, n_sub, eps, s)
+    s, p = _egreedy(words32, q + ss, n_sub, eps, s, first)
     cs = 0
     if method & _CS:
-        s, cs = _egreedy(words32, q + cs_ + 2 * p, 2, eps, s)
+        s, cs = _egreedy(words32, q + cs_ + 2 * p, 2, eps, s, first)
     if learn and pn >= 0:
         last_q = (c * n_nodes + pn) * r32
         last_ss = last_q + ss + pp
@@ -224,7 +229,7 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
             branch = 0
         u = 0
         if method & _BS:
-            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s)
+            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s, first)
         nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
     _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)

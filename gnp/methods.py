@@ -20,6 +20,9 @@ METHODS: tuple[Method, ...] = get_args(Method)
 #: runs the first stage alone, as the live ablation runs every method.
 BRANCH_SELECTION, CREDIT = 1, 2
 FIRST_STAGE_ONLY = 0
+#: The kernel's flag (beside the method's) for `GnpConfig.tie_break` "first": ε-greedy breaks a
+#: tie among the maxima to the lowest index, with no draw (`gnp.engine.method_code`).
+TIE_FIRST = 4
 
 
 @dataclass(frozen=True)

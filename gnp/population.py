@@ -220,7 +220,7 @@ def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Populat
     Each sub node slot p of the judgment nodes holds every sensor equally often (5 per sensor
     for 40 nodes), and of the processing nodes every wheel equally often (10 per wheel for 20
     nodes), in a random order per individual. α is drawn in 1..1023 and β in 0..α−1, speeds in
-    −10..10, every connection uniformly among nodes 1..V−1. Q tables start at 0.
+    −10..10, every connection uniformly among nodes 1..V−1. Q tables start at `cfg.q0` (0).
     """
     if n < 0:
         raise GnpError(f"population size must be ≥ 0, got {n}")
@@ -249,9 +249,9 @@ def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Populat
         speed=speed,
         conn=rng.integers(1, v, size=(n, *shapes["conn"])).astype(GENE_DTYPES["conn"]),
         credit=rng.integers(1, v, size=(n, *shapes["credit"])).astype(GENE_DTYPES["credit"]),
-        q_ss=np.zeros((n, *shapes["q_ss"]), Q_DTYPE),
-        q_bs=np.zeros((n, *shapes["q_bs"]), Q_DTYPE),
-        q_cs=np.zeros((n, *shapes["q_cs"]), Q_DTYPE),
+        q_ss=np.full((n, *shapes["q_ss"]), cfg.q0, Q_DTYPE),
+        q_bs=np.full((n, *shapes["q_bs"]), cfg.q0, Q_DTYPE),
+        q_cs=np.full((n, *shapes["q_cs"]), cfg.q0, Q_DTYPE),
     )
 
 

@@ -66,12 +66,13 @@ class ReferenceController:
         return value
 
     def epsilon_greedy(self, values: list[float], epsilon: float) -> int:
-        """Random action with probability ε, else a uniformly chosen maximum."""
+        """Random action with probability ε, else a uniformly chosen maximum (the first one
+        with `tie_break` "first")."""
         if self.uniform() < epsilon:
             return min(int(self.uniform() * len(values)), len(values) - 1)
         best = max(values)
         maxima = [a for a, v in enumerate(values) if v == best]
-        if len(maxima) == 1:
+        if len(maxima) == 1 or self.cfg.tie_break == "first":
             return maxima[0]
         return maxima[min(int(self.uniform() * len(maxima)), len(maxima) - 1)]
 

@@ -25,7 +25,7 @@ import gnp
 from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
-from gnp.config import GenerationProgress
+from gnp.config import GenerationProgress, TieBreak
 from neuro.neat_params import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
@@ -100,6 +100,8 @@ class ControllerSettings(_Frozen):
     )
     n_branch: int = _of_gnp("n_branch", ge=1, le=8)
     gamma: float = _of_gnp("gamma", "1")
+    q0: float = _of_gnp("q0", "1")
+    tie_break: TieBreak = _of_gnp("tie_break")
 
     @property
     def sub_nodes(self) -> int:
@@ -118,6 +120,8 @@ class ControllerSettings(_Frozen):
             n_sub=self.sub_nodes,
             n_branch=self.n_branch,
             gamma=self.gamma,
+            q0=self.q0,
+            tie_break=self.tie_break,
         )
 
 

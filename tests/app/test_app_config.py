@@ -165,7 +165,9 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
     assert legacy.evolution.judgment_pair == "independent"
 
 
-@pytest.mark.parametrize("name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma"])
+@pytest.mark.parametrize(
+    "name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma", "q0", "tie_break"]
+)
 def test_the_controllers_settings_are_gnps_own(name: str) -> None:
     import gnp
     from app.settings.config import ControllerSettings

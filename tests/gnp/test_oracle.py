@@ -19,10 +19,13 @@ def random_learning_population(
     return pop
 
 
+@pytest.mark.parametrize("tie_break", ["random", "first"])
 @pytest.mark.parametrize("fuzzy", [True, False], ids=["fuzzy", "crisp"])
 @pytest.mark.parametrize("method", ["RL", "BS", "CS"])
-def test_engine_matches_reference(method: str, fuzzy: bool) -> None:
-    cfg = gnp.GnpConfig(method=method, fuzzy=fuzzy, n_judgment=12, n_processing=6, n_sub=3)
+def test_engine_matches_reference(method: str, fuzzy: bool, tie_break: str) -> None:
+    cfg = gnp.GnpConfig(
+        method=method, fuzzy=fuzzy, n_judgment=12, n_processing=6, n_sub=3, tie_break=tie_break
+    )
     rng = np.random.default_rng(7)
     n, steps = 16, 320
     pop = random_learning_population(cfg, n, rng)

@@ -1,0 +1,89 @@
+"""The brain's settings made for tasks (issue #45): initial Q value and tie-breaking."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import gnp
+from gnp.controller_file import controller_body, controller_from_body
+
+
+def _cfg(**changes: object) -> gnp.GnpConfig:
+    base = gnp.GnpConfig(method="RL", fuzzy=False, n_judgment=6, n_processing=4, n_sub=3)
+    return gnp.GnpConfig.model_validate({**base.model_dump(), **changes})
+
+
+@given(q0=st.floats(-1e6, 1e6, allow_nan=False, width=32))
+@settings(max_examples=25, deadline=None)
+def test_q0_fills_every_q_table_and_draws_the_same_genes(q0: float) -> None:
+    for method in ("RL", "BS", "CS"):
+        base = gnp.GnpConfig(method=method, n_judgment=6, n_processing=4, n_sub=2)
+        shifted = base.model_copy(update={"q0": q0})
+        a = gnp.init_population(base, 5, np.random.default_rng(3))
+        b = gnp.init_population(shifted, 5, np.random.default_rng(3))
+        for name in ("q_ss", "q_bs", "q_cs"):
+            assert np.all(getattr(a, name) == 0.0)
+            assert np.all(getattr(b, name) == np.float32(q0))
+        for name in ("function", "mu_beta", "mu_alpha", "speed", "conn", "credit"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_q0_is_bounded() -> None:
+    with pytest.raises(ValueError):
+        _cfg(q0=1e7)
+
+
+def _walk(cfg: gnp.GnpConfig, seed: int, steps: int = 40) -> list[tuple[int, ...]]:
+    """The sub nodes chosen over `steps` steps with ε = α = 0 (learning off)."""
+    pop = gnp.init_population(cfg, 4, np.random.default_rng(11))
+    state = gnp.init_state(cfg, 4, np.arange(4) + seed)
+    obs_rng = np.random.default_rng(5)  # the same readings for every seed
+    subs = []
+    for _ in range(steps):
+        obs = obs_rng.integers(0, 1024, size=(4, cfg.n_inputs)).astype(np.float64)
+        _, trace = gnp.step(cfg, pop, state, obs, np.zeros(4), 0.0, 0.0, trace=True)
+        assert trace is not None
+        subs.append(tuple(int(s) for s in trace.sub[trace.sub >= 0]))
+    return subs
+
+
+def test_tie_break_first_takes_the_first_sub_node_when_q_values_are_equal() -> None:
+    walk = _walk(_cfg(tie_break="first"), seed=1)
+    assert all(s == 0 for step in walk for s in step)
+    assert sum(len(step) for step in walk) > 40
+
+
+def test_learning_off_is_deterministic_with_first_but_not_with_random() -> None:
+    assert _walk(_cfg(tie_break="first"), 1) == _walk(_cfg(tie_break="first"), 2)
+    random = _walk(_cfg(), 1)
+    assert random != _walk(_cfg(), 2)
+    assert {s for step in random for s in step} == {0, 1, 2}
+
+
+def test_tie_break_first_picks_the_lowest_of_the_maxima_only() -> None:
+    cfg = _cfg(tie_break="first")
+    pop = gnp.init_population(cfg, 1, np.random.default_rng(0))
+    pop.q_ss[:] = np.array([0.0, 1.0, 1.0], np.float32)  # sub nodes 1 and 2 tie at the top
+    state = gnp.init_state(cfg, 1, [9])
+    for _ in range(20):
+        obs = np.full((1, 8), 300.0)
+        _, trace = gnp.step(cfg, pop, state, obs, np.zeros(1), 0.0, 0.0, False, True)
+        assert trace is not None
+        visited = trace.node[0] > 0  # the start node excluded
+        assert set(trace.sub[0, visited].tolist()) == {1}
+
+
+def test_a_controller_document_names_the_task_settings_only_when_set() -> None:
+    cfg = _cfg()
+    entry, _ = controller_body(cfg, gnp.init_population(cfg, 1, np.random.default_rng(0)))
+    assert "q0" not in entry and "tie_break" not in entry
+    tuned = _cfg(q0=-10.0, tie_break="first")
+    pop = gnp.init_population(tuned, 1, np.random.default_rng(0))
+    entry, nodes = controller_body(tuned, pop)
+    assert entry["q0"] == -10.0 and entry["tie_break"] == "first"
+    back, read = controller_from_body(entry, nodes)
+    assert back == tuned
+    np.testing.assert_array_equal(read.q_ss, pop.q_ss)
