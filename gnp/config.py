@@ -37,6 +37,9 @@ GenerationProgress = Literal["last-generation-min", "g-over-G"]
 #: reading, the robot's) or "first" (the lowest index, no draw: with ε = 0 a walk is then a
 #: function of its inputs, so learning off (ε = α = 0) is a deterministic policy).
 TieBreak = Literal["random", "first"]
+#: What a credit skip (CS) that ends a world step earns: "zero" (Eq. 5.3 read literally: a skip
+#: has no reward term; the robot's) or "step" (the step's reward, as any step's last visit).
+SkipReward = Literal["zero", "step"]
 #: Bound on an initial Q value (Q tables are float32).
 Q0_MAX = 1e6
 
@@ -94,6 +97,12 @@ class GnpConfig(BaseModel):
         default="random",
         description="ε-greedy among equal maxima: random (a draw) or first (the lowest index; "
         "learning off, ε = α = 0, is then deterministic)",
+    )
+    skip_reward: SkipReward = Field(
+        default="zero",
+        description="what a credit skip (CS) that ends a world step earns: zero (Eq. 5.3) or "
+        "the step's reward (step); with zero, where steps pay less than 0 a controller that "
+        "skips every node hides every reward and stops acting",
     )
 
     @cached_property
@@ -154,7 +163,7 @@ class GnpConfig(BaseModel):
         return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
 
 
-TASK_SETTINGS = ("q0", "tie_break")
+TASK_SETTINGS = ("q0", "tie_break", "skip_reward")
 """`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
 runs, documents and bits as before)."""
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
-from gnp.methods import FIRST_STAGE_ONLY, TIE_FIRST, TRAITS
+from gnp.methods import FIRST_STAGE_ONLY, SKIP_EARNS, TIE_FIRST, TRAITS
 from gnp.population import Population, record_dtype
 from gnp.rng import seed_states
 
@@ -157,7 +157,8 @@ def end_episode(
     world step, for the controllers `which` ((N,) bool; all by default).
 
     The last step's last visit is credited `reward` with no successor: Q_SS (and Q_CS) of its
-    sub node (and credit choice) move by α·(r − Q), r = 0 if the visit was a credit skip; for
+    sub node (and credit choice) move by α·(r − Q), r = 0 if the visit was a credit skip (unless
+    `cfg.skip_reward` is "step"); for
     BS the visit before it gets its pending Q_BS update, α·(r + γ·Q_BS(last) − Q_BS(before)),
     as the next step's first visit would have made it. The last visit's own branch connection
     leads nowhere and is left alone. The pending visits are then dropped (the controller is
@@ -175,7 +176,7 @@ def end_episode(
     walk = state.walk
     rows = np.flatnonzero(mask & (walk[:, 1] >= 0))
     pn, pp, pb, pu, pc = (walk[rows, j] for j in range(1, 6))
-    r = np.where(pc == 1, 0.0, rew[rows])
+    r = rew[rows] if cfg.skip_reward == "step" else np.where(pc == 1, 0.0, rew[rows])
     a = lr[rows]
     q = pop.q_ss[rows, pn, pp].astype(np.float64)
     pop.q_ss[rows, pn, pp] = q + a * (r - q)
@@ -343,12 +344,15 @@ def kernel_arguments(
 
 def method_code(cfg: GnpConfig) -> int:
     """The kernel's code of `cfg`'s method, both stages on, with its tie-break's flag."""
-    return _KERNEL_CODE[cfg.method] | _tie_code(cfg)
+    return _KERNEL_CODE[cfg.method] | _flags(cfg)
 
 
-def _tie_code(cfg: GnpConfig) -> int:
-    """The kernel's flag of `cfg.tie_break` (`TIE_FIRST` for "first", else 0)."""
-    return TIE_FIRST if cfg.tie_break == "first" else 0
+def _flags(cfg: GnpConfig) -> int:
+    """The kernel's flags of `cfg.tie_break` (`TIE_FIRST` for "first") and `cfg.skip_reward`
+    (`SKIP_EARNS` for "step"), 0 for the defaults."""
+    return (TIE_FIRST if cfg.tie_break == "first" else 0) | (
+        SKIP_EARNS if cfg.skip_reward == "step" else 0
+    )
 
 
 def check_population(cfg: GnpConfig, pop: Population, state: EngineState) -> None:
@@ -410,7 +414,7 @@ def _first_stage_only(
         first = conn[..., 0].copy()
         conn[..., 0] = np.take_along_axis(conn, greedy[..., None], axis=-1)[..., 0]
     try:
-        code = FIRST_STAGE_ONLY | _tie_code(cfg)
+        code = FIRST_STAGE_ONLY | _flags(cfg)
         run_kernel(code, cfg, pop, state, obs, rew, rates, learn, visits, count)
     finally:
         if bs:

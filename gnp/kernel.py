@@ -20,6 +20,7 @@ from numba.extending import intrinsic
 from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, STEP_BUDGET
 from gnp.methods import BRANCH_SELECTION as _BS  # `method` is `MethodTraits.kernel_code`
 from gnp.methods import CREDIT as _CS
+from gnp.methods import SKIP_EARNS as _SKIP_EARNS
 from gnp.methods import TIE_FIRST as _TIE_FIRST
 from gnp.population import CACHE_LINE, record_dtype
 from gnp.rng import next_uniform
@@ -174,8 +175,9 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
     pn, pp, pb, pu, pc = walk[i, 1], walk[i, 2], walk[i, 3], walk[i, 4], walk[i, 5]
     bn, bp, bb, bu = walk[i, 6], walk[i, 7], walk[i, 8], walk[i, 9]
     # A step's first visit credits the previous step's reward to the visit before it, unless
-    # that was a credit skip (reward 0, Eq. 5.3).
-    pend_r = reward[i] if used == 0 and pn >= 0 and pc != 1 else 0.0
+    # that was a credit skip (reward 0, Eq. 5.3; `GnpConfig.skip_reward` "step": it too).
+    earns = pc != 1 or method & _SKIP_EARNS
+    pend_r = reward[i] if used == 0 and pn >= 0 and earns else 0.0
     record = c * n_nodes + node
     q, h, b = record * r32, record * r16, record * record_bytes
     s, p = _egreedy(words32, q + ss, n_sub, eps, s, first)

@@ -23,6 +23,9 @@ FIRST_STAGE_ONLY = 0
 #: The kernel's flag (beside the method's) for `GnpConfig.tie_break` "first": ε-greedy breaks a
 #: tie among the maxima to the lowest index, with no draw (`gnp.engine.method_code`).
 TIE_FIRST = 4
+#: The kernel's flag for `GnpConfig.skip_reward` "step": a credit skip that ends a world step
+#: earns that step's reward, as any step's last visit does (else 0, Eq. 5.3).
+SKIP_EARNS = 8
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,7 @@ class ReferenceController:
         draw) and CS never its credit branch (no draw); neither updates its second-stage Q.
         """
         cfg, g = self.cfg, self.genes
-        if self.visits and not self.visits[-1].credit:
+        if self.visits and (not self.visits[-1].credit or self.cfg.skip_reward == "step"):
             self.visits[-1].reward = reward  # the previous step's last visit earns its reward
         made: list[Visit] = []
         used = 0

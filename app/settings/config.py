@@ -25,7 +25,7 @@ import gnp
 from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
-from gnp.config import GenerationProgress, TieBreak
+from gnp.config import GenerationProgress, SkipReward, TieBreak
 from neuro.neat_params import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
@@ -102,6 +102,7 @@ class ControllerSettings(_Frozen):
     gamma: float = _of_gnp("gamma", "1")
     q0: float = _of_gnp("q0", "1")
     tie_break: TieBreak = _of_gnp("tie_break")
+    skip_reward: SkipReward = _of_gnp("skip_reward")
 
     @property
     def sub_nodes(self) -> int:
@@ -122,6 +123,7 @@ class ControllerSettings(_Frozen):
             gamma=self.gamma,
             q0=self.q0,
             tie_break=self.tie_break,
+            skip_reward=self.skip_reward,
         )
 
 

@@ -32,6 +32,7 @@ from gnp.engine import check_population, kernel_arguments, method_code
 from gnp.kernel import read_observed, records_part, walk_kernel
 from gnp.methods import BRANCH_SELECTION as _BS
 from gnp.methods import CREDIT as _CS
+from gnp.methods import SKIP_EARNS as _SKIP_EARNS
 
 CARTPOLE, MOUNTAIN_CAR, ACROBOT = 0, 1, 2
 
@@ -271,7 +272,7 @@ def _end_episode(
     pp, pb, pu, pc = walk[0, 2], walk[0, 3], walk[0, 4], walk[0, 5]
     r32 = layout[0] // 4
     ss, bs, cs_ = layout[1], layout[2], layout[3]
-    r = 0.0 if pc == 1 else reward
+    r = 0.0 if pc == 1 and not method & _SKIP_EARNS else reward
     last_q = (c * n_nodes + pn) * r32
     q = np.float64(words32[last_q + ss + pp])
     words32[last_q + ss + pp] = q + lr * (r - q)

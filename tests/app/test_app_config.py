@@ -166,7 +166,7 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
 
 
 @pytest.mark.parametrize(
-    "name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma", "q0", "tie_break"]
+    "name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma", "q0", "tie_break", "skip_reward"]
 )
 def test_the_controllers_settings_are_gnps_own(name: str) -> None:
     import gnp

@@ -4,7 +4,7 @@ Gymnasium's own envs, step for step, and the fast lives against the Gymnasium pa
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -64,11 +64,14 @@ def test_the_batched_dynamics_are_gymnasiums_env_bit_for_bit(task: str, greedy: 
         env.close()
 
 
-def _training(task: str, method: Literal["RL", "BS", "CS"]) -> TaskRunConfig:
+def _training(
+    task: str, method: Literal["RL", "BS", "CS"], controller: dict[str, Any] | None = None
+) -> TaskRunConfig:
+    controller = controller or {}
     return TaskRunConfig(
         seed=3,
         task=TaskSettings(id=task),
-        controller=ControllerSettings(method=method, fuzzy=method == "CS"),
+        controller=ControllerSettings(method=method, fuzzy=method == "CS", **controller),
         training=TaskTraining(
             population=10, generations=3, steps=200, epsilon=Schedule.fixed(0.05)
         ),
@@ -76,12 +79,23 @@ def _training(task: str, method: Literal["RL", "BS", "CS"]) -> TaskRunConfig:
 
 
 @pytest.mark.parametrize(
-    ("task", "method"), [("CartPole-v1", "RL"), ("MountainCar-v0", "BS"), ("Acrobot-v1", "CS")]
+    ("task", "method", "controller"),
+    [
+        ("CartPole-v1", "RL", {}),
+        ("MountainCar-v0", "BS", {}),
+        ("Acrobot-v1", "CS", {}),
+        # the settings made for tasks (#45), the terminal update's credit skip included
+        ("Acrobot-v1", "CS", {"skip_reward": "step", "q0": -10.0, "tie_break": "first"}),
+    ],
 )
 def test_a_fast_training_is_the_gymnasium_training(
-    task: str, method: Literal["RL", "BS", "CS"], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    task: str,
+    method: Literal["RL", "BS", "CS"],
+    controller: dict[str, Any],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    config = _training(task, method)
+    config = _training(task, method, controller)
     fast = read_task_run(train_task(config, tmp_path / "fast.h5"))
     monkeypatch.setattr(dynamics, "FAST_TASKS", {})
     slow = read_task_run(train_task(config, tmp_path / "gym.h5"))

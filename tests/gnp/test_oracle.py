@@ -19,12 +19,16 @@ def random_learning_population(
     return pop
 
 
-@pytest.mark.parametrize("tie_break", ["random", "first"])
+@pytest.mark.parametrize(
+    "task_settings",
+    [{}, {"tie_break": "first"}, {"skip_reward": "step", "q0": -0.5}],
+    ids=["robot", "tie-first", "skip-earns"],
+)
 @pytest.mark.parametrize("fuzzy", [True, False], ids=["fuzzy", "crisp"])
 @pytest.mark.parametrize("method", ["RL", "BS", "CS"])
-def test_engine_matches_reference(method: str, fuzzy: bool, tie_break: str) -> None:
-    cfg = gnp.GnpConfig(
-        method=method, fuzzy=fuzzy, n_judgment=12, n_processing=6, n_sub=3, tie_break=tie_break
+def test_engine_matches_reference(method: str, fuzzy: bool, task_settings: dict) -> None:
+    cfg = gnp.GnpConfig.model_validate(
+        dict(method=method, fuzzy=fuzzy, n_judgment=12, n_processing=6, n_sub=3, **task_settings)
     )
     rng = np.random.default_rng(7)
     n, steps = 16, 320

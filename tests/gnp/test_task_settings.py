@@ -87,3 +87,43 @@ def test_a_controller_document_names_the_task_settings_only_when_set() -> None:
     back, read = controller_from_body(entry, nodes)
     assert back == tuned
     np.testing.assert_array_equal(read.q_ss, pop.q_ss)
+
+
+def _skipper(skip_reward: str) -> tuple[gnp.GnpConfig, gnp.Population, gnp.EngineState]:
+    """A CS controller whose every node prefers its credit branch (Q_CS credit 1, normal 0)."""
+    cfg = gnp.GnpConfig.model_validate(
+        dict(method="CS", fuzzy=False, gamma=0.0, tie_break="first", skip_reward=skip_reward)
+    )
+    pop = gnp.init_population(cfg, 1, np.random.default_rng(4))
+    pop.q_cs[..., 1] = 1.0
+    return cfg, pop, gnp.init_state(cfg, 1, [3])
+
+
+@pytest.mark.parametrize(("skip_reward", "earned"), [("zero", 0.0), ("step", -1.0)])
+def test_a_credit_skip_that_ends_a_step_earns_the_steps_reward_only_when_set(
+    skip_reward: str, earned: float
+) -> None:
+    """The CS defect on tasks (#45): a step of five credit skips hid its reward (r = 0 for a
+    skip), so where every step pays −1 skipping every node looked best. With γ = 0 and
+    α = 0.5 the step's last skip moves halfway to the reward it earns: hand-computed."""
+    cfg, pop, state = _skipper(skip_reward)
+    obs = np.full((1, 8), 500.0)
+    _, trace = gnp.step(cfg, pop, state, obs, np.zeros(1), 0.0, 0.5, trace=True)
+    assert trace is not None and trace.skipped[0, 1:6].tolist() == [1] * 5  # skips only
+    node, sub = int(state.pending[0, 0]), int(state.pending[0, 1])
+    before = float(pop.q_cs[0, node, sub, 1])
+    _, trace = gnp.step(cfg, pop, state, obs, np.full(1, -1.0), 0.0, 0.5, trace=True)
+    assert trace is not None and node not in trace.node[0, : trace.count[0] - 1].tolist()
+    assert pop.q_cs[0, node, sub, 1] == np.float32(before + 0.5 * (earned - before))
+
+
+@pytest.mark.parametrize(("skip_reward", "earned"), [("zero", 0.0), ("step", -1.0)])
+def test_the_terminal_update_credits_a_last_skip_as_the_setting_says(
+    skip_reward: str, earned: float
+) -> None:
+    cfg, pop, state = _skipper(skip_reward)
+    gnp.step(cfg, pop, state, np.full((1, 8), 500.0), np.zeros(1), 0.0, 0.5)
+    node, sub = int(state.pending[0, 0]), int(state.pending[0, 1])
+    before = float(pop.q_cs[0, node, sub, 1])
+    gnp.end_episode(cfg, pop, state, np.full(1, -1.0), 0.5)
+    assert pop.q_cs[0, node, sub, 1] == np.float32(before + 0.5 * (earned - before))
