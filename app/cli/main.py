@@ -27,10 +27,11 @@ HANDLERS: dict[str, tuple[str, str]] = {
     "experiment": ("app.experiments.cli", "main"),
     "export": ("app.export.cli", "cmd_export"),
     "replay": ("app.tasks.cli", "replay"),
+    "tune": ("app.cli.tune", "cmd_tune"),
 }
 """Each command's handler: (module, function), imported when the command runs."""
 
-COMPILING_COMMANDS = ("train", "implement", "replay")
+COMPILING_COMMANDS = ("train", "implement", "replay", "tune")
 """The commands that may compile numba's kernels (the first run on a machine): what numba
 compiles while they run is said on stderr (`app.phases.warm.CompileWatch`)."""
 
@@ -44,6 +45,7 @@ USER_ERRORS: tuple[tuple[str, str], ...] = (
     ("app.experiments.spec", "ExperimentError"),
     ("gnp.config", "GnpError"),
     ("app.tasks.common", "TaskError"),
+    ("app.tune.space", "TuneError"),
 )
 """The errors that are a user's mistake (reported on one line), by the module defining each."""
 

@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "experiment": "compare methods over seeds and sensor faults, on Dask, with statistics",
     "export": "export a run's controller, graph and tables, or a replay folder",
     "replay": "live a task run's best individual one episode again and print its return",
+    "tune": "tune a brain's settings on a Gymnasium task with Optuna, into a preset",
 }
 """Each command and its one-line help, in `gnp-lab --help`'s order. `experiment`, `export` and
 `replay` build their parsers in their packages (with the same help: a test keeps them equal)."""
@@ -104,7 +105,12 @@ def _add_train(commands: Any) -> None:
         description="Train a population. Settings come from the thesis's defaults, then "
         "--preset, then --config, then the options below (later wins).",
     )
-    train.add_argument("--preset", choices=PRESET_NAMES, help="a shipped configuration")
+    train.add_argument(
+        "--preset",
+        metavar="NAME|FILE",
+        help=f"a shipped configuration ({', '.join(PRESET_NAMES)}) or a preset file, e.g. "
+        "one `gnp-lab tune` wrote",
+    )
     train.add_argument("--config", metavar="FILE", help="a TOML config file")
     train.add_argument(
         "--brain",
@@ -208,6 +214,12 @@ def _add_replay(commands: Any) -> None:
     add_replay_parser(commands)
 
 
+def _add_tune(commands: Any) -> None:
+    from app.cli.tune_options import add_parser
+
+    add_parser(commands, COMMANDS["tune"], _assignment)
+
+
 _BUILDERS: dict[str, Callable[[Any], None]] = {
     "train": _add_train,
     "implement": _add_implement,
@@ -216,4 +228,5 @@ _BUILDERS: dict[str, Callable[[Any], None]] = {
     "experiment": _add_experiment,
     "export": _add_export,
     "replay": _add_replay,
+    "tune": _add_tune,
 }

@@ -15,7 +15,7 @@ from app.settings.cli_options import (
     given_options,
     given_settings,
 )
-from app.settings.config import ConfigError, RunConfig, preset_layer
+from app.settings.config import PRESET_NAMES, ConfigError, RunConfig, preset_layer
 from app.settings.fields import nested
 from app.settings.loading import build_config, read_toml, to_toml
 from app.store import RunFileError, RunReader, best_words, new_run_path
@@ -36,8 +36,11 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     """Thesis defaults ← --preset ← --config ← options."""
     layers: list[dict[str, Any]] = []
     sources = ["defaults"]
-    if args.preset:
+    if args.preset in PRESET_NAMES:
         layers.append(preset_layer(args.preset))
+        sources.append(f"preset {args.preset}")
+    elif args.preset:
+        layers.append(_preset_file(args.preset, args.task))
         sources.append(f"preset {args.preset}")
     if args.config:
         layers.append(read_toml(args.config))
@@ -54,6 +57,18 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         target[path[-1]] = value
     layers.append(options)
     return build_config(*layers, source=" + ".join([*sources, "options"]))
+
+
+def _preset_file(preset: str, task: str | None) -> dict[str, Any]:
+    """--preset FILE: a preset file's settings (a tuned one: for its task)."""
+    from app.tune.preset import train_layer
+
+    if not Path(preset).is_file() and not preset.endswith(".toml"):
+        raise ConfigError(
+            f"unknown preset {preset!r}; choose one of {', '.join(PRESET_NAMES)}, or give a "
+            "preset file (.toml)"
+        )
+    return train_layer(preset, task)
 
 
 class Bar:

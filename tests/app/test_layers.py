@@ -14,7 +14,8 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
    contract.
 6. `app.views` (what the dashboard and the export both draw) and `app.tasks` (GNP on
    Gymnasium tasks).
-7. `app.experiments` (which runs task experiments through `app.tasks.peer`) and `app.export`.
+7. `app.experiments` (which runs task experiments through `app.tasks.peer`), `app.export` and
+   `app.tune` (Optuna studies of task runs).
 8. `app.dashboard`.
 9. `app.cli`, which wires everything into `gnp-lab`.
 
@@ -48,6 +49,7 @@ LAYER = {
     "app.tasks": 6,
     "app.experiments": 7,
     "app.export": 7,
+    "app.tune": 7,
     "app.dashboard": 8,
     "app.cli": 9,
 }

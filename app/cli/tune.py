@@ -1,0 +1,128 @@
+"""`gnp-lab tune --task ID`: tune a brain's settings on a task with Optuna (`app.tune`), write
+a preset (its options: app/cli/tune_options.py)."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from app.tune.space import FIRST_VALIDATION_SEED, TuneError, run_seeds
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
+TUNING_DIR = "tuning"
+"""Studies and presets live in RUNS_DIR/tuning/: NAME.db (the study), NAME.toml (its preset)."""
+
+
+def study_name(args: argparse.Namespace) -> str:
+    """--study, or TASK-BRAIN[-METHOD]; a name that is a plain file name.
+
+    Raises:
+        TuneError: a name that could leave the tuning folder.
+    """
+    name = args.study
+    if name is None:
+        name = f"{args.task.replace('/', '_')}-{args.brain}"
+        name += f"-{args.method}" if args.method and args.brain == "gnp" else ""
+    if not _NAME.match(name):
+        raise TuneError(
+            f"study name {name!r} must be 1-64 letters, digits, '_', '.' or '-', starting "
+            "with a letter or digit"
+        )
+    return name
+
+
+_SIZES = {
+    "seed": "--seeds (its tuning seeds)",
+    "training.population": "--population",
+    "training.generations": "--budget",
+    "training.steps": "--steps",
+}
+
+
+def _fixed(args: argparse.Namespace) -> dict[str, Any]:
+    fixed = {".".join(path): value for path, value in args.assignments if path[0] != "task"}
+    for key, option in _SIZES.items():
+        if key in fixed:
+            raise TuneError(f"--set {key}: the study's {option} sets it")
+    if args.method is not None:
+        if args.brain != "gnp":
+            raise TuneError("--method is GNP's; fracnetics has none")
+        fixed["controller.method"] = args.method
+    return fixed
+
+
+def cmd_tune(args: argparse.Namespace) -> int:
+    from app.cli.train import Bar
+    from app.phases.generations import Interrupted
+    from app.system.exit_codes import EXIT_INTERRUPTED
+    from app.tasks.cli import task_settings
+    from app.tune import study as tuning
+    from app.tune.publish import write_study_preset
+
+    name = study_name(args)
+    if args.trials < 1:
+        raise TuneError(f"--trials must be at least 1, got {args.trials}")
+    if args.population < 2:
+        raise TuneError(f"--population must be at least 2, got {args.population}")
+    fixed = _fixed(args)
+    task = task_settings(args.task, list(args.assignments))
+    if args.brain == "gnp":
+        task.adapter()  # an unusable task: one line, before any file
+    declared = tuning.Declared(
+        task=args.task,
+        brain=args.brain,
+        name=name,
+        budget=args.budget,
+        population=args.population,
+        steps=tuning.task_step_cap(args.task, args.steps),
+        seeds=args.seeds,
+        validation=args.validation,
+        sampler_seed=args.sampler_seed,
+        fixed=fixed,
+    )
+    if args.brain == "gnp":  # the study's settings hold before any file is made
+        tuning.gnp_config(declared, task, {}, run_seeds(1)[0]).gnp_config()
+    else:
+        tuning.fracnetics_settings(declared, {})
+    folder = Path(args.runs_dir) / TUNING_DIR
+    storage = folder / f"{name}.db"
+    out = Path(args.out) if args.out else folder / f"{name}.toml"
+    study = tuning.open_study(storage, declared)
+    done = len(tuning.finished(study))
+    bar = Bar(args.trials, min(done, args.trials), f"tune {name}", "trial", args.quiet)
+
+    def each(outcome: tuning.Outcome) -> None:
+        best = "-" if outcome.best is None else f"{outcome.best:.4g}"
+        bar.update(len(tuning.finished(study)), best=best, last=outcome.state)
+
+    if not args.quiet:
+        sys.stderr.write(
+            f"gnp-lab: tuning {args.brain} on {args.task}: {done}/{args.trials} trials done, "
+            f"{declared.generations} generations of {declared.population} per run "
+            f"(≤ {declared.budget:,} env-steps), run seeds {run_seeds(declared.seeds)[0]}.., "
+            f"validation seeds {FIRST_VALIDATION_SEED}..+{declared.validation - 1}; "
+            f"study {storage}\n"
+        )
+    try:
+        tuning.run_trials(study, declared, task, args.trials, each)
+    except (KeyboardInterrupt, Interrupted):
+        bar.close()
+        done = len(tuning.finished(study))
+        sys.stderr.write(
+            f"gnp-lab: interrupted: {done}/{args.trials} trials finished (the cut one will be "
+            f"drawn again); continue by running the same command\n"
+        )
+        return EXIT_INTERRUPTED
+    finally:
+        bar.close()
+    record = write_study_preset(study, declared, task, storage, out, args.trials)
+    print(
+        f"{out}: best mean validation return {record.best_value:.4g} (trial "
+        f"{record.best_trial}; {record.complete} complete, {record.pruned} pruned)"
+    )
+    if args.brain == "gnp":
+        print(f"train with: gnp-lab train --task {args.task} --preset {out}")
+    return 0

@@ -1,0 +1,391 @@
+"""An Optuna study of one brain on one task: its declaration, its storage file, its trials.
+
+A trial draws settings from the brain's declared space (`app.tune.space`), trains one run per
+tuning run seed at the study's population for the generations its env-step budget holds, and
+scores the final generation's best individual on the validation episodes (greedy: ε = 0,
+learning off; fracnetics' elite as it lives, deterministically). The study lives in an Optuna
+RDB storage (SQLite) file: a cut study is continued by running the same command again, and
+reruns give the same trials (each trial's sampler is seeded by the study's sampler seed and
+the number of trials finished before it; see docs/tasks.md, "Tuning").
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import tempfile
+import warnings
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from app.tune.space import (
+    MAX_RUN_SEEDS,
+    MAX_VALIDATION_EPISODES,
+    Brain,
+    Param,
+    TuneError,
+    nested,
+    run_seeds,
+    settings_of,
+    space,
+    validation_seeds,
+)
+
+if TYPE_CHECKING:
+    import optuna
+
+    from app.tasks.config import TaskRunConfig, TaskSettings
+    from app.tasks.fracnetics_arm import FracneticsSettings
+
+MAX_BUDGET = 10**12
+"""Most env-steps a study may give one training run."""
+STARTUP_TRIALS = 10
+"""Trials TPE draws at random before it models the finished ones (Optuna's default)."""
+PRUNE_STARTUP_TRIALS = 5
+"""Completed trials before the median pruner stops any."""
+
+
+@dataclass(frozen=True)
+class Declared:
+    """A study's declaration: what its trials depend on. A study's storage keeps it, and a rerun
+    that declares otherwise (but the trial count) is refused."""
+
+    task: str
+    brain: Brain
+    name: str
+    budget: int  # env-steps one training run may spend at most
+    population: int
+    steps: int  # a life's cap: one episode, at most this many steps
+    seeds: int  # training runs per trial (run seeds run_seeds(seeds))
+    validation: int  # validation episodes per run
+    sampler_seed: int
+    fixed: dict[str, Any] = field(default_factory=dict)  # the study's --set settings, flat
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.budget <= MAX_BUDGET:
+            raise TuneError(f"--budget must be 1..{MAX_BUDGET} env-steps, got {self.budget}")
+        if not 1 <= self.seeds <= MAX_RUN_SEEDS:
+            raise TuneError(f"--seeds must be 1..{MAX_RUN_SEEDS}, got {self.seeds}")
+        if not 1 <= self.validation <= MAX_VALIDATION_EPISODES:
+            raise TuneError(
+                f"--validation must be 1..{MAX_VALIDATION_EPISODES} episodes, got {self.validation}"
+            )
+        if not 0 <= self.sampler_seed < 2**32:
+            raise TuneError(f"--sampler-seed must be 0..{2**32 - 1}, got {self.sampler_seed}")
+        if self.generations < 1:
+            raise TuneError(
+                f"--budget {self.budget} env-steps holds no generation of {self.population} "
+                f"lives of up to {self.steps} steps: give at least {self.population * self.steps}"
+            )
+        if self.generations > 1_000_000:
+            raise TuneError(f"--budget {self.budget} is over 1,000,000 generations; give less")
+
+    @property
+    def generations(self) -> int:
+        """The generations of every training run: as many as the budget holds when every life
+        lasts its cap (so no run spends more than the budget)."""
+        return self.budget // (self.population * self.steps)
+
+    def params(self) -> list[Param]:
+        return space(self.brain, frozenset(self.fixed), self.population)
+
+    def json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+def task_step_cap(task: str, steps: int | None) -> int:
+    """A life's cap: `steps`, no more than the task's own time limit (its default).
+
+    Raises:
+        TaskError: an unknown task.
+    """
+    from app.tasks.config import make_env
+
+    env = make_env(task)
+    try:
+        limit = env.spec.max_episode_steps if env.spec is not None else None
+    finally:
+        env.close()
+    if steps is not None and steps < 1:
+        raise TuneError(f"--steps must be at least 1, got {steps}")
+    caps = [c for c in (steps, limit) if c is not None]
+    return min(caps) if caps else 1000
+
+
+# --- storage ---------------------------------------------------------------------------------
+
+_SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def check_storage(path: Path) -> None:
+    """An existing storage file is an SQLite database holding Optuna's tables (Optuna would
+    otherwise create its tables in any database it is given).
+
+    Raises:
+        TuneError: not a regular file, not SQLite, or not an Optuna study's.
+    """
+    if not path.exists() or (path.is_file() and path.stat().st_size == 0):
+        return
+    if not path.is_file():
+        raise TuneError(f"storage {path} is not a regular file")
+    with path.open("rb") as handle:
+        if handle.read(len(_SQLITE_HEADER)) != _SQLITE_HEADER:
+            raise TuneError(f"storage {path} is not an Optuna study (not an SQLite file)")
+    try:
+        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        try:
+            tables = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
+        finally:
+            db.close()
+    except sqlite3.Error as error:
+        raise TuneError(f"storage {path} is corrupt: {error}") from None
+    if not {"studies", "trials", "version_info"} <= tables:
+        raise TuneError(f"storage {path} is an SQLite file but not an Optuna study's")
+
+
+def open_study(path: Path, declared: Declared) -> optuna.Study:
+    """The study in `path` (created with its declaration, or loaded and checked against it).
+
+    Raises:
+        TuneError: a corrupt or foreign file, or a study declared otherwise.
+    """
+    import optuna
+    import sqlalchemy.exc
+
+    check_storage(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    try:
+        storage = optuna.storages.RDBStorage(f"sqlite:///{path}")
+        study = optuna.create_study(
+            storage=storage, study_name=declared.name, direction="maximize", load_if_exists=True
+        )
+    except (sqlalchemy.exc.SQLAlchemyError, RuntimeError, ValueError, KeyError) as error:
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise TuneError(f"storage {path} cannot be opened as an Optuna study: {text}") from None
+    stored = study.user_attrs.get("declared")
+    if stored is None:
+        study.set_user_attr("declared", declared.json())
+    elif stored != declared.json():
+        was = json.loads(stored)
+        now = json.loads(declared.json())
+        diff = ", ".join(
+            f"{k} {was.get(k)!r} (now {now[k]!r})" for k in now if was.get(k) != now[k]
+        )
+        raise TuneError(
+            f"study {declared.name!r} in {path} was declared with {diff}; rerun it as it was "
+            "declared, or give another --study"
+        )
+    return study
+
+
+def close_stale(study: optuna.Study) -> None:
+    """Trials left running by a killed process are failed: a study runs one trial at a time."""
+    from optuna.trial import TrialState
+
+    for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        study._storage.set_trial_state_values(trial._trial_id, TrialState.FAIL)
+
+
+def finished(study: optuna.Study) -> list[optuna.trial.FrozenTrial]:
+    """The trials that count towards the declared number: complete or pruned."""
+    from optuna.trial import TrialState
+
+    return study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
+
+
+# --- trials ----------------------------------------------------------------------------------
+
+Report = Callable[[int, float], None]
+"""A trial's intermediate result: (step, value); raises optuna.TrialPruned to stop the trial."""
+
+
+def gnp_config(
+    declared: Declared, task: TaskSettings, values: dict[str, Any], seed: int
+) -> TaskRunConfig:
+    """The task run of a trial (or of the preset: `values` the best trial's settings)."""
+    from app.settings.loading import build_config
+    from app.tasks.config import TaskRunConfig
+
+    sizes = {
+        "training": {
+            "population": declared.population,
+            "generations": declared.generations,
+            "steps": declared.steps,
+        }
+    }
+    layers = (nested(declared.fixed), nested(values), sizes, {"seed": seed})
+    config = build_config(*layers, source=f"study {declared.name!r}")
+    return TaskRunConfig.from_run_config(config, task)
+
+
+def gnp_trial(
+    declared: Declared, task: TaskSettings, values: dict[str, Any], report: Report
+) -> tuple[float, int]:
+    """Train a trial's GNP runs and score them: (mean validation return, env-steps spent)."""
+    from app.tasks.training import replay_episodes, train_task
+
+    scores, spent = [], 0
+    g_count = declared.generations
+    with tempfile.TemporaryDirectory(prefix="gnp-lab-tune-") as folder:
+        for r, seed in enumerate(run_seeds(declared.seeds)):
+            config = gnp_config(declared, task, values, seed)
+            path = Path(folder) / f"run-{r}.h5"
+
+            def each(summary: Any, r: int = r) -> None:
+                nonlocal spent
+                spent += int(summary.steps)
+                report(r * g_count + int(summary.generation), float(summary.best_fitness))
+
+            train_task(config, path, progress=each)
+            lives = replay_episodes(
+                path, list(validation_seeds(declared.validation)), epsilon=0.0, learn=False
+            )
+            scores.append(float(np.mean(lives.returns)))
+    return float(np.mean(scores)), spent
+
+
+def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> FracneticsSettings:
+    """fracnetics' documented settings of the task, with the study's and the trial's."""
+    from app.tasks.fracnetics_arm import FracneticsSettings, documented
+
+    base = documented(declared.task).model_dump()
+    for path, value in {**declared.fixed, **values}.items():
+        section, _, key = path.partition(".")
+        if section != "fracnetics" or key not in base:
+            raise TuneError(f"--set {path}: a fracnetics study sets fracnetics.KEY only")
+        base[key] = value
+    try:
+        return FracneticsSettings(**base)
+    except ValueError as error:
+        raise TuneError(f"fracnetics settings: {str(error).splitlines()[0]}") from None
+
+
+def fracnetics_trial(declared: Declared, values: dict[str, Any], report: Report) -> float:
+    """Train a trial's fracnetics runs and score their elites on the validation episodes."""
+    from app.tasks.fracnetics_arm import check_population, train_fracnetics
+
+    settings = fracnetics_settings(declared, values)
+    check_population(settings, declared.population)
+    scores = []
+    g_count = declared.generations
+    for r, seed in enumerate(run_seeds(declared.seeds)):
+
+        def each(generation: int, best: float, r: int = r) -> None:
+            report(r * g_count + generation, best)
+
+        result = train_fracnetics(
+            declared.task, settings, declared.population, g_count, seed, declared.steps,
+            validation_seeds(declared.validation), progress=each,
+        )  # fmt: skip
+        scores.append(float(np.mean(result.test_returns)))
+    return float(np.mean(scores))
+
+
+def draw(trial: optuna.Trial, params: list[Param]) -> dict[str, Any]:
+    """A trial's settings (flat paths), drawn from `params`."""
+    drawn: dict[str, Any] = {}
+    for p in params:
+        if p.kind == "float":
+            drawn[p.name] = trial.suggest_float(p.name, p.low, p.high, log=p.log)
+        elif p.kind == "int":
+            drawn[p.name] = trial.suggest_int(p.name, int(p.low), int(p.high), log=p.log)
+        elif p.kind == "share":
+            drawn[p.name] = trial.suggest_float(p.name, 0.0, 1.0)
+        else:
+            drawn[p.name] = trial.suggest_categorical(p.name, list(p.choices))
+    return settings_of(params, drawn)
+
+
+def trial_sampler(declared: Declared, done: int) -> optuna.samplers.BaseSampler:
+    """TPE seeded by (sampler seed, trials finished): the trials a study draws are a function of
+    its finished trials, however often it was cut."""
+    import optuna
+
+    seed = int(np.random.SeedSequence([declared.sampler_seed, done]).generate_state(1)[0])
+    return optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS)
+
+
+def pruner(declared: Declared) -> optuna.pruners.BasePruner:
+    """The median rule: a trial whose generation's best training return falls below the median
+    of the completed trials' at the same generation is stopped, after PRUNE_STARTUP_TRIALS
+    completed trials and the first third of its first run."""
+    import optuna
+
+    return optuna.pruners.MedianPruner(
+        n_startup_trials=PRUNE_STARTUP_TRIALS, n_warmup_steps=declared.generations // 3
+    )
+
+
+@dataclass
+class Outcome:
+    """A finished trial, as the progress bar shows it."""
+
+    number: int
+    state: str  # "complete" | "pruned"
+    value: float | None
+    best: float | None
+
+
+def run_trials(
+    study: optuna.Study,
+    declared: Declared,
+    task: TaskSettings,
+    trials: int,
+    each: Callable[[Outcome], None] | None = None,
+    report_hook: Callable[[int, int], None] | None = None,
+) -> None:
+    """Run trials until `trials` are finished (complete or pruned). A trial cut by Ctrl-C or
+    SIGTERM is marked failed (it does not count) and the interruption raised again.
+
+    `report_hook(trial number, step)` is called at every intermediate result (tests cut a
+    study there)."""
+    import optuna
+    from optuna.trial import TrialState
+
+    close_stale(study)
+    params = declared.params()
+    study.pruner = pruner(declared)
+    while (done := len(finished(study))) < trials:
+        study.sampler = trial_sampler(declared, done)
+        trial = study.ask()
+
+        def report(step: int, value: float, trial: optuna.Trial = trial) -> None:
+            if report_hook is not None:
+                report_hook(trial.number, step)
+            trial.report(value, step)
+            if trial.should_prune():
+                raise optuna.TrialPruned()
+
+        try:
+            values = draw(trial, params)
+            trial.set_user_attr("settings", json.dumps(values, sort_keys=True))
+            if declared.brain == "gnp":
+                value, spent = gnp_trial(declared, task, values, report)
+                trial.set_user_attr("env_steps", spent)
+            else:
+                value = fracnetics_trial(declared, values, report)
+        except optuna.TrialPruned:
+            study.tell(trial, state=TrialState.PRUNED)
+            state, value = "pruned", None
+        except BaseException:  # Ctrl-C, SIGTERM (Interrupted), an error: it does not count
+            study.tell(trial, state=TrialState.FAIL)
+            raise
+        else:
+            study.tell(trial, value)
+            state = "complete"
+        if each is not None:
+            each(Outcome(trial.number, state, value, best_value(study)))
+
+
+def best_value(study: optuna.Study) -> float | None:
+    """The best complete trial's value, None before any."""
+    from optuna.trial import TrialState
+
+    complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    return max(float(t.value) for t in complete if t.value is not None) if complete else None

@@ -1,0 +1,85 @@
+"""Tuning seeds are disjoint from every seed an experiment uses: run seeds, fracnetics' episode
+seeds (run seed + g) and test episode seeds, of every shipped spec at every scale; and the
+tuner's own run, episode and validation seeds stay inside its declared range. `gnp-lab --help`
+and `tune --help` import no Optuna."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from app.experiments.spec_loading import load_shipped, shipped_names
+from app.tune.space import (
+    FIRST_VALIDATION_SEED,
+    MAX_RUN_SEEDS,
+    MAX_VALIDATION_EPISODES,
+    TUNING_SEEDS,
+    run_seeds,
+    validation_seeds,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+MAX_GENERATIONS = 1_000_000  # TaskTraining.generations' bound
+
+
+def _experiment_seeds(name: str) -> set[range]:
+    """Every seed range an experiment uses, at each of its scales."""
+    spec = load_shipped(name)
+    ranges = set()
+    for scale in spec.scales:
+        seeds = spec.seed_list(scale)  # type: ignore[arg-type]
+        ranges.add(range(seeds[0], seeds[-1] + 1))
+        if spec.task is None:
+            continue
+        ranges.add(
+            range(spec.task.first_test_seed, spec.task.first_test_seed + spec.task.test_seeds)
+        )
+        for arm in spec.arms:
+            if arm.brain == "fracnetics":  # its episodes: run seed + g, g < generations
+                generations = spec.run_config(arm.name, scale, seeds[0]).training.generations
+                ranges.add(range(seeds[0], seeds[-1] + generations))
+    return ranges
+
+
+def _overlap(a: range, b: range) -> bool:
+    return max(a.start, b.start) < min(a.stop, b.stop)
+
+
+def test_tuning_seeds_are_no_experiments_seeds() -> None:
+    checked = 0
+    for name in shipped_names():
+        for seeds in _experiment_seeds(name):
+            assert not _overlap(seeds, TUNING_SEEDS), (name, seeds)
+            checked += 1
+    assert checked > len(shipped_names())
+
+
+def test_the_tuners_seeds_stay_in_their_range() -> None:
+    runs = run_seeds(MAX_RUN_SEEDS)
+    fracnetics_episodes = range(runs[0], runs[-1] + MAX_GENERATIONS)
+    validation = validation_seeds(MAX_VALIDATION_EPISODES)
+    assert runs[0] == TUNING_SEEDS.start and validation[0] == FIRST_VALIDATION_SEED
+    assert fracnetics_episodes.stop <= validation[0]  # episodes of training never validate
+    assert validation[-1] < TUNING_SEEDS.stop
+    assert TUNING_SEEDS.stop < 2**31 - MAX_GENERATIONS  # fracnetics' int episode seeds
+
+
+def test_help_imports_no_optuna() -> None:
+    probe = (
+        "from app.cli import main\n"
+        "for argv in (['--help'], ['tune', '--help']):\n"
+        "    try:\n"
+        "        main(argv)\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "import json, sys\n"
+        "print(json.dumps([m for m in ('optuna', 'sqlalchemy', 'gymnasium', 'numba') "
+        "if m in sys.modules]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == []
