@@ -99,11 +99,12 @@ def cmd_tune(args: argparse.Namespace) -> int:
         bar.update(len(tuning.finished(study)), best=best, last=outcome.state)
 
     if not args.quiet:
+        last_validation = FIRST_VALIDATION_SEED + declared.validation - 1
         sys.stderr.write(
             f"gnp-lab: tuning {args.brain} on {args.task}: {done}/{args.trials} trials done, "
             f"{declared.generations} generations of {declared.population} per run "
             f"(≤ {declared.budget:,} env-steps), run seeds {run_seeds(declared.seeds)[0]}.., "
-            f"validation seeds {FIRST_VALIDATION_SEED}..+{declared.validation - 1}; "
+            f"validation seeds {FIRST_VALIDATION_SEED}..{last_validation}; "
             f"study {storage}\n"
         )
     try:

@@ -102,6 +102,11 @@ GNP_SPACE: tuple[Param, ...] = (
     Param("controller.n_judgment", "int", 8, 80, log=True, why="judgment nodes"),
     Param("controller.n_processing", "int", 2, 40, log=True, why="processing nodes"),
     Param("controller.n_sub", "int", 1, 4, why="sub nodes: 1 is a plain GNP (no choice to learn)"),
+    Param("controller.q0", "float", -10.0, 10.0,
+          why="initial Q: ±1/(1−γ) at γ = 0.9 spans tasks paying ±1 a step (#45: 0 is "
+          "optimistic where steps pay −1)"),
+    Param("controller.tie_break", "categorical", choices=("random", "first"),
+          why="ε-greedy among equal maxima (first: learning off is deterministic)"),
     Param("training.epsilon_max", "float", 0.0, 0.3, fixed=_CHANGING, excludes=_RATES,
           why="ε at generation 0 (Eq. 4.1)"),
     Param("training.epsilon_min", "share", of="training.epsilon_max", excludes=_RATES,
