@@ -73,6 +73,7 @@ def _run_task_run(task: Task, emit: Callable[[dict[str, Any]], None]) -> dict[st
     """A task experiment's run (app.tasks.peer): train or resume, then test the final elite."""
     import numpy as np
 
+    from app.experiments.results import PROTOCOL_METRICS
     from app.tasks.peer import PeerRun, run_peer
 
     inspect(task)  # a foreign file is refused, not overwritten
@@ -85,6 +86,11 @@ def _run_task_run(task: Task, emit: Callable[[dict[str, Any]], None]) -> dict[st
         "seed": task.seed,
         "final_best_fitness": float(result.best_curve[-1]),
         "test_return": float(np.mean(result.test_returns)),
+        **{
+            metric: float(np.mean(result.protocol_returns[protocol]))
+            for protocol, metric in PROTOCOL_METRICS.items()
+            if result.protocol_returns and protocol in result.protocol_returns
+        },
         "conditions": {},
     }
 

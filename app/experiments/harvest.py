@@ -10,7 +10,12 @@ from typing import Protocol
 import numpy as np
 
 from app.experiments.planning import Task, inspect, plan, work
-from app.experiments.results import CONVERGENCE_SHARE, Condition, ExperimentResults
+from app.experiments.results import (
+    CONVERGENCE_SHARE,
+    PROTOCOL_METRICS,
+    Condition,
+    ExperimentResults,
+)
 from app.experiments.spec import ExperimentSpec
 from app.store import RunReader
 
@@ -61,13 +66,15 @@ def _task_results(
     scalars: dict[tuple[str, str, str], np.ndarray],
     curves: dict[tuple[str, str, str], np.ndarray],
 ) -> None:
-    """A task experiment's values: final best return, the final elite's mean test return, and
-    the best return per generation (as `best_fitness_curve`), from each run's file."""
+    """A task experiment's values: final best return, the final elite's mean test return (and
+    per test protocol, for the runs whose files hold them: `PROTOCOL_METRICS`), and the best
+    return per generation (as `best_fitness_curve`), from each run's file."""
     from app.tasks.peer import read_peer
 
     n = len(seed_list)
+    claimed = {c.metric for c in spec.comparisons} & set(PROTOCOL_METRICS.values())
     for arm in spec.arms:
-        for metric in ("final_best_return", "test_return"):
+        for metric in ("final_best_return", "test_return", *sorted(claimed)):
             scalars[(metric, arm.name, "")] = np.full(n, np.nan)
     for task in tasks:
         key = ("best_fitness_curve", task.arm, "")
@@ -82,6 +89,11 @@ def _task_results(
         if result.finished and result.test_returns is not None:
             scalars[("final_best_return", task.arm, "")][row] = result.best_curve[-1]
             scalars[("test_return", task.arm, "")][row] = float(np.mean(result.test_returns))
+            for protocol, returns in (result.protocol_returns or {}).items():
+                metric = PROTOCOL_METRICS[protocol]
+                for arm in spec.arms:  # every arm's column once any run holds the metric
+                    scalars.setdefault((metric, arm.name, ""), np.full(n, np.nan))
+                scalars[(metric, task.arm, "")][row] = float(np.mean(returns))
 
 
 def collect(

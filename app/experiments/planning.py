@@ -84,7 +84,7 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
 
     assert spec.task is not None
     brain = spec.arm(arm).brain
-    run = TaskRunConfig.from_run_config(config, TaskSettings(id=spec.task.id))
+    run = TaskRunConfig.from_run_config(config, TaskSettings(id=spec.task.id), spec.task)
     peer = PeerRun(
         brain=brain,
         run=run,

@@ -16,7 +16,14 @@ import numpy as np
 MetricKind = Literal["scalar", "curve"]
 MetricScope = Literal["training", "condition"]
 #: The metrics of a task experiment (a Gymnasium task instead of the robot; app.tasks.peer).
-TASK_METRICS = ("final_best_return", "test_return")
+TASK_METRICS = (
+    "final_best_return",
+    "test_return",
+    "test_return_as_trained",
+    "test_return_greedy",
+)
+#: Each test protocol's metric (app.tasks.config.TEST_PROTOCOLS), as a task run file names it.
+PROTOCOL_METRICS = {"as-trained": "test_return_as_trained", "greedy": "test_return_greedy"}
 Direction = Literal["greater", "less", "equivalent"]
 # `exploratory` is not a verdict: what an exploratory claim shows in a verdict's place.
 Verdict = Literal["held", "reversed", "ruled out", "undecided", "exploratory"]
@@ -158,6 +165,24 @@ METRICS: dict[str, Metric] = {
             "training",
             "mean return of the last generation's best over the experiment's K test episodes, "
             "the same episode seeds for every arm (a task experiment)",
+            bounds=(-math.inf, math.inf),
+        ),
+        Metric(
+            "test_return_as_trained",
+            "test return, as trained",
+            "scalar",
+            "training",
+            "test_return with the final elite living its test episodes as it was trained (its "
+            "generation's ε and α, Sarsa on; fracnetics: its fixed policy)",
+            bounds=(-math.inf, math.inf),
+        ),
+        Metric(
+            "test_return_greedy",
+            "test return, greedy",
+            "scalar",
+            "training",
+            "test_return with the final elite living its test episodes greedily (ε = α = 0, "
+            "Sarsa frozen; fracnetics: its fixed policy)",
             bounds=(-math.inf, math.inf),
         ),
         Metric(

@@ -9,6 +9,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.experiments.results import ClaimKind, Direction, Family, MarginForm
+from app.tasks.common import EpisodeProtocol
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
 _NAME_RULE = "1-64 letters, digits, '_', '.' or '-', starting with a letter or digit"
@@ -139,9 +140,11 @@ class DesignSpec(SpecModel):
         return self
 
 
-class TaskSpec(SpecModel):
+class TaskSpec(SpecModel, EpisodeProtocol):
     """A task experiment: every run trains on a Gymnasium task instead of the robot, and its
-    final elite is tested on the same K episode seeds for every arm (app.tasks.peer)."""
+    final elite is tested on the same K episode seeds for every arm (app.tasks.peer); how its
+    episodes are seeded and its elite chosen and tested (`EpisodeProtocol`: test_protocol,
+    validation_episodes, shared_episodes) as every run's `TaskTraining` says."""
 
     id: str = Field(description="a Gymnasium id, e.g. CartPole-v1")
     test_seeds: int = Field(default=20, ge=1, le=10_000, description="K test episodes")

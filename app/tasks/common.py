@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import h5py
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.settings.cli_options import add_run_name, add_runs_dir
 from app.settings.user_files import check_regular
@@ -21,6 +22,41 @@ FORMAT = TASK_RUN_FORMAT
 
 class TaskError(ValueError):
     """A task GNP cannot run (unknown id, a space it cannot judge or emit, bad bounds)."""
+
+
+#: How a task run's final elite lives its test (and validation) episodes: "as-trained" (its
+#: generation's ε and α, Sarsa on, as it lived in training) or "greedy" (ε = α = 0, Sarsa frozen).
+TestProtocol = Literal["as-trained", "greedy"]
+TEST_PROTOCOLS: tuple[TestProtocol, ...] = get_args(TestProtocol)
+
+
+class EpisodeProtocol(BaseModel):
+    """How a task run's episodes are seeded and its final elite chosen and tested: settings of
+    a task run's training (`app.tasks.config.TaskTraining`) and of a task experiment's `[task]`
+    (`app.experiments.spec_tables.TaskSpec`), written here once. The defaults are the runs
+    before issue #45: one episode seed per individual, the last generation's best, tested as
+    trained."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    test_protocol: TestProtocol = Field(
+        default="as-trained",
+        description="how the final elite lives its test and validation episodes: as-trained "
+        "(its generation's ε and α, Sarsa on) or greedy (ε = α = 0, Sarsa frozen)",
+    )
+    validation_episodes: int = Field(
+        default=1,
+        ge=1,
+        le=1000,
+        description="K: the final elite is the generation's best (of every generation) with "
+        "the highest mean return over K validation episodes; 1 = the last generation's best "
+        "by its training episode",
+    )
+    shared_episodes: bool = Field(
+        default=False,
+        description="every individual of a generation lives the same episode (one episode "
+        "seed per generation, fracnetics' scheme); off: one seed per individual",
+    )
 
 
 def is_task_run(path: str | Path) -> bool:

@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 import gnp
 from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig
-from app.tasks.common import TaskError
+from app.tasks.common import TEST_PROTOCOLS, EpisodeProtocol, TaskError, TestProtocol
 from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import EvolutionConfig, Schedule
 from gnp.config import GenerationProgress
@@ -77,8 +77,9 @@ def make_env(task: str, render_mode: str | None = None) -> gym.Env:
         raise TaskError(f"task {task!r} cannot be made: {error}") from None
 
 
-class TaskTraining(_Frozen):
-    """The training phase on a task: each individual lives one episode, capped at `steps`."""
+class TaskTraining(EpisodeProtocol):
+    """The training phase on a task: each individual lives one episode, capped at `steps`; its
+    episodes' seeds and its final elite's test (`EpisodeProtocol`)."""
 
     population: int = Field(default=100, ge=2, le=100_000, description="individuals")
     generations: int = Field(default=20, ge=1, le=1_000_000, description="generations G")
@@ -96,6 +97,10 @@ class TaskTraining(_Frozen):
         return gnp.epsilon_alpha_over_generations(
             self.epsilon, self.alpha, generation, self.generations, self.schedule_progress
         )
+
+
+PROTOCOL_FIELDS = tuple(EpisodeProtocol.model_fields)
+"""`EpisodeProtocol`'s settings, which `TaskTraining` holds and a `[task]` section sets."""
 
 
 class TaskRunConfig(_Frozen):
@@ -120,9 +125,12 @@ class TaskRunConfig(_Frozen):
         )
 
     @classmethod
-    def from_run_config(cls, config: RunConfig, task: TaskSettings) -> TaskRunConfig:
+    def from_run_config(
+        cls, config: RunConfig, task: TaskSettings, protocol: EpisodeProtocol | None = None
+    ) -> TaskRunConfig:
         """The task run of the lab's settings (seed, controller, evolution, population,
-        generations, steps, ε/α schedules); the arena, noise and physics do not apply.
+        generations, steps, ε/α schedules) and of `protocol` (its episodes and test; the
+        defaults when None); the arena, noise and physics do not apply.
 
         Raises:
             TaskError: the config's brain is not GNP (the only family that runs on tasks).
@@ -140,6 +148,7 @@ class TaskRunConfig(_Frozen):
             epsilon=eps,
             alpha=alpha,
             schedule_progress=config.training.schedule_progress,
+            **{name: getattr(protocol or EpisodeProtocol(), name) for name in PROTOCOL_FIELDS},
         )
         return cls(
             seed=config.seed,
@@ -150,4 +159,12 @@ class TaskRunConfig(_Frozen):
         )
 
 
-__all__ = ["TaskError", "TaskRunConfig", "TaskSettings", "TaskTraining", "make_env"]
+__all__ = [
+    "TEST_PROTOCOLS",
+    "TaskError",
+    "TaskRunConfig",
+    "TaskSettings",
+    "TaskTraining",
+    "TestProtocol",
+    "make_env",
+]

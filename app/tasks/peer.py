@@ -2,11 +2,16 @@
 its final elite tested on K fixed episode seeds (the same for every arm).
 
 GNP runs are task run files (`app.tasks.store`), resumable, with a `test` group added when
-training is done: the best individual of the last generation lives one episode per test seed as
-in training (its generation's ε and α, Sarsa on, each episode from the Q tables it ended
-training with; `replay_episodes`). fracnetics runs (`app.tasks.fracnetics_arm`) write a file of
-their own format with their results only. Both carry the `PeerRun` they ran as the root
-attribute `peer`, and `read_peer` reads either.
+training is done: the final elite (the best of the last generation, or the generation best
+chosen on K validation episodes: `elite_generation`) lives one episode per test seed under each
+test protocol (`TEST_PROTOCOLS`: as trained, its generation's ε and α, Sarsa on, each episode
+from the Q tables it ended training with; and greedy, ε = α = 0, Sarsa frozen). `test/returns`
+holds the returns of the run's own `test_protocol` (the metric `test_return`), and
+`test/returns_<protocol>` each protocol's (the metrics `test_return_<protocol>`; a file tested
+before #45 holds `returns` only, as trained). fracnetics' elite is a fixed policy (its library
+has no learning): its returns are every protocol's. fracnetics runs (`app.tasks.fracnetics_arm`)
+write a file of their own format with their results only. Both carry the `PeerRun` they ran as
+the root attribute `peer`, and `read_peer` reads either.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from app.store.files import LIBVER, RunFileError
 from app.store.schema import package_version
 from app.store.validation import check_progress, plain_dataset
 from app.tasks.common import FORMAT
-from app.tasks.config import TaskRunConfig
+from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig
 from app.tasks.fracnetics_arm import FracneticsSettings
 
 FRACNETICS_FORMAT = "gnp-lab-fracnetics-run"
@@ -53,6 +58,8 @@ class PeerResult:
     generations: int
     best_curve: np.ndarray  # (generations_done,) best return per generation
     test_returns: np.ndarray | None
+    #: test returns per protocol (`TEST_PROTOCOLS`) the file holds (none before #45)
+    protocol_returns: dict[str, np.ndarray] | None = None
 
     @property
     def finished(self) -> bool:
@@ -97,6 +104,11 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
     test = (
         np.asarray(plain_dataset(handle, "test/returns")[()], float) if "test" in handle else None
     )
+    protocols: dict[str, np.ndarray] = {
+        p: np.asarray(plain_dataset(handle, _protocol_dataset(p))[()], float)
+        for p in TEST_PROTOCOLS
+        if _protocol_dataset(p) in handle
+    }
     return PeerResult(
         peer_json=str(handle.attrs.get("peer", "")),
         run=config,
@@ -104,18 +116,34 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
         generations=config.training.generations,
         best_curve=fitness.max(axis=1) if done else np.zeros(0),
         test_returns=test,
+        protocol_returns=protocols or None,
     )
 
 
-def _write_test(path: Path, peer: PeerRun, returns: np.ndarray) -> None:
+def _protocol_dataset(protocol: str) -> str:
+    """Where a test protocol's returns are: test/returns_as_trained, test/returns_greedy."""
+    return "test/returns_" + protocol.replace("-", "_")
+
+
+def _write_protocols(group: h5py.Group, returns: dict[str, np.ndarray]) -> None:
+    for protocol, values in returns.items():
+        group.create_dataset(_protocol_dataset(protocol).split("/")[1], data=values)
+
+
+def _write_test(
+    path: Path, peer: PeerRun, by_protocol: dict[str, np.ndarray], elite_generation: int
+) -> None:
     with h5py.File(path, "r+", locking=False) as handle:
         handle.attrs["peer"] = peer.model_dump_json()
         if "test" in handle:
             del handle["test"]
         group = handle.create_group("test")
         group.attrs["unit"] = "episode return"
+        group.attrs["protocol"] = peer.run.training.test_protocol
+        group.attrs["elite_generation"] = elite_generation
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
-        group.create_dataset("returns", data=returns)
+        group.create_dataset("returns", data=by_protocol[peer.run.training.test_protocol])
+        _write_protocols(group, by_protocol)
 
 
 def _write_fracnetics(path: Path, peer: PeerRun, fitness: np.ndarray, test: np.ndarray) -> None:
@@ -136,6 +164,7 @@ def _write_fracnetics(path: Path, peer: PeerRun, fitness: np.ndarray, test: np.n
         group.attrs["unit"] = "episode return"
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
         group.create_dataset("returns", data=test)
+        _write_protocols(group, dict.fromkeys(TEST_PROTOCOLS, test))
     tmp.replace(path)  # whole or absent: a fracnetics run is not resumable
 
 
@@ -143,7 +172,7 @@ def run_peer(
     peer: PeerRun, path: str | Path, progress: Callable[[int], None] | None = None
 ) -> PeerResult:
     """Train (GNP: or resume) and test one run into `path`; a finished run is left as it is."""
-    from app.tasks.training import replay_episodes, resume_task, train_task
+    from app.tasks.training import elite_generation, protocol_episodes, resume_task, train_task
 
     path = Path(path)
     if path.exists():
@@ -175,6 +204,10 @@ def run_peer(
         train_task(peer.run, path, progress=each)
     elif read_peer(path).generations_done < peer.run.training.generations:
         resume_task(path, progress=each)
-    lives = replay_episodes(path, seeds=peer.test_seeds)
-    _write_test(path, peer, np.asarray(lives.returns, dtype=np.float64))
+    elite = elite_generation(path)
+    by_protocol: dict[str, np.ndarray] = {
+        p: np.asarray(protocol_episodes(path, peer.test_seeds, elite, p).returns, np.float64)
+        for p in TEST_PROTOCOLS
+    }
+    _write_test(path, peer, by_protocol, elite)
     return read_peer(path)

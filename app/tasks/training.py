@@ -6,8 +6,14 @@ environments, generations in a task run file) and the population evolves as the 
 (`app.brains.gnp_brain.GnpEvolution`): generation 0 drawn from (seed, init), lives that learn
 online with ε and α fixed or scheduled, the learned population evolved by `gnp.evolve` with the
 Generator of (seed, generation), every life's random inputs keyed by (seed, generation,
-individual) (`app.loop.seeds.life_seeds`). A run is a function of its config and seed, and a
+individual) (`app.loop.seeds.life_seeds`; with `shared_episodes` every individual of a
+generation lives individual 0's episode). A run is a function of its config and seed, and a
 resumed run matches one never interrupted.
+
+The final elite (`elite_generation`) is the last generation's best, or with K =
+`validation_episodes` > 1 the generation best (of every generation) whose mean return over K
+validation episodes is the highest; it lives its episodes under the run's `test_protocol`
+(`protocol_episodes`).
 """
 
 from __future__ import annotations
@@ -32,13 +38,20 @@ from app.phases.generations import (
 )
 from app.system.memory import COPIES, check_memory
 from app.tasks.common import TaskError
-from app.tasks.config import TaskRunConfig
+from app.tasks.config import TaskRunConfig, TestProtocol
 from app.tasks.faults import ObservationFault
 from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, live
 from app.tasks.store import TaskRunWriter, read_task_run
 
 # What callers of task training meet, imported from their rooms.
-__all__ = ["GenerationSummary", "Interrupted", "resume_task", "train_task"]
+__all__ = [
+    "GenerationSummary",
+    "Interrupted",
+    "elite_generation",
+    "protocol_episodes",
+    "resume_task",
+    "train_task",
+]
 
 
 def first_population(config: TaskRunConfig) -> gnp.Population:
@@ -72,11 +85,12 @@ def generation_lives(
     """The lives of `pop` (generation `generation`) on the task."""
     n = pop.size
     seeds = life_seeds(config.seed, generation, np.arange(n), 1, 1)
+    world = np.full(n, seeds.world[0]) if config.training.shared_episodes else seeds.world
     own = env is None
     batch = BatchEnv(config.task.id, n, config.adapter) if env is None else env
     try:
         return live(
-            config.gnp_config(), config.adapter, batch, pop, seeds.world, seeds.engine,
+            config.gnp_config(), config.adapter, batch, pop, world, seeds.engine,
             epsilon, alpha, config.training.steps,
         )  # fmt: skip
     finally:
@@ -208,6 +222,44 @@ def replay_episodes(
         )  # fmt: skip
     finally:
         env.close()
+
+
+def protocol_episodes(
+    path: str | Path, seeds: Sequence[int], generation: int | None, protocol: TestProtocol
+) -> TaskLives:
+    """`replay_episodes` of a generation's best under a test protocol: "as-trained" (its
+    generation's ε and α, Sarsa on) or "greedy" (ε = 0, Sarsa frozen, so α does nothing)."""
+    if protocol == "greedy":
+        return replay_episodes(path, seeds, generation, learn=False, epsilon=0.0)
+    return replay_episodes(path, seeds, generation)
+
+
+_VALIDATION_TAG = 0x76616C69  # "vali": the validation seeds' own stream
+
+
+def validation_seeds(seed: int, episodes: int) -> tuple[int, ...]:
+    """The K validation episode seeds of a run, keyed by its seed: in 2^31..2^32 − 1, so never a
+    task experiment's test seed (below 2^31) and, but by a chance of 2^−31 each, never a
+    training episode's (`life_seeds` draws those in 0..2^63 − 1)."""
+    states = np.random.SeedSequence([seed, _VALIDATION_TAG]).generate_state(episodes, np.uint32)
+    return tuple(int(s) | 2**31 for s in states)
+
+
+def elite_generation(path: str | Path) -> int:
+    """The generation whose best is the run's final elite: the last, or with K =
+    `validation_episodes` > 1 the one whose best has the highest mean return over the run's K
+    validation episodes under its `test_protocol` (the latest of equal means)."""
+    run = read_task_run(path)
+    training = run.config.training
+    last = run.generation_done - 1
+    if training.validation_episodes <= 1 or last < 0:
+        return last
+    seeds = validation_seeds(run.config.seed, training.validation_episodes)
+    means = [
+        float(np.mean(protocol_episodes(path, seeds, g, training.test_protocol).returns))
+        for g in range(run.generation_done)
+    ]
+    return max(range(len(means)), key=lambda g: (means[g], g))
 
 
 def replay_task(
