@@ -40,6 +40,13 @@ TieBreak = Literal["random", "first"]
 #: What a credit skip (CS) that ends a world step earns: "zero" (Eq. 5.3 read literally: a skip
 #: has no reward term; the robot's) or "step" (the step's reward, as any step's last visit).
 SkipReward = Literal["zero", "step"]
+#: How generation 0's judgment thresholds {β, α} are drawn: "uniform" (α in 1..1023, β in
+#: 0..α−1: §2.3.3, the robot's) or "midpoint" (β = 511, α = 512: every judgment starts at its
+#: feature's midpoint, the crisp threshold 511.5 halving the feature's range).
+ThresholdInit = Literal["uniform", "midpoint"]
+#: Generation 0's {β, α} under "midpoint": the crisp threshold (β + α)/2 = 511.5, the middle
+#: of 0..1023, a fuzzy judgment's ramp one reading wide.
+MIDPOINT_BETA, MIDPOINT_ALPHA = SENSOR_MAX // 2, SENSOR_MAX // 2 + 1
 #: Bound on an initial Q value (Q tables are float32).
 Q0_MAX = 1e6
 
@@ -104,6 +111,11 @@ class GnpConfig(BaseModel):
         "the step's reward (step); with zero, where steps pay less than 0 a controller that "
         "skips every node hides every reward and stops acting",
     )
+    threshold_init: ThresholdInit = Field(
+        default="uniform",
+        description="generation 0's judgment thresholds: uniform (α in 1..1023, β below it) "
+        "or midpoint (β = 511, α = 512: each judgment halves its feature's range)",
+    )
 
     @cached_property
     def n_nodes(self) -> int:
@@ -163,7 +175,7 @@ class GnpConfig(BaseModel):
         return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
 
 
-TASK_SETTINGS = ("q0", "tie_break", "skip_reward")
+TASK_SETTINGS = ("q0", "tie_break", "skip_reward", "threshold_init")
 """`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
 runs, documents and bits as before)."""
 

@@ -12,6 +12,8 @@ import numpy as np
 
 from gnp.config import (
     JUDGMENT,
+    MIDPOINT_ALPHA,
+    MIDPOINT_BETA,
     PROCESSING,
     SENSOR_MAX,
     SPEED_MAX,
@@ -217,10 +219,11 @@ def field_dtype(name: str) -> type[np.generic]:
 def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Population:
     """n random individuals (§2.3.3): balanced functions, random parameters and connections.
 
-    Each sub node slot p of the judgment nodes holds every sensor equally often (5 per sensor
-    for 40 nodes), and of the processing nodes every wheel equally often (10 per wheel for 20
-    nodes), in a random order per individual. α is drawn in 1..1023 and β in 0..α−1, speeds in
-    −10..10, every connection uniformly among nodes 1..V−1. Q tables start at `cfg.q0` (0).
+        Each sub node slot p of the judgment nodes holds every sensor equally often (5 per sensor
+        for 40 nodes), and of the processing nodes every wheel equally often (10 per wheel for 20
+        nodes), in a random order per individual. α is drawn in 1..1023 and β in 0..α−1, speeds in
+        −10..10, every connection uniformly among nodes 1..V−1 (with `cfg.threshold_init` "midpoint"
+    every β = 511 and α = 512 instead). Q tables start at `cfg.q0` (0).
     """
     if n < 0:
         raise GnpError(f"population size must be ≥ 0, got {n}")
@@ -240,6 +243,8 @@ def init_population(cfg: GnpConfig, n: int, rng: np.random.Generator) -> Populat
     mu_beta = np.zeros((n, v, m), GENE_DTYPES["mu_beta"])
     mu_alpha[:, judg] = rng.integers(1, SENSOR_MAX + 1, size=(n, nj, m))
     mu_beta[:, judg] = rng.integers(0, mu_alpha[:, judg])
+    if cfg.threshold_init == "midpoint":  # drawn all the same: the other genes as uniform's
+        mu_beta[:, judg], mu_alpha[:, judg] = MIDPOINT_BETA, MIDPOINT_ALPHA
     speed = np.zeros((n, v, m), GENE_DTYPES["speed"])
     speed[:, proc] = rng.integers(-SPEED_MAX, SPEED_MAX + 1, size=(n, npr, m))
     return Population(

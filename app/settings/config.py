@@ -25,7 +25,7 @@ import gnp
 from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
-from gnp.config import GenerationProgress, SkipReward, TieBreak
+from gnp.config import GenerationProgress, SkipReward, ThresholdInit, TieBreak
 from neuro.neat_params import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
@@ -103,6 +103,7 @@ class ControllerSettings(_Frozen):
     q0: float = _of_gnp("q0", "1")
     tie_break: TieBreak = _of_gnp("tie_break")
     skip_reward: SkipReward = _of_gnp("skip_reward")
+    threshold_init: ThresholdInit = _of_gnp("threshold_init")
 
     @property
     def sub_nodes(self) -> int:
@@ -124,6 +125,7 @@ class ControllerSettings(_Frozen):
             q0=self.q0,
             tie_break=self.tie_break,
             skip_reward=self.skip_reward,
+            threshold_init=self.threshold_init,
         )
 
 

@@ -14,6 +14,7 @@ from app.cli.parser import build_parser
 from app.cli.train import config_from_args
 from app.settings.config import PRESET_NAMES, ConfigError, RunConfig
 from app.settings.loading import build_config, load_config, load_preset, to_toml
+from gnp.config import TASK_SETTINGS
 
 
 def test_defaults_are_the_thesis_table_2_4() -> None:
@@ -166,7 +167,7 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
 
 
 @pytest.mark.parametrize(
-    "name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma", "q0", "tie_break", "skip_reward"]
+    "name", ["fuzzy", "n_judgment", "n_processing", "n_branch", "gamma", *TASK_SETTINGS]
 )
 def test_the_controllers_settings_are_gnps_own(name: str) -> None:
     import gnp

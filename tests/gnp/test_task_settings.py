@@ -127,3 +127,27 @@ def test_the_terminal_update_credits_a_last_skip_as_the_setting_says(
     before = float(pop.q_cs[0, node, sub, 1])
     gnp.end_episode(cfg, pop, state, np.full(1, -1.0), 0.5)
     assert pop.q_cs[0, node, sub, 1] == np.float32(before + 0.5 * (earned - before))
+
+
+def test_midpoint_thresholds_halve_every_feature_and_leave_the_other_genes_alone() -> None:
+    base = gnp.GnpConfig(n_judgment=10, n_processing=4, n_inputs=3, n_outputs=2)
+    mid = base.model_copy(update={"threshold_init": "midpoint"})
+    a = gnp.init_population(base, 6, np.random.default_rng(8))
+    b = gnp.init_population(mid, 6, np.random.default_rng(8))
+    judg = slice(1, 11)
+    assert np.all(b.mu_beta[:, judg] == 511) and np.all(b.mu_alpha[:, judg] == 512)
+    assert np.all((b.mu_beta[:, judg] + b.mu_alpha[:, judg]) / 2 == 1023 / 2)
+    assert len(np.unique(a.mu_alpha[:, judg])) > 10  # uniform: drawn
+    for name in ("function", "speed", "conn", "credit", "q_ss"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    gnp.population_from_arrays(mid, gnp.population_to_arrays(b))  # a valid genome (checked)
+    # a crisp midpoint judgment: branch A from reading 512 up, B below
+    crisp = gnp.GnpConfig(method="RL", fuzzy=False, n_sub=1, threshold_init="midpoint")
+    pop = gnp.init_population(crisp, 2, np.random.default_rng(1))
+    state = gnp.init_state(crisp, 2, [1, 2])
+    obs = np.array([[512.0] * 8, [511.0] * 8])
+    _, trace = gnp.step(crisp, pop, state, obs, np.zeros(2), 0.0, 0.0, trace=True)
+    assert trace is not None
+    judged = (trace.node > 0) & (trace.node <= crisp.n_judgment)
+    assert set(trace.branch[0][judged[0]].tolist()) == {0}
+    assert set(trace.branch[1][judged[1]].tolist()) == {1}
