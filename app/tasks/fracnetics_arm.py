@@ -36,7 +36,11 @@ class FracneticsSettings(BaseModel):
     max_consecutive_p: int = Field(ge=1, description="maxConsecutiveP")
     tournament: int = Field(ge=2, description="tournament size N")
     elite: int = Field(ge=0, description="elite kept E")
-    add_del: float = Field(ge=0, description="callAddDelNodes' probability")
+    add_del: float = Field(
+        ge=0,
+        description="callAddDelNodes' junk: the share of a network's unused nodes kept from "
+        "deletion (junk DNA; at least one), not a probability",
+    )
     crossover: float = Field(ge=0, le=1, description="uniform crossover probability")
     edge_inner: float = Field(ge=0, le=1, description="callEdgeMutation probInnerNodes")
     edge_start: float = Field(ge=0, le=1, description="callEdgeMutation probStartNode")
