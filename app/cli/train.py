@@ -24,6 +24,7 @@ from app.tasks.common import is_task_run
 
 if TYPE_CHECKING:
     from app.phases.training import GenerationSummary
+    from app.tasks.common import EpisodeProtocol
 
 
 # --- train ----------------------------------------------------------------------------------
@@ -69,6 +70,15 @@ def _preset_file(preset: str, task: str | None) -> dict[str, Any]:
             "preset file (.toml)"
         )
     return train_layer(preset, task)
+
+
+def _preset_protocol(preset: str | None) -> EpisodeProtocol | None:
+    """A preset file's episode protocol (a tuned preset's `[task]`), None for any other."""
+    if preset is None or preset in PRESET_NAMES or not Path(preset).is_file():
+        return None
+    from app.tune.preset import train_protocol
+
+    return train_protocol(preset)
 
 
 class Bar:
@@ -169,7 +179,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         from app.tasks import cli as task_cli
 
         task = task_cli.task_settings(args.task, args.assignments)
-        return task_cli.train(args, task, config_from_args(args))
+        protocol = _preset_protocol(args.preset)
+        return task_cli.train(args, task, config_from_args(args), protocol)
     else:
         config = config_from_args(args)
         if args.print_config:

@@ -43,7 +43,18 @@ _SIZES = {
 
 
 def _fixed(args: argparse.Namespace) -> dict[str, Any]:
-    fixed = {".".join(path): value for path, value in args.assignments if path[0] != "task"}
+    """The study's fixed settings: --set's (the task's bounds left to `task_settings`, its
+    episode protocol kept as task.KEY) and --method."""
+    from app.tasks.common import EpisodeProtocol
+
+    protocol = {f"task.{key}" for key in EpisodeProtocol.model_fields}
+    fixed = {}
+    for path, value in list(args.assignments):
+        key = ".".join(path)
+        if path[0] != "task" or key in protocol:
+            fixed[key] = value
+        if key in protocol:
+            args.assignments.remove((path, value))
     for key, option in _SIZES.items():
         if key in fixed:
             raise TuneError(f"--set {key}: the study's {option} sets it")

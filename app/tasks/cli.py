@@ -14,6 +14,7 @@ from app.settings.config import ConfigError, RunConfig
 from app.store import RunFileError, resolve_run
 from app.store.controller_file import GnpController, save_controller
 from app.system.exit_codes import EXIT_INTERRUPTED
+from app.tasks.common import EpisodeProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
 from app.tasks.store import read_task_run
@@ -59,9 +60,15 @@ def _progress(quiet: bool) -> Any:
     return show
 
 
-def train(args: argparse.Namespace, settings: TaskSettings, config: RunConfig) -> int:
-    """`gnp-lab train --task ...`: a task run file from the lab's settings."""
-    task_config = TaskRunConfig.from_run_config(config, settings)
+def train(
+    args: argparse.Namespace,
+    settings: TaskSettings,
+    config: RunConfig,
+    protocol: EpisodeProtocol | None = None,
+) -> int:
+    """`gnp-lab train --task ...`: a task run file from the lab's settings (and a tuned
+    preset's episode protocol)."""
+    task_config = TaskRunConfig.from_run_config(config, settings, protocol)
     task_config.gnp_config()  # an unusable task: one line, before any file
     if args.print_config:
         sys.stdout.write(task_config.model_dump_json(indent=2) + "\n")

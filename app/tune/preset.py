@@ -10,11 +10,14 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.tune.space import Brain
+
+if TYPE_CHECKING:
+    from app.tasks.common import EpisodeProtocol
 
 
 class TuningRecord(BaseModel):
@@ -130,6 +133,7 @@ def train_layer(path: str, task: str | None) -> dict[str, Any]:
     from app.settings.config import ConfigError
 
     layer, record = read_preset(path)
+    layer.pop("task", None)  # a tuned run's episode protocol: `train_protocol`
     if record is None:
         return layer
     if record.brain != "gnp":
@@ -145,3 +149,25 @@ def train_layer(path: str, task: str | None) -> dict[str, Any]:
             f"(gnp-lab tune --task {task})"
         )
     return layer
+
+
+def train_protocol(path: str) -> EpisodeProtocol | None:
+    """A preset's `[task]` table: the episode protocol its runs were tuned with (None: none).
+
+    Raises:
+        ConfigError: an invalid table (one line).
+    """
+    from app.settings.config import ConfigError
+    from app.tasks.common import EpisodeProtocol
+
+    table = read_preset(path)[0].get("task")
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise ConfigError(f"preset {path}: [task] must be a table")
+    try:
+        return EpisodeProtocol.model_validate(table)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise ConfigError(f"preset {path}: [task] {where}: {first['msg']}") from None

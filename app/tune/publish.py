@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from app.tasks.common import EpisodeProtocol
 from app.tune.preset import TuningRecord, now, write_preset
 from app.tune.space import FIRST_VALIDATION_SEED, TuneError, nested, run_seeds
 from app.tune.study import (
@@ -43,13 +44,16 @@ def preset_settings(
     if declared.brain == "fracnetics":
         settings = fracnetics_settings(declared, values).model_dump(mode="json")
         return {"fracnetics": settings, "training": sizes}
-    gnp_config(declared, task, values, run_seeds(1)[0]).gnp_config()
-    merged = nested(declared.fixed)
+    run = gnp_config(declared, task, values, run_seeds(1)[0])
+    run.gnp_config()
+    merged = nested(declared.run_settings())
     for section, table in nested(values).items():
         merged.setdefault(section, {}).update(table)
     merged.setdefault("training", {}).update(sizes)
     order = ("controller", "evolution", "training")
-    return {s: merged[s] for s in (*order, *sorted(set(merged) - set(order))) if s in merged}
+    tables = {s: merged[s] for s in (*order, *sorted(set(merged) - set(order))) if s in merged}
+    protocol = run.training.model_dump(include=set(EpisodeProtocol.model_fields))
+    return {**tables, "task": protocol}  # the episode protocol (`train --preset` takes it)
 
 
 def write_study_preset(

@@ -93,6 +93,16 @@ class Declared:
     def params(self) -> list[Param]:
         return space(self.brain, frozenset(self.fixed), self.population)
 
+    def protocol(self) -> dict[str, Any]:
+        """A GNP run's episode protocol (`app.tasks.common.EpisodeProtocol`): greedy tests
+        unless the study sets `task.test_protocol`, the rest its defaults unless set."""
+        given = {k[len("task.") :]: v for k, v in self.fixed.items() if k.startswith("task.")}
+        return {"test_protocol": "greedy", **given}
+
+    def run_settings(self) -> dict[str, Any]:
+        """The study's fixed settings of the run config (not its protocol's)."""
+        return {k: v for k, v in self.fixed.items() if not k.startswith("task.")}
+
     def json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
 
@@ -209,7 +219,11 @@ def gnp_config(
     declared: Declared, task: TaskSettings, values: dict[str, Any], seed: int
 ) -> TaskRunConfig:
     """The task run of a trial (or of the preset: `values` the best trial's settings)."""
+    from pydantic import ValidationError
+
+    from app.settings.config import ConfigError
     from app.settings.loading import build_config
+    from app.tasks.common import EpisodeProtocol
     from app.tasks.config import TaskRunConfig
 
     sizes = {
@@ -219,16 +233,25 @@ def gnp_config(
             "steps": declared.steps,
         }
     }
-    layers = (nested(declared.fixed), nested(values), sizes, {"seed": seed})
+    layers = (nested(declared.run_settings()), nested(values), sizes, {"seed": seed})
     config = build_config(*layers, source=f"study {declared.name!r}")
-    return TaskRunConfig.from_run_config(config, task)
+    try:
+        protocol = EpisodeProtocol(**declared.protocol())
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ConfigError(f"--set task.{where}: {first['msg']}") from None
+    return TaskRunConfig.from_run_config(config, task, protocol)
 
 
 def gnp_trial(
     declared: Declared, task: TaskSettings, values: dict[str, Any], report: Report
 ) -> tuple[float, int]:
-    """Train a trial's GNP runs and score them: (mean validation return, env-steps spent)."""
-    from app.tasks.training import replay_episodes, train_task
+    """Train a trial's GNP runs and score them: (mean validation return, env-steps spent).
+    A run's final elite is the task run's (`elite_generation`: the last generation's best, or
+    chosen on its own validation episodes), scored under its test protocol (greedy unless the
+    study says otherwise) on the tuning validation episodes."""
+    from app.tasks.training import elite_generation, protocol_episodes, train_task
 
     scores, spent = [], 0
     g_count = declared.generations
@@ -243,9 +266,9 @@ def gnp_trial(
                 report(r * g_count + int(summary.generation), float(summary.best_fitness))
 
             train_task(config, path, progress=each)
-            lives = replay_episodes(
-                path, list(validation_seeds(declared.validation)), epsilon=0.0, learn=False
-            )
+            seeds = list(validation_seeds(declared.validation))
+            elite = elite_generation(path)
+            lives = protocol_episodes(path, seeds, elite, config.training.test_protocol)
             scores.append(float(np.mean(lives.returns)))
     return float(np.mean(scores)), spent
 
@@ -255,6 +278,8 @@ def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> Fracnetic
     from app.tasks.fracnetics_arm import FracneticsSettings, documented
 
     base = documented(declared.task).model_dump()
+    if declared.protocol() != {"test_protocol": "greedy"}:
+        raise TuneError("--set task.*: fracnetics lives and tests its episodes its own way")
     for path, value in {**declared.fixed, **values}.items():
         section, _, key = path.partition(".")
         if section != "fracnetics" or key not in base:

@@ -62,7 +62,7 @@ def test_train_implement_and_inspect(
 @pytest.mark.parametrize(
     ("argv", "needles"),
     [
-        (["train", "--preset", "nope"], ["invalid choice: 'nope'"]),
+        (["train", "--preset", "nope"], ["unknown preset 'nope'"]),
         (["train", "--population", "1"], ["training.population", "greater than or equal to 2"]),
         (["train", "--population", "lots"], ["invalid int value: 'lots'"]),
         (["train", "--noise", "2000"], ["training.noise_sigma"]),

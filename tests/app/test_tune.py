@@ -28,7 +28,8 @@ def tune(tmp_path: Path, *words: str) -> int:
 def test_a_study_writes_a_preset_that_train_takes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert tune(tmp_path, *CRISP_RL, "--trials", "3", "--quiet") == 0
+    elite_on_2 = ["--set", "task.validation_episodes=2"]
+    assert tune(tmp_path, *CRISP_RL, *elite_on_2, "--trials", "3", "--quiet") == 0
     preset = tmp_path / "tuning" / "CartPole-v1-gnp-RL.toml"
     out = capsys.readouterr().out
     assert str(preset) in out and "train with: gnp-lab train --task CartPole-v1" in out
@@ -60,10 +61,14 @@ def test_a_study_writes_a_preset_that_train_takes(
     assert config.training.generations == 4 and config.training.population == 10
     assert config.training.epsilon.max == layer["training"]["epsilon_max"]
     assert config.seed == 5
+    assert layer["task"] == {"test_protocol": "greedy", "validation_episodes": 2,
+                             "shared_episodes": False}  # fmt: skip
+    assert config.training.test_protocol == "greedy"
+    assert config.training.validation_episodes == 2
 
     # Rerunning a finished study trains nothing and writes the same preset.
     before = preset.read_text()
-    assert tune(tmp_path, *CRISP_RL, "--trials", "3", "--quiet") == 0
+    assert tune(tmp_path, *CRISP_RL, *elite_on_2, "--trials", "3", "--quiet") == 0
     after = preset.read_text()
     strip = [line for line in before.splitlines() if not line.startswith("written")]
     assert strip == [line for line in after.splitlines() if not line.startswith("written")]
