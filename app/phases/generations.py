@@ -14,6 +14,7 @@ interrupted.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -29,11 +30,19 @@ from app.brains.contract import Evolution
 from app.brains.registry import family_of
 from app.loop.seeds import LifeSeeds, life_seeds, n_segments
 from app.phases.lives import Lives, ShardLives, concat_lives, owned, shards
+from app.phases.shared_lives import (
+    EvolveJob,
+    InBlock,
+    RowsJob,
+    RowsWorker,
+    shared_evolution,
+    shared_layout,
+)
 from app.settings.arenas import arena_of
 from app.settings.config import RunConfig
 from app.store import RunFileError, RunReader, RunTemplate, RunWriter
 from app.system.signals import Stopped, interrupted_by_signals, raise_interrupt
-from app.system.workers import Handler, WorkerDied, WorkerPool
+from app.system.workers import Handler, Layout, SharedArrays, WorkerDied, WorkerPool
 
 
 class TrainingError(RuntimeError):
@@ -128,11 +137,17 @@ def stop_on_signals(control: Control) -> Iterator[None]:
 # --- evaluation: in this process or on the worker pool ----------------------------------------
 
 
-def _shard_worker(config_json: str) -> Handler:
-    """A pool worker's state: the lives of its shards, in one persistent world."""
-    lives = ShardLives(RunConfig.model_validate_json(config_json))
+def _shard_worker(config_json: str, spec: tuple[str, Layout] | None = None) -> Handler:
+    """A pool worker's state: the lives of its shards, in one persistent world; with `spec`,
+    also the jobs on a shared block (`app.phases.shared_lives`)."""
+    config = RunConfig.model_validate_json(config_json)
+    rows = RowsWorker(config, spec) if spec is not None else None
+    lives = ShardLives(config) if rows is None else rows.lives
 
-    def handle(job: tuple[Any, LifeSeeds, float, float], count: Any) -> tuple[Lives, Any]:
+    def handle(job: Any, count: Any) -> tuple[Lives, Any] | None:
+        if isinstance(job, RowsJob | EvolveJob):
+            assert rows is not None
+            return rows(job, count)
         individuals, seeds, epsilon, alpha = job
         result, after, _ = lives.run(individuals, seeds, epsilon, alpha, False)
         # Nets do not learn: they come back as they went (None), not piped back unchanged.
@@ -141,9 +156,16 @@ def _shard_worker(config_json: str) -> Handler:
     return handle
 
 
+def _nothing() -> None:
+    pass
+
+
 class Evaluator:
     """Lives a generation: in this process (one worker, `local`), else on a pool of `workers`
-    processes (at most one per shard), each owning a contiguous run of whole shards.
+    processes (at most one per shard), each owning a contiguous run of whole shards. A GNP
+    population goes to and from the workers through shared memory, and evolves there
+    (`app.phases.shared_lives`, after `adopt`); other families' individuals go through the
+    pipes.
 
     `stopping`, when set, drops the generation under way (KeyboardInterrupt).
     """
@@ -157,41 +179,121 @@ class Evaluator:
     ) -> None:
         self._local: ShardLives | None = None
         self._pool: WorkerPool | None = None
+        self._block: SharedArrays | None = None
         self._stopping = stopping
+        self._config = config
         self.family = family_of(config)
-        workers = max(1, min(workers, len(shards(config.training))))
+        training = config.training
+        self._segments = n_segments(training.steps, training.redraw_every)
+        self._n_starts = len(arena_of(training.arena).start_poses)
+        workers = max(1, min(workers, len(shards(training))))
         if workers == 1 and local:
             self._local = ShardLives(config)
             return
-        self._owned = owned(config.training, workers)
-        self._pool = WorkerPool(workers, _shard_worker, (config.model_dump_json(),))
+        self._owned = owned(training, workers)
+        layout = shared_layout(config)
+        try:
+            # The block before the workers: they attach to it as they start.
+            self._block = SharedArrays.create(layout) if layout is not None else None
+            spec = self._block.spec if self._block is not None else None
+            self._pool = WorkerPool(workers, _shard_worker, (config.model_dump_json(), spec))
+        except BaseException:
+            self.close()
+            raise
+
+    def adopt(self, evolution: Evolution) -> Evolution:
+        """The run's population as this evaluator evolves it: in the shared block, by the
+        workers, when it has one; else `evolution` itself."""
+        if self._block is None:
+            return evolution
+        return shared_evolution(evolution, self._config, self._block, self._run)
+
+    def seeds(self, generation: int, rows: np.ndarray) -> LifeSeeds:
+        """The life seeds of individuals `rows` of `generation`."""
+        return life_seeds(self._config.seed, generation, rows, self._segments, self._n_starts)
+
+    def evaluate_generation(
+        self,
+        individuals: Any,
+        generation: int,
+        epsilon: float,
+        alpha: float,
+        meanwhile: Callable[[], None] = _nothing,
+    ) -> tuple[Lives, Any]:
+        """The lives of a whole generation's `individuals` (left as they are) and the
+        individuals after them; `meanwhile()` is called while the workers live them (in this
+        process: before). With a shared block, the individuals after them are the block's
+        (`InBlock`), valid until the next generation's lives."""
+        block = self._block
+        if block is None:
+            everyone = np.arange(self._config.training.population)
+            return self.evaluate(
+                individuals, self.seeds(generation, everyone), epsilon, alpha, meanwhile
+            )
+        if not (isinstance(individuals, InBlock) and individuals.records is block["population"]):
+            block["population"][...] = individuals.records
+        self._run(
+            [RowsJob(p.start, p.stop, generation, epsilon, alpha) for p in self._owned], meanwhile
+        )
+        lives = Lives(fitness=block["fitness"].copy(), terms=block["terms"].copy())
+        return lives, InBlock(block["learned"])
 
     def evaluate(
-        self, individuals: Any, seeds: LifeSeeds, epsilon: float, alpha: float
+        self,
+        individuals: Any,
+        seeds: LifeSeeds,
+        epsilon: float,
+        alpha: float,
+        meanwhile: Callable[[], None] = _nothing,
     ) -> tuple[Lives, Any]:
-        """The lives of `individuals` (left as they are) and the individuals after them."""
+        """The lives of `individuals` (left as they are) and the individuals after them, through
+        the pipes (or in this process)."""
         if self._local is not None:
+            meanwhile()
+            if self._stopping is not None and self._stopping.is_set():
+                raise KeyboardInterrupt  # asked for meanwhile (by a progress display)
             lives, after, _ = self._local.run(individuals, seeds, epsilon, alpha, False)
             return lives, after
-        assert self._pool is not None
         family = self.family
         jobs = [
             (family.take(individuals, np.arange(part.start, part.stop)), seeds.take(part),
              epsilon, alpha)
             for part in self._owned
         ]  # fmt: skip
-        stopping = self._stopping
-        try:
-            results = self._pool.map(jobs, stopping.is_set if stopping is not None else None)
-        except WorkerDied as error:
-            raise TrainingError(str(error)) from None
+        results = self._gather(jobs, meanwhile)
         afters = [r[1] for r in results]
         after = individuals if afters[0] is None else family.concat(afters)  # None: unchanged
         return concat_lives([r[0] for r in results]), after
 
+    def _gather(self, jobs: list[Any], meanwhile: Callable[[], None]) -> list[Any]:
+        """Job i to worker i; `meanwhile()`; their answers."""
+        return self._run(jobs, meanwhile)
+
+    def _run(self, jobs: list[Any], meanwhile: Callable[[], None] = _nothing) -> list[Any]:
+        """Job i to worker i mod the workers; `meanwhile()`; the answers in job order."""
+        pool = self._pool
+        assert pool is not None
+        stopping = self._stopping
+        try:
+            given: dict[int, list[int]] = {}
+            for i, job in enumerate(jobs):
+                pool.send(i % pool.size, job)
+                given.setdefault(i % pool.size, []).append(i)
+            meanwhile()
+            out: dict[int, Any] = {}
+            for worker, result in pool.gather(len(jobs), stopping.is_set if stopping else None):
+                out[given[worker].pop(0)] = result
+            return [out[i] for i in range(len(jobs))]
+        except WorkerDied as error:
+            raise TrainingError(str(error)) from None
+
     def close(self) -> None:
         if self._pool is not None:
             self._pool.close()
+            self._pool = None
+        if self._block is not None:  # after the workers: none is left writing into it
+            self._block.close()
+            self._block = None
 
     def __enter__(self) -> Evaluator:
         return self
@@ -260,46 +362,101 @@ def run_generations(
 ) -> None:
     """Generations `start`… of a run, for any brain family and either lab; closes the lab.
 
+    A generation's records, the checkpoint of the next one and its count as done are written
+    while the workers live the next generation (the robot's lab, `RobotLab`), so the file
+    costs the workers no waiting; a stop, a pause or an error writes them before it takes
+    effect, so the file holds every generation lived to its end, as before.
+
     Raises:
         Interrupted: a stop (Ctrl-C, SIGTERM, `control.stop`); the file holds every complete
             generation.
         TrainingError: a worker died.
     """
     done = start
+    pending: Callable[[], None] | None = None  # a lived generation's writes, not yet made
+
+    def flush() -> None:
+        nonlocal pending
+        if pending is not None:
+            pending()  # idempotent: cut short, it writes the same rows again
+            pending = None
+
     try:
         with stop_on_signals(control):  # nested in start/resume's: also when called on its own
             for generation in range(start, lab.generations):
+                overlaps = isinstance(lab, RobotLab)
+                if not overlaps or control.stopping.is_set() or not control.running.is_set():
+                    flush()  # the file is complete before the run stops or waits
                 control.checkpoint()
                 began = time.perf_counter()
                 epsilon, alpha = evolution.epsilon_alpha(generation)
                 individuals = evolution.individuals()
-                lived = lab.live(individuals, generation, epsilon, alpha)
+                if isinstance(lab, RobotLab):
+                    lived = lab.live(individuals, generation, epsilon, alpha, meanwhile=flush)
+                else:
+                    lived = lab.live(individuals, generation, epsilon, alpha)
                 best = int(np.argmax(lived.fitness))
                 stored = evolution.arrays(lived.after)
-                best_genome = {name: rows[best : best + 1] for name, rows in stored.items()}
-                lab.write(generation, lived, epsilon, alpha, best_genome)
+                # copied: with a shared block, the next generation's lives write over `stored`
+                best_genome = {n: rows[best : best + 1].copy() for n, rows in stored.items()}
                 if generation + 1 == lab.generations:
+                    lab.write(generation, lived, epsilon, alpha, best_genome)
                     lab.last(individuals, lived, epsilon, alpha)
-                else:
-                    arrays = evolution.advance(lived.after, lived.fitness, generation)
+                    lab.done(generation + 1)
+                    done = generation + 1
+                    _report(progress, lab, generation, lived, best, began)
+                    break
+                arrays = evolution.advance(lived.after, lived.fitness, generation)
+
+                def write(
+                    generation: int = generation,
+                    lived: Lived = lived,
+                    params: tuple[float, float] = (epsilon, alpha),
+                    best_genome: dict[str, np.ndarray] = best_genome,
+                    arrays: dict[str, np.ndarray] = arrays,
+                    best: int = best,
+                    began: float = began,
+                ) -> None:
+                    nonlocal done
+                    lab.write(generation, lived, *params, best_genome)
                     lab.checkpoint(generation + 1, arrays)
-                lab.done(generation + 1)
-                done = generation + 1
-                if progress is not None:
-                    progress(
-                        GenerationSummary(
-                            generation=generation,
-                            generations=lab.generations,
-                            best_fitness=float(lived.fitness[best]),
-                            mean_fitness=float(lived.fitness.mean()),
-                            seconds=time.perf_counter() - began,
-                            steps=lived.steps,
-                        )
-                    )
+                    lab.done(generation + 1)
+                    done = generation + 1
+                    _report(progress, lab, generation, lived, best, began)
+
+                pending = write
+            flush()  # a run of no generation left (resumed at its end) has none
     except KeyboardInterrupt:
+        with contextlib.suppress(KeyboardInterrupt):  # a second Ctrl-C: the file as it is
+            flush()
         raise Interrupted(done) from None
+    except BaseException:
+        with contextlib.suppress(Exception):  # the error that stopped the run is the one told
+            flush()
+        raise
     finally:
         lab.close()
+
+
+def _report(
+    progress: ProgressCallback | None,
+    lab: Lab,
+    generation: int,
+    lived: Lived,
+    best: int,
+    began: float,
+) -> None:
+    if progress is not None:
+        progress(
+            GenerationSummary(
+                generation=generation,
+                generations=lab.generations,
+                best_fitness=float(lived.fitness[best]),
+                mean_fitness=float(lived.fitness.mean()),
+                seconds=time.perf_counter() - began,
+                steps=lived.steps,
+            )
+        )
 
 
 class RobotLab:
@@ -311,19 +468,24 @@ class RobotLab:
     def __init__(self, writer: RunWriter, evaluator: Evaluator) -> None:
         self.writer, self.evaluator = writer, evaluator
         self.config = writer.config
-        training = self.config.training
-        self.generations = training.generations
-        self._n_starts = len(arena_of(training.arena).start_poses)
-        self._segments = n_segments(training.steps, training.redraw_every)
-        self._seeds: LifeSeeds | None = None
+        self.generations = self.config.training.generations
+        self._generation = -1
         self._elite: Any = None
 
-    def live(self, individuals: Any, generation: int, epsilon: float, alpha: float) -> Lived:
+    def live(
+        self,
+        individuals: Any,
+        generation: int,
+        epsilon: float,
+        alpha: float,
+        meanwhile: Callable[[], None] = _nothing,
+    ) -> Lived:
+        """As `Lab.live`; `meanwhile()` is called while the workers live them."""
         training = self.config.training
-        everyone = np.arange(training.population)
-        seeds = life_seeds(self.config.seed, generation, everyone, self._segments, self._n_starts)
-        self._seeds = seeds
-        lives, after = self.evaluator.evaluate(individuals, seeds, epsilon, alpha)
+        self._generation = generation
+        lives, after = self.evaluator.evaluate_generation(
+            individuals, generation, epsilon, alpha, meanwhile
+        )
         steps = training.population * training.steps
         return Lived(fitness=lives.fitness, after=after, details=lives.terms, steps=steps)
 
@@ -352,12 +514,14 @@ class RobotLab:
             self.writer.write_checkpoint(next_generation, arrays)
 
     def last(self, individuals: Any, lived: Lived, epsilon: float, alpha: float) -> None:
-        assert self._seeds is not None
         best = int(np.argmax(lived.fitness))
         alone = ShardLives(self.config)
-        one = slice(best, best + 1)
-        the_best = alone.family.take(individuals, [best])
-        _, _, trajectory = alone.run(the_best, self._seeds.take(one), epsilon, alpha, True)
+        seeds = self.evaluator.seeds(self._generation, np.array([best]))  # keyed by individual
+        if isinstance(individuals, InBlock):
+            the_best = individuals.take([best])
+        else:
+            the_best = alone.family.take(individuals, [best])
+        _, _, trajectory = alone.run(the_best, seeds, epsilon, alpha, True)
         assert trajectory is not None
         self._elite = (best, trajectory)
 
@@ -401,7 +565,7 @@ def start_run(
             writer.close()
             Path(out).unlink(missing_ok=True)
             raise
-        run_generations(RobotLab(writer, evaluator), brain, 0, progress, control)
+        run_generations(RobotLab(writer, evaluator), evaluator.adopt(brain), 0, progress, control)
     return writer.path
 
 
@@ -438,5 +602,6 @@ def resume_run(
         except BaseException:
             writer.close()
             raise
-        run_generations(RobotLab(writer, evaluator), brain, generation, progress, control)
+        lab = RobotLab(writer, evaluator)
+        run_generations(lab, evaluator.adopt(brain), generation, progress, control)
     return writer.path

@@ -22,6 +22,10 @@ workers' signal handling and the shutdown are decided once:
 A worker builds its state once (`setup(*args)`, in the child) and then answers each job with
 `state(job, count)`; `count(n)` reports work done as it goes. Which job goes to which worker is
 the caller's choice, so results do not depend on the number of workers.
+
+Bulk data need not go through the pipes: `SharedArrays` are named numpy arrays in one
+shared-memory block that the parent creates (and alone unlinks) and the workers attach to by
+name, so a job can be a few numbers saying which rows to read and write.
 """
 
 from __future__ import annotations
@@ -30,13 +34,18 @@ import contextlib
 import multiprocessing
 import os
 import pickle
+import secrets
 import signal
 import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection, wait
+from multiprocessing.shared_memory import SharedMemory
+from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 Count = Callable[[int], None]
 #: What a worker's `setup` returns: answers one job, reporting work done with `count`.
@@ -226,14 +235,24 @@ class WorkerPool:
         """
         for i, job in enumerate(jobs):
             self.send(i, job)
-        out: dict[int, Any] = {}
-        while len(out) < len(jobs):
+        answers = dict(self.gather(len(jobs), cancelled))  # one job each
+        return [answers[i] for i in range(len(jobs))]
+
+    def gather(self, n: int, cancelled: Callable[[], bool] | None = None) -> list[tuple[int, Any]]:
+        """The next `n` answers, as (worker, result) in the order they came: `map`'s second
+        half, for a caller with work of its own to do while its jobs are under way.
+
+        Raises:
+            KeyboardInterrupt: as `map`.
+        """
+        out: list[tuple[int, Any]] = []
+        while len(out) < n:
             worker, result = self.receive(None if cancelled is None else 0.2)
             if worker >= 0:
-                out[worker] = result
+                out.append((worker, result))
             elif cancelled is not None and cancelled():
                 raise KeyboardInterrupt
-        return [out[i] for i in range(len(jobs))]
+        return out
 
     def _died(self) -> WorkerDied:
         for proc in self._procs:
@@ -264,6 +283,107 @@ class WorkerPool:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+# --- arrays in shared memory ----------------------------------------------------------------
+
+#: What `SharedArrays` holds: each array's name, shape and dtype (a dtype string or descr).
+Layout = dict[str, tuple[tuple[int, ...], Any]]
+
+_ALIGN = 64  # each array starts on a cache line (a GNP population's records must)
+
+
+def _offsets(layout: Layout) -> tuple[dict[str, int], int]:
+    offsets, end = {}, 0
+    for name, (shape, dtype) in layout.items():
+        end = -(-end // _ALIGN) * _ALIGN
+        offsets[name] = end
+        end += int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+    return offsets, max(end, 1)
+
+
+SHARED_PREFIX = "gnplab_"
+"""How the names of the lab's shared blocks start; then the creator's process id."""
+SHARED_FOLDER = Path("/dev/shm")
+
+
+def sweep_shared() -> list[str]:
+    """Unlink the lab's shared blocks whose creator no longer runs; their names."""
+    swept = []
+    with contextlib.suppress(OSError):
+        for path in SHARED_FOLDER.glob(f"{SHARED_PREFIX}*"):
+            pid = path.name[len(SHARED_PREFIX) :].partition("_")[0]
+            if pid.isdigit() and not _alive(int(pid)):
+                with contextlib.suppress(OSError):
+                    path.unlink()
+                    swept.append(path.name)
+    return swept
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+class SharedArrays:
+    """Named numpy arrays in one shared-memory block (`/dev/shm` on Linux).
+
+    The parent `create`s the block and passes `spec` (its name and layout: a short, picklable
+    tuple) to its workers, which `attach`. Only the creator unlinks the block (`close`); it is
+    also registered with multiprocessing's resource tracker, which unlinks it should the
+    creator be killed before it could. Workers attach untracked: a worker ending does not
+    unlink, nor warn of, a block it does not own.
+    """
+
+    def __init__(self, memory: SharedMemory, layout: Layout, owner: bool) -> None:
+        self._memory, self._layout, self._owner = memory, layout, owner
+        offsets, _ = _offsets(layout)
+        self.arrays: dict[str, np.ndarray] = {
+            name: np.ndarray(shape, np.dtype(dtype), memory.buf, offsets[name])
+            for name, (shape, dtype) in layout.items()
+        }
+
+    @classmethod
+    def create(cls, layout: Layout) -> SharedArrays:
+        """A new block holding zeroed arrays of `layout`, named after this process.
+
+        First unlinks the blocks of processes that no longer run: a run killed with its whole
+        process group (SIGKILL to `killpg`) takes the resource tracker with it, and its block
+        would stay in `/dev/shm` until the machine restarts.
+        """
+        sweep_shared()
+        name = f"{SHARED_PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
+        memory = SharedMemory(name, create=True, size=_offsets(layout)[1])
+        return cls(memory, layout, owner=True)
+
+    @classmethod
+    def attach(cls, spec: tuple[str, Layout]) -> SharedArrays:
+        """The block `spec` names (see `spec`), as a worker sees it."""
+        name, layout = spec
+        return cls(SharedMemory(name, track=False), layout, owner=False)
+
+    @property
+    def spec(self) -> tuple[str, Layout]:
+        """What a worker needs to `attach`: the block's name and layout."""
+        return self._memory.name, self._layout
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.arrays[name]
+
+    def close(self) -> None:
+        """Drop this process's mapping; the owner also unlinks the block (idempotent)."""
+        self.arrays = {}
+        with contextlib.suppress(BufferError):  # a view still held elsewhere: unmapped at exit
+            self._memory.close()
+        if self._owner:
+            self._owner = False
+            with contextlib.suppress(FileNotFoundError):
+                self._memory.unlink()
 
 
 # --- calls of one function, shared out over this process and the pool -------------------------
