@@ -77,9 +77,10 @@ def plan(
 def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
     """The `app.tasks.peer.PeerRun` of one run of a task experiment, as JSON: the lab's
     settings as a task run (`TaskRunConfig.from_run_config`), the arm's brain and the test
-    seeds; a fracnetics arm takes fracnetics' documented settings of the task."""
+    seeds; a fracnetics arm takes fracnetics' documented settings of the task, with the
+    arm's own (`fracnetics`) over them."""
     from app.tasks.config import TaskRunConfig, TaskSettings
-    from app.tasks.fracnetics_arm import documented
+    from app.tasks.fracnetics_arm import arm_settings
     from app.tasks.peer import PeerRun
 
     assert spec.task is not None
@@ -88,7 +89,9 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
     peer = PeerRun(
         brain=brain,
         run=run,
-        fracnetics=documented(spec.task.id) if brain == "fracnetics" else None,
+        fracnetics=(
+            arm_settings(spec.task.id, spec.arm(arm).fracnetics) if brain == "fracnetics" else None
+        ),
         test_seeds=spec.task.seeds(),
     )
     return peer.model_dump_json()

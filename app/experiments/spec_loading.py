@@ -65,17 +65,18 @@ def parse(data: Mapping[str, Any], source: str) -> ExperimentSpec:
 
 
 def _check_fracnetics(spec: ExperimentSpec, scale: str, source: str) -> None:
-    """A fracnetics arm's population holds its tournament (else fracnetics never returns)."""
+    """A fracnetics arm's settings are fracnetics', and its population holds its tournament
+    (else fracnetics never returns)."""
     if spec.task is None:
         return
     from app.tasks.common import TaskError
-    from app.tasks.fracnetics_arm import check_population, documented
+    from app.tasks.fracnetics_arm import arm_settings, check_population
 
     for arm in spec.arms:
         if arm.brain == "fracnetics":
             population = spec.run_config(arm.name, scale, 0).training.population
             try:
-                check_population(documented(spec.task.id), population)
+                check_population(arm_settings(spec.task.id, arm.fracnetics), population)
             except TaskError as error:
                 where = f"invalid experiment {source}: arm {arm.name!r} at scale {scale!r}"
                 raise ExperimentError(f"{where}: {error}") from None

@@ -39,10 +39,17 @@ class ArmSpec(SpecModel):
         description="a task experiment's brain: ours (GNP, as the config says) or fracnetics "
         "with its documented settings (app.tasks.fracnetics_arm)",
     )
+    fracnetics: dict[str, Any] = Field(
+        default_factory=dict,
+        description="a fracnetics arm's settings over its documented ones, e.g. the "
+        "[fracnetics] table of a preset `gnp-lab tune --brain fracnetics` wrote",
+    )
 
     @model_validator(mode="after")
     def _named(self) -> ArmSpec:
         check_name(self.name, "arm name")
+        if self.fracnetics and self.brain != "fracnetics":
+            raise ValueError(f"arm {self.name!r}: fracnetics settings need brain = 'fracnetics'")
         return self
 
 

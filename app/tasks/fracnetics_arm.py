@@ -16,9 +16,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.tasks.common import TaskError
 
@@ -90,6 +91,28 @@ def documented(task: str) -> FracneticsSettings:
             f"choose one of {', '.join(DOCUMENTED)}"
         )
     return DOCUMENTED[task]
+
+
+def arm_settings(task: str, overlay: dict[str, Any]) -> FracneticsSettings:
+    """fracnetics' documented settings for `task` with `overlay`'s (e.g. a tuned preset's
+    `[fracnetics]` table: `gnp-lab tune --brain fracnetics`).
+
+    Raises:
+        TaskError: a task it documents no settings for, or an overlay that is no settings of
+            it (one line).
+    """
+    base = documented(task)
+    if not overlay:
+        return base
+    unknown = sorted(set(overlay) - set(FracneticsSettings.model_fields))
+    if unknown:
+        raise TaskError(f"fracnetics settings: {', '.join(unknown)}: unknown setting")
+    try:
+        return FracneticsSettings.model_validate({**base.model_dump(), **overlay})
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise TaskError(f"fracnetics settings: {where}: {first['msg']}") from None
 
 
 def check_population(settings: FracneticsSettings, population: int) -> None:

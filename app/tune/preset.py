@@ -138,8 +138,8 @@ def train_layer(path: str, task: str | None) -> dict[str, Any]:
         return layer
     if record.brain != "gnp":
         raise ConfigError(
-            f"preset {path} holds fracnetics' settings; it sets a fracnetics arm of a task "
-            "experiment (`preset` of the arm), not a GNP run"
+            f"preset {path} holds fracnetics' settings: its [fracnetics] table is a task "
+            "experiment's fracnetics arm's `fracnetics` table, not a GNP run's"
         )
     if task is None:
         raise ConfigError(f"preset {path} was tuned on {record.task}: give --task {record.task}")

@@ -275,20 +275,17 @@ def gnp_trial(
 
 def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> FracneticsSettings:
     """fracnetics' documented settings of the task, with the study's and the trial's."""
-    from app.tasks.fracnetics_arm import FracneticsSettings, documented
+    from app.tasks.fracnetics_arm import arm_settings
 
-    base = documented(declared.task).model_dump()
     if declared.protocol() != {"test_protocol": "greedy"}:
         raise TuneError("--set task.*: fracnetics lives and tests its episodes its own way")
+    overlay = {}
     for path, value in {**declared.fixed, **values}.items():
         section, _, key = path.partition(".")
-        if section != "fracnetics" or key not in base:
+        if section != "fracnetics":
             raise TuneError(f"--set {path}: a fracnetics study sets fracnetics.KEY only")
-        base[key] = value
-    try:
-        return FracneticsSettings(**base)
-    except ValueError as error:
-        raise TuneError(f"fracnetics settings: {str(error).splitlines()[0]}") from None
+        overlay[key] = value
+    return arm_settings(declared.task, overlay)
 
 
 def fracnetics_trial(declared: Declared, values: dict[str, Any], report: Report) -> float:

@@ -6,12 +6,17 @@ from __future__ import annotations
 
 import sqlite3
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from app.cli.main import main
+from app.experiments.planning import plan
+from app.experiments.spec import ExperimentError
+from app.experiments.spec_loading import parse
 from app.phases.generations import Interrupted
 from app.tasks.config import TaskSettings
+from app.tasks.peer import PeerRun
 from app.tasks.store import read_task_run
 from app.tune import study as tuning
 from app.tune.preset import TuningRecord, read_preset, write_preset
@@ -136,6 +141,30 @@ def test_fracnetics_is_tuned_by_the_same_command(tmp_path: Path) -> None:
     assert layer["fracnetics"]["jnf"] == 4  # its documented bounds and functions stay
     preset = str(tmp_path / "tuning" / "CartPole-v1-fracnetics.toml")
     assert main(["train", "--task", "CartPole-v1", "--preset", preset]) == 1
+
+    # A task experiment's fracnetics arm takes the preset's [fracnetics] table.
+    spec = parse(_fracnetics_spec(layer["fracnetics"]), "tuned")
+    (task,) = plan(spec, "smoke", tmp_path / "runs")
+    peer = PeerRun.model_validate_json(task.task_json)
+    assert peer.fracnetics is not None
+    assert peer.fracnetics.model_dump(mode="json") == layer["fracnetics"]
+    with pytest.raises(ExperimentError, match="nodes: unknown setting"):
+        parse(_fracnetics_spec({"nodes": 3}), "tuned")
+    with pytest.raises(ExperimentError, match="need brain = 'fracnetics'"):
+        parse(_fracnetics_spec({"jn": 2}, brain="gnp"), "tuned")
+
+
+def _fracnetics_spec(settings: dict[str, Any], brain: str = "fracnetics") -> dict[str, Any]:
+    arm = {"name": "tuned", "label": "fracnetics, tuned", "brain": brain, "fracnetics": settings}
+    return {
+        "name": "tuned-fracnetics", "description": "d", "source": "test", "kind": "beyond",
+        "preset": "quick", "seeds": 1, "first_seed": 40, "task": {"id": "CartPole-v1"},
+        "arms": [arm],
+        "comparisons": [{"name": "c", "a": "tuned", "b": "tuned", "metric": "test_return",
+                         "metric_b": "final_best_return", "direction": "greater",
+                         "source": "s", "family": "exploratory"}],
+        "scales": {"smoke": {"config": {"training": {"population": 10, "generations": 2}}}},
+    }  # fmt: skip
 
 
 def _error(capsys: pytest.CaptureFixture[str]) -> str:
