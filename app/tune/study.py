@@ -211,6 +211,19 @@ def finished(study: optuna.Study) -> list[optuna.trial.FrozenTrial]:
 
 # --- trials ----------------------------------------------------------------------------------
 
+
+@dataclass
+class Spent:
+    """Env-steps a GNP trial's training has spent (fracnetics' are not counted)."""
+
+    steps: int = 0
+
+
+def _spent(trial: optuna.Trial, spent: Spent) -> None:
+    if spent.steps:
+        trial.set_user_attr("env_steps", spent.steps)
+
+
 Report = Callable[[int, float], None]
 """A trial's intermediate result: (step, value); raises optuna.TrialPruned to stop the trial."""
 
@@ -245,15 +258,16 @@ def gnp_config(
 
 
 def gnp_trial(
-    declared: Declared, task: TaskSettings, values: dict[str, Any], report: Report
-) -> tuple[float, int]:
-    """Train a trial's GNP runs and score them: (mean validation return, env-steps spent).
+    declared: Declared, task: TaskSettings, values: dict[str, Any], report: Report, spent: Spent
+) -> float:
+    """Train a trial's GNP runs and score them: their mean validation return (`spent` counts
+    their training env-steps as they are spent, a pruned trial's too).
     A run's final elite is the task run's (`elite_generation`: the last generation's best, or
     chosen on its own validation episodes), scored under its test protocol (greedy unless the
     study says otherwise) on the tuning validation episodes."""
     from app.tasks.training import elite_generation, protocol_episodes, train_task
 
-    scores, spent = [], 0
+    scores = []
     g_count = declared.generations
     with tempfile.TemporaryDirectory(prefix="gnp-lab-tune-") as folder:
         for r, seed in enumerate(run_seeds(declared.seeds)):
@@ -261,8 +275,7 @@ def gnp_trial(
             path = Path(folder) / f"run-{r}.h5"
 
             def each(summary: Any, r: int = r) -> None:
-                nonlocal spent
-                spent += int(summary.steps)
+                spent.steps += int(summary.steps)
                 report(r * g_count + int(summary.generation), float(summary.best_fitness))
 
             train_task(config, path, progress=each)
@@ -270,7 +283,7 @@ def gnp_trial(
             elite = elite_generation(path)
             lives = protocol_episodes(path, seeds, elite, config.training.test_protocol)
             scores.append(float(np.mean(lives.returns)))
-    return float(np.mean(scores)), spent
+    return float(np.mean(scores))
 
 
 def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> FracneticsSettings:
@@ -375,7 +388,7 @@ def run_trials(
     study.pruner = pruner(declared)
     while (done := len(finished(study))) < trials:
         study.sampler = trial_sampler(declared, done)
-        trial = study.ask()
+        trial, spent = study.ask(), Spent()
 
         def report(step: int, value: float, trial: optuna.Trial = trial) -> None:
             if report_hook is not None:
@@ -388,17 +401,18 @@ def run_trials(
             values = draw(trial, params)
             trial.set_user_attr("settings", json.dumps(values, sort_keys=True))
             if declared.brain == "gnp":
-                value, spent = gnp_trial(declared, task, values, report)
-                trial.set_user_attr("env_steps", spent)
+                value = gnp_trial(declared, task, values, report, spent)
             else:
                 value = fracnetics_trial(declared, values, report)
         except optuna.TrialPruned:
+            _spent(trial, spent)
             study.tell(trial, state=TrialState.PRUNED)
             state, value = "pruned", None
         except BaseException:  # Ctrl-C, SIGTERM (Interrupted), an error: it does not count
             study.tell(trial, state=TrialState.FAIL)
             raise
         else:
+            _spent(trial, spent)
             study.tell(trial, value)
             state = "complete"
         if each is not None:
