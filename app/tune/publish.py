@@ -85,7 +85,7 @@ def write_study_preset(
         brain=declared.brain,
         study=declared.name,
         storage=str(storage),
-        trials=trials,
+        trials=max(trials, len(done)),  # a study run on past its --trials keeps them all
         complete=len(complete),
         pruned=len(done) - len(complete),
         best_trial=best.number,
