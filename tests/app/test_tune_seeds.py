@@ -1,7 +1,7 @@
 """Tuning seeds are disjoint from every seed an experiment uses: run seeds, fracnetics' episode
 seeds (run seed + g) and test episode seeds, of every shipped spec at every scale; and the
-tuner's own run, episode and validation seeds stay inside its declared range. `gnp-lab --help`
-and `tune --help` import no Optuna."""
+tuner's own run, episode and validation seeds stay inside its declared range. The search space
+is its table less what a study fixes. `gnp-lab --help` and `tune --help` import no Optuna."""
 
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ from app.tune.space import (
     MAX_VALIDATION_EPISODES,
     TUNING_SEEDS,
     run_seeds,
+    settings_of,
+    space,
     validation_seeds,
 )
 
@@ -29,7 +31,7 @@ def _experiment_seeds(name: str) -> set[range]:
     spec = load_shipped(name)
     ranges = set()
     for scale in spec.scales:
-        seeds = spec.seed_list(scale)  # type: ignore[arg-type]
+        seeds = spec.seed_list(scale)
         ranges.add(range(seeds[0], seeds[-1] + 1))
         if spec.task is None:
             continue
@@ -83,3 +85,19 @@ def test_help_imports_no_optuna() -> None:
     )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout.strip().splitlines()[-1]) == []
+
+
+def test_the_space_is_its_table_less_what_the_study_fixes() -> None:
+    full = {p.path for p in space("gnp")}
+    assert {"evolution.p_mutation", "controller.q0", "controller.tie_break"} <= full
+    fixed = frozenset({"training.epsilon", "controller.n_sub"})
+    less = {p.path for p in space("gnp", fixed, population=4)}
+    assert less == full - {"controller.n_sub"} - {p for p in full if p.startswith("training.")}
+    (tournament,) = [p for p in space("gnp", population=4) if p.name.endswith("tournament_size")]
+    assert tournament.high == 4
+    drawn = {"training.epsilon_max": 0.2, "training.epsilon_min_share": 0.5}
+    assert settings_of(space("gnp"), drawn) == {
+        "training.schedule": "changing",
+        "training.epsilon_max": 0.2,
+        "training.epsilon_min": 0.1,
+    }
