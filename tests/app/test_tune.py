@@ -92,7 +92,10 @@ def _trials(path: Path, name: str) -> list[tuple[int, str, dict[str, object], fl
     return [(t.number, t.state.name, t.params, t.value) for t in study.get_trials(deepcopy=False)]
 
 
-def test_a_cut_study_resumes_to_its_declared_trials_with_the_uncut_trials(tmp_path: Path) -> None:
+def test_a_cut_study_resumes_to_its_declared_trials_with_the_uncut_trials(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tuning, "STARTUP_TRIALS", 1)  # TPE's own draws from the second trial
     task = TaskSettings(id="CartPole-v1")
     uncut_path, cut_path = tmp_path / "uncut.db", tmp_path / "cut.db"
     uncut = tuning.open_study(uncut_path, _declared("s"))
