@@ -6,9 +6,11 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
+from app.cli.train import Bar
 from app.tune.space import FIRST_VALIDATION_SEED, TuneError, run_seeds
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")
@@ -32,6 +34,14 @@ def study_name(args: argparse.Namespace) -> str:
             "with a letter or digit"
         )
     return name
+
+
+class _TrialBar(Bar):
+    """Trials finished, and the generation of the trial in flight."""
+
+    def refresh(self) -> None:
+        if self._bar is not None:
+            self._bar.refresh()
 
 
 _SIZES = {
@@ -66,7 +76,6 @@ def _fixed(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
-    from app.cli.train import Bar
     from app.phases.generations import Interrupted
     from app.system.exit_codes import EXIT_INTERRUPTED
     from app.tasks.cli import task_settings
@@ -103,11 +112,27 @@ def cmd_tune(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else folder / f"{name}.toml"
     study = tuning.open_study(storage, declared)
     done = len(tuning.finished(study))
-    bar = Bar(args.trials, min(done, args.trials), f"tune {name}", "trial", args.quiet)
+    bar = _TrialBar(args.trials, min(done, args.trials), f"tune {name}", "trial", args.quiet)
+
+    best = tuning.best_value(study)
+    shown = [0.0]
+    steps = declared.seeds * declared.generations
 
     def each(outcome: tuning.Outcome) -> None:
-        best = "-" if outcome.best is None else f"{outcome.best:.4g}"
-        bar.update(len(tuning.finished(study)), best=best, last=outcome.state)
+        nonlocal best
+        best = outcome.best
+        words = "-" if best is None else f"{best:.4g}"
+        bar.update(len(tuning.finished(study)), best=words, last=outcome.state)
+
+    def within(number: int, step: int) -> None:
+        """A trial's generations on the bar, at most twice a second."""
+        now = time.monotonic()
+        if now - shown[0] >= 0.5:
+            shown[0] = now
+            words = "-" if best is None else f"{best:.4g}"
+            where = f"{number}, generation {step + 1}/{steps}"
+            bar.update(len(tuning.finished(study)), best=words, trial=where)
+            bar.refresh()
 
     if not args.quiet:
         last_validation = FIRST_VALIDATION_SEED + declared.validation - 1
@@ -119,7 +144,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
             f"study {storage}\n"
         )
     try:
-        tuning.run_trials(study, declared, task, args.trials, each)
+        tuning.run_trials(study, declared, task, args.trials, each, within)
     except (KeyboardInterrupt, Interrupted):
         bar.close()
         done = len(tuning.finished(study))
