@@ -34,7 +34,7 @@ from app.brains.contract import Evolution
 from app.brains.gnp_brain import GnpFamily, generation_epsilon_alpha
 from app.brains.registry import family_of
 from app.loop.seeds import evolution_rng, life_seeds, n_segments
-from app.phases.lives import ShardLives
+from app.phases.lives import ShardLives, live, make_world
 from app.settings.arenas import arena_of
 from app.settings.config import RunConfig
 from app.system.workers import Count, Layout, SharedArrays
@@ -156,7 +156,9 @@ class RowsWorker:
     def __init__(self, config: RunConfig, spec: tuple[str, Layout]) -> None:
         self.config = config
         self.block = SharedArrays.attach(spec)
-        self.lives = ShardLives(config)
+        self.lives = ShardLives(config)  # the pipes' jobs (`app.phases.generations`)
+        self.family = self.lives.family
+        self._world: sim.World | None = None
         self.cfg = config.controller.gnp_config()
         training = config.training
         self._segments = n_segments(training.steps, training.redraw_every)
@@ -166,17 +168,31 @@ class RowsWorker:
         if isinstance(job, EvolveJob):
             self.evolve(job)
             return
+        config, block = self.config, self.block
         rows = slice(job.start, job.stop)
-        block = self.block
-        individuals = Population.from_records(block["population"][rows])
         seeds = life_seeds(
-            self.config.seed,
+            config.seed,
             job.generation,
             np.arange(job.start, job.stop),
             self._segments,
             self._n_starts,
         )
-        lives, after, _ = self.lives.run(individuals, seeds, job.epsilon, job.alpha, False)
+        if self._world is None:
+            self._world = make_world(config, job.stop - job.start)
+        # `ShardLives.run` without its copy: this one, out of the block, is what lives learn into
+        after = Population.from_records(block["population"][rows])
+        training = config.training
+        lives, _ = live(
+            self._world,
+            self.family,
+            after,
+            seeds,
+            training.steps,
+            training.redraw_every,
+            job.epsilon,
+            job.alpha,
+            c_from=config.reward.c_from,
+        )
         block["learned"][rows] = after.records
         block["fitness"][rows] = lives.fitness
         block["terms"][rows] = lives.terms

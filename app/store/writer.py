@@ -40,6 +40,16 @@ class RunWriter:
         self._lock = lock
         self._next_slot = 0
         self._growth = run_growth(template)
+        # Datasets by path, looked up once: a generation's writes are ~20 small ones, and
+        # h5py's lookup by path cost as much as the writes themselves (~1 ms a generation).
+        self._datasets: dict[str, h5py.Dataset] = {}
+        self._allocated: set[int] = set()  # checkpoint slots whose storage exists
+
+    def _ds(self, path: str) -> h5py.Dataset:
+        found = self._datasets.get(path)
+        if found is None:
+            found = self._datasets[path] = self._file[path]
+        return found
 
     @classmethod
     def create(cls, path: str | Path, template: RunTemplate) -> RunWriter:
@@ -152,36 +162,40 @@ class RunWriter:
             f"generation {generation}",
             generation,
         )
-        gens = self._file["generations"]
+        ds = self._ds
         best = int(np.argmax(fitness))
-        gens["fitness"][generation] = fitness
-        gens["best_fitness"][generation] = fitness[best]
-        gens["mean_fitness"][generation] = fitness.mean()
-        gens["std_fitness"][generation] = fitness.std()
-        gens["best_index"][generation] = best
-        gens["epsilon"][generation] = epsilon
-        gens["alpha"][generation] = alpha
-        gens["best_terms"][generation] = [best_terms[t] for t in TERM_NAMES]
-        gens["mean_terms"][generation] = [mean_terms[t] for t in TERM_NAMES]
-        genomes = self._file["genomes/best"]
+        ds("generations/fitness")[generation] = fitness
+        ds("generations/best_fitness")[generation] = fitness[best]
+        ds("generations/mean_fitness")[generation] = fitness.mean()
+        ds("generations/std_fitness")[generation] = fitness.std()
+        ds("generations/best_index")[generation] = best
+        ds("generations/epsilon")[generation] = epsilon
+        ds("generations/alpha")[generation] = alpha
+        ds("generations/best_terms")[generation] = [best_terms[t] for t in TERM_NAMES]
+        ds("generations/mean_terms")[generation] = [mean_terms[t] for t in TERM_NAMES]
         for name, values in best_genome.items():
-            genomes[name][generation] = values[0]
+            ds(f"genomes/best/{name}")[generation] = values[0]
 
     def write_checkpoint(self, next_generation: int, population: Mapping[str, np.ndarray]) -> None:
         """Store the population to evaluate next in the free slot, then point at it."""
         self._require(self._slot_growth(), "a checkpoint", next_generation - 1)
         slot = self._next_slot
-        group = self._file[f"checkpoint/slot{slot}"]
         for name, values in population.items():
-            group[name][...] = values
+            self._ds(f"checkpoint/slot{slot}/{name}")[...] = values
         self._file.flush()  # the slot is complete on disk before the pointer names it
-        self._file["progress/checkpoint"][...] = [slot, next_generation]
+        self._ds("progress/checkpoint")[...] = [slot, next_generation]
         self._next_slot = 1 - slot
 
     def _slot_growth(self) -> int:
         """Bytes the next checkpoint adds: a slot's storage is allocated at its first write."""
-        unwritten = self._file[f"checkpoint/slot{self._next_slot}"].values()
-        return self._growth.slot if any(d.id.get_storage_size() == 0 for d in unwritten) else 0
+        slot = self._next_slot
+        if slot in self._allocated:  # storage once allocated stays
+            return 0
+        unwritten = self._file[f"checkpoint/slot{slot}"].values()
+        if any(d.id.get_storage_size() == 0 for d in unwritten):
+            return self._growth.slot
+        self._allocated.add(slot)
+        return 0
 
     def _require(self, need: int, what: str, done: int) -> None:
         require_space(
@@ -194,7 +208,7 @@ class RunWriter:
     def mark_done(self, generations_done: int) -> None:
         """Publish generations 0..generations_done−1 to readers (written last, then flushed)."""
         self._file.flush()
-        self._file["progress/generations_done"][()] = generations_done
+        self._ds("progress/generations_done")[()] = generations_done
         self._file.flush()
 
     def write_elite(self, generation: int, life: Trajectory) -> None:
