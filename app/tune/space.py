@@ -7,7 +7,9 @@ Nothing here imports Optuna, Gymnasium or the simulator: the tables are read by 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Any, Literal
 
 Brain = Literal["gnp", "fracnetics"]
@@ -61,7 +63,8 @@ class Param:
     `FracneticsSettings` field (`fracnetics.key`) for fracnetics. A `share` is drawn in 0..1 and
     stored as that share of the setting `of` (e.g. ε_min = share × ε_max, so min ≤ max always).
     `fixed` are settings that come with it (e.g. the schedule "changing" its ε needs);
-    `excludes` the settings which, fixed by the study, leave it out of the space."""
+    `excludes` the settings which, fixed by the study, leave it out of the space; `methods`
+    the GNP methods it acts in (all when empty)."""
 
     path: str
     kind: Kind
@@ -72,6 +75,7 @@ class Param:
     of: str = ""
     fixed: tuple[tuple[str, Any], ...] = ()
     excludes: tuple[str, ...] = ()
+    methods: tuple[str, ...] = ()
     why: str = ""
 
     @property
@@ -107,6 +111,10 @@ GNP_SPACE: tuple[Param, ...] = (
           "optimistic where steps pay −1)"),
     Param("controller.tie_break", "categorical", choices=("random", "first"),
           why="ε-greedy among equal maxima (first: learning off is deterministic)"),
+    Param("controller.threshold_init", "categorical", choices=("uniform", "midpoint"),
+          why="generation 0's judgments drawn, or each at its feature's midpoint (#45 item 2)"),
+    Param("controller.skip_reward", "categorical", choices=("zero", "step"), methods=("CS",),
+          why="what a credit skip ending a step earns (CS): Eq. 5.3's zero, or the step's"),
     Param("training.epsilon_max", "float", 0.0, 0.3, fixed=_CHANGING, excludes=_RATES,
           why="ε at generation 0 (Eq. 4.1)"),
     Param("training.epsilon_min", "share", of="training.epsilon_max", excludes=_RATES,
@@ -140,14 +148,20 @@ SPACES: dict[Brain, tuple[Param, ...]] = {"gnp": GNP_SPACE, "fracnetics": FRACNE
 
 
 def space(
-    brain: Brain, fixed: frozenset[str] = frozenset(), population: int | None = None
+    brain: Brain,
+    fixed: Mapping[str, Any] = MappingProxyType({}),
+    population: int | None = None,
+    method: str | None = None,
 ) -> list[Param]:
     """The parameters searched for `brain`: its table less the settings the study fixes
-    (`--set`: a fixed setting leaves the space, and so do the parameters it `excludes`), a
-    tournament no larger than the population."""
+    (`--set`: a fixed setting leaves the space, and so do the parameters it `excludes`) and
+    those of other methods than the study's (`methods`), a tournament no larger than the
+    population."""
     params = []
     for p in SPACES[brain]:
-        if p.path in fixed or fixed & set(p.excludes):
+        if p.path in fixed or set(fixed) & set(p.excludes):
+            continue
+        if p.methods and method is not None and method not in p.methods:
             continue
         if population is not None and p.path in _TOURNAMENTS:
             p = replace(p, high=min(p.high, population))

@@ -91,7 +91,12 @@ class Declared:
         return self.budget // (self.population * self.steps)
 
     def params(self) -> list[Param]:
-        return space(self.brain, frozenset(self.fixed), self.population)
+        method = self.fixed.get("controller.method")
+        if self.brain == "gnp" and method is None:
+            from app.settings.config import ControllerSettings
+
+            method = ControllerSettings().method  # the lab's default
+        return space(self.brain, self.fixed, self.population, method)
 
     def protocol(self) -> dict[str, Any]:
         """A GNP run's episode protocol (`app.tasks.common.EpisodeProtocol`): greedy tests

@@ -50,7 +50,7 @@ def test_a_study_writes_a_preset_that_train_takes(
     assert record.run_seeds == [tuning.run_seeds(1)[0]]
     assert record.optuna_version and record.sampler_seed == 0
     assert layer["controller"]["method"] == "RL" and layer["controller"]["fuzzy"] is False
-    searched = {p.path for p in tuning.space("gnp")} - {
+    searched = {p.path for p in tuning.space("gnp", method="RL")} - {
         "training.epsilon_min",
         "training.alpha_min",
     }
