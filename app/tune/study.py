@@ -109,7 +109,9 @@ class Declared:
         return {k: v for k, v in self.fixed.items() if not k.startswith("task.")}
 
     def json(self) -> str:
-        return json.dumps(asdict(self), sort_keys=True)
+        """The declaration and the space it searches, as the study's storage keeps them."""
+        space = [[p.name, p.kind, p.low, p.high, p.log, list(p.choices)] for p in self.params()]
+        return json.dumps({**asdict(self), "space": space}, sort_keys=True)
 
 
 def task_step_cap(task: str, steps: int | None) -> int:
@@ -189,6 +191,11 @@ def open_study(path: Path, declared: Declared) -> optuna.Study:
     elif stored != declared.json():
         was = json.loads(stored)
         now = json.loads(declared.json())
+        if was.pop("space", None) != now.pop("space") and was == now:
+            raise TuneError(
+                f"study {declared.name!r} in {path} searched another space than "
+                f"{declared.brain}'s now (app/tune/space.py changed): give another --study"
+            )
         diff = ", ".join(
             f"{k} {was.get(k)!r} (now {now[k]!r})" for k in now if was.get(k) != now[k]
         )

@@ -18,8 +18,10 @@ from app.phases.generations import Interrupted
 from app.tasks.config import TaskSettings
 from app.tasks.peer import PeerRun
 from app.tasks.store import read_task_run
+from app.tune import space as space_module
 from app.tune import study as tuning
 from app.tune.preset import TuningRecord, read_preset, write_preset
+from app.tune.space import TuneError
 
 # A study of seconds: CartPole, 10 lives of up to 500 steps, 4 generations (20,000 env-steps).
 TINY = ["--population", "10", "--budget", "20000", "--validation", "3"]
@@ -216,13 +218,16 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 def test_a_study_declared_otherwise_is_refused(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     path = tmp_path / "tuning" / "s.db"
     path.parent.mkdir()
     tuning.open_study(path, _declared("s"))
     assert tune(tmp_path, *CRISP_RL, "--study", "s", "--trials", "1") == 1
     assert "was declared with" in _error(capsys)
+    monkeypatch.setitem(space_module.SPACES, "gnp", space_module.GNP_SPACE[:-1])
+    with pytest.raises(TuneError, match="searched another space"):
+        tuning.open_study(path, _declared("s"))
 
 
 def test_a_preset_tuned_on_another_task_is_refused(
