@@ -10,11 +10,17 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from pydantic import BaseModel
 
 from app.experiments.layout import experiment_dir
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.settings.config import ImplementationSettings, RunConfig
 from app.store import RunFileError, RunReader
+
+if TYPE_CHECKING:
+    from app.tasks.config import TaskRunConfig
 
 
 @dataclass(frozen=True)
@@ -94,7 +100,27 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
         ),
         test_seeds=spec.task.seeds(),
     )
-    return peer.model_dump_json()
+    return peer.model_dump_json(exclude=_later_defaults(run))
+
+
+def _later_defaults(run: TaskRunConfig) -> dict[str, Any]:
+    """The settings added to a task run after the first task experiments (issue #45: the
+    brain's `gnp.config.TASK_SETTINGS`, the episodes' `PROTOCOL_FIELDS`) that `run` leaves at
+    their defaults: left out of its JSON, so a run's identity (`ledger.fingerprint`) and every
+    committed ledger stay as they were."""
+    from app.tasks.config import PROTOCOL_FIELDS
+    from gnp.config import TASK_SETTINGS
+
+    def unset(model: BaseModel, names: tuple[str, ...]) -> set[str]:
+        fields = type(model).model_fields
+        return {n for n in names if getattr(model, n) == fields[n].default}
+
+    return {
+        "run": {
+            "controller": unset(run.controller, TASK_SETTINGS),
+            "training": unset(run.training, PROTOCOL_FIELDS),
+        }
+    }
 
 
 def _task_run(spec: ExperimentSpec, arm: str, seed: int, config: RunConfig, folder: Path) -> Task:

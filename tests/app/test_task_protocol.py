@@ -152,3 +152,20 @@ def test_a_task_experiment_reports_a_test_return_per_protocol(tmp_path: Path) ->
         2,
         True,
     )
+
+
+def test_a_runs_identity_names_the_new_settings_only_when_set() -> None:
+    from app.experiments.ledger import fingerprint
+    from app.experiments.planning import plan
+
+    base = plan(parse(_spec(), "tiny"), "smoke", "runs")[2]  # RL, seed 40
+    assert '"q0"' not in base.task_json and '"test_protocol"' not in base.task_json
+    data = _spec()
+    data["arms"][1]["config"]["controller"]["q0"] = -10.0
+    tuned = plan(parse(data, "tiny"), "smoke", "runs")[2]
+    data = _spec()
+    data["task"]["validation_episodes"] = 3
+    validated = plan(parse(data, "tiny"), "smoke", "runs")[2]
+    assert base.name == tuned.name == validated.name == "RL-seed40"
+    assert len({fingerprint(base), fingerprint(tuned), fingerprint(validated)}) == 3
+    assert PeerRun.model_validate_json(tuned.task_json).run.controller.q0 == -10.0
