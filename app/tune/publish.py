@@ -46,7 +46,8 @@ def preset_settings(
         return {"fracnetics": settings, "training": sizes}
     run = gnp_config(declared, task, values, run_seeds(1)[0])
     run.gnp_config()
-    merged = nested(declared.run_settings())
+    brain = {"method": run.controller.method, "fuzzy": run.controller.fuzzy}  # named always
+    merged = nested({f"controller.{k}": v for k, v in brain.items()} | declared.run_settings())
     for section, table in nested(values).items():
         merged.setdefault(section, {}).update(table)
     merged.setdefault("training", {}).update(sizes)
