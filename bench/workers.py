@@ -20,8 +20,10 @@ first two of a run excluded: the workers' start and numba's loading), medians of
   to compare with the target (≥ 1.85×).
 
 The 2 workers' serial share (this process's CPU outside the jobs) and the CPU they cost beyond
-one worker are printed too. Nothing is timed that the lab does not do in a real run: it is
-`app.phases.training.train` into a run file in a temporary folder.
+one worker are printed too, and each step's CPU time: the lives and the evolution in one
+process, and on the two workers (RowsJob, EvolveJob: the busier worker's, and both's). Nothing
+is timed that the lab does not do in a real run: it is `app.phases.training.train` into a run
+file in a temporary folder.
 """
 
 from __future__ import annotations
@@ -37,10 +39,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from app.brains.gnp_brain import GnpEvolution
 from app.phases import generations
 from app.phases.generations import GenerationSummary
 from app.phases.training import train
 from app.settings.loading import build_config, load_preset
+
+Row = tuple[float, float, float, float]
+"""A generation's wall s, CPU s, idle-core wall s and this process's serial CPU s."""
 
 
 def children_ns() -> dict[int, int]:
@@ -56,7 +62,7 @@ class Watch:
     """Per generation: wall, CPU of everyone, and the idle-core wall estimate."""
 
     def __init__(self) -> None:
-        self.rows: list[tuple[float, float, float, float]] = []  # wall, cpu, idle, serial
+        self.rows: list[Row] = []
         self.steps: dict[str, list[list[float]]] = {}  # each kind of job: workers' CPU s
         self._reset()
 
@@ -99,19 +105,36 @@ class Watch:
         self._reset()
 
 
-def one_run(config: Any, workers: int, watch: Watch | None = None) -> list[tuple[float, ...]]:
-    watch = watch or Watch()
+def one_run(config: Any, workers: int, steps: dict[str, list[list[float]]]) -> list[Row]:
+    """A run's generations; each step's CPU time added to `steps`."""
+    watch = Watch()
+    watch.steps = steps
     original = generations.Evaluator._run
 
     def watched(self: Any, jobs: list[Any], meanwhile: Callable[[], None] = lambda: None) -> Any:
         return watch.step(lambda j, m: original(self, j, m), jobs, meanwhile)
 
+    def timed(kind: str, call: Callable[..., Any]) -> Callable[..., Any]:
+        def run(*args: Any, **kwargs: Any) -> Any:  # one process's step: its CPU time
+            began = time.process_time()
+            out = call(*args, **kwargs)
+            watch.steps.setdefault(kind, []).append([time.process_time() - began])
+            return out
+
+        return run
+
+    local, advance = generations.Evaluator.evaluate, GnpEvolution.advance
     generations.Evaluator._run = watched  # type: ignore[method-assign]
+    if workers == 1:
+        generations.Evaluator.evaluate = timed("lives in 1 process", local)  # type: ignore[method-assign]
+        GnpEvolution.advance = timed("evolution in 1 process", advance)  # type: ignore[method-assign]
     try:
         with tempfile.TemporaryDirectory() as folder:
             train(config, Path(folder) / "bench.h5", workers=workers, progress=watch.generation)
     finally:
         generations.Evaluator._run = original  # type: ignore[method-assign]
+        generations.Evaluator.evaluate = local  # type: ignore[method-assign]
+        GnpEvolution.advance = advance  # type: ignore[method-assign]
     return watch.rows[2:]
 
 
@@ -142,13 +165,14 @@ def main() -> None:
                 }
             },
         )
-        one_run(build_config(config.model_dump(), {"training": {"generations": 3}}), 2)  # warm
-        rows: dict[int, list[tuple[float, ...]]] = {1: [], 2: []}
+        warm = build_config(config.model_dump(), {"training": {"generations": 3}})
+        one_run(warm, 2, {})
+        rows: dict[int, list[Row]] = {1: [], 2: []}
         loads = []
-        watch = Watch()
+        steps: dict[str, list[list[float]]] = {}
         for _ in range(args.rounds):
             for workers in (1, 2):
-                rows[workers] += one_run(config, workers, watch if workers == 2 else None)
+                rows[workers] += one_run(config, workers, steps)
                 loads.append(os.getloadavg()[0])
         med = {w: [statistics.median(r[i] for r in rows[w]) for i in range(4)] for w in rows}
         (wall1, cpu1, idle1, _), (wall2, cpu2, idle2, serial2) = med[1], med[2]
@@ -160,12 +184,12 @@ def main() -> None:
             f"{idle1 / idle2:.2f}×; CPU {cpu2 / cpu1 - 1:+.1%}; "
             f"load average {min(loads):.1f}–{max(loads):.1f}"
         )
-        for kind, used in watch.steps.items():  # per step: the busier worker against the mean
+        for kind, used in steps.items():  # per step: the busier process, everyone's sum
             busier = statistics.median(max(u) for u in used if u)
-            mean = statistics.median(sum(u) / len(u) for u in used if u)
+            total = statistics.median(sum(u) for u in used if u)
             print(
-                f"  {kind}: busier worker {busier * 1e3:.1f} ms CPU, "
-                f"{busier / mean - 1:+.1%} over the workers' mean"
+                f"  {kind:24} busier process {busier * 1e3:6.1f} ms CPU, "
+                f"all {total * 1e3:6.1f} ms CPU"
             )
 
 
