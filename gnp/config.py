@@ -47,6 +47,11 @@ ThresholdInit = Literal["uniform", "midpoint"]
 #: Generation 0's {β, α} under "midpoint": the crisp threshold (β + α)/2 = 511.5, the middle
 #: of 0..1023, a fuzzy judgment's ramp one reading wide.
 MIDPOINT_BETA, MIDPOINT_ALPHA = SENSOR_MAX // 2, SENSOR_MAX // 2 + 1
+#: What a processing node sets: "parameter" (output f, its function, to its parameter in
+#: −10..10: the robot's wheels) or "function" (output 0 to the centre of the f-th of
+#: n_outputs equal bins of −10..10, its parameter unused: on a Discrete(n) task read in n bins,
+#: with n_outputs = n, the node's function is the action).
+ProcessingOutput = Literal["parameter", "function"]
 #: Bound on an initial Q value (Q tables are float32).
 Q0_MAX = 1e6
 
@@ -116,6 +121,12 @@ class GnpConfig(BaseModel):
         description="generation 0's judgment thresholds: uniform (α in 1..1023, β below it) "
         "or midpoint (β = 511, α = 512: each judgment halves its feature's range)",
     )
+    processing_output: ProcessingOutput = Field(
+        default="parameter",
+        description="what a processing node sets: output f (its function) to its parameter "
+        "(parameter), or output 0 to the centre of the f-th of n_outputs equal bins of "
+        "−10..10 (function: on a Discrete(n) task the function is the action)",
+    )
 
     @cached_property
     def n_nodes(self) -> int:
@@ -175,7 +186,7 @@ class GnpConfig(BaseModel):
         return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
 
 
-TASK_SETTINGS = ("q0", "tie_break", "skip_reward", "threshold_init")
+TASK_SETTINGS = ("q0", "tie_break", "skip_reward", "threshold_init", "processing_output")
 """`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
 runs, documents and bits as before)."""
 

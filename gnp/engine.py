@@ -24,7 +24,7 @@ import numpy as np
 
 from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
-from gnp.methods import FIRST_STAGE_ONLY, SKIP_EARNS, TIE_FIRST, TRAITS
+from gnp.methods import EMIT_FUNCTION, FIRST_STAGE_ONLY, SKIP_EARNS, TIE_FIRST, TRAITS
 from gnp.population import Population, record_dtype
 from gnp.rng import seed_states
 
@@ -348,10 +348,13 @@ def method_code(cfg: GnpConfig) -> int:
 
 
 def _flags(cfg: GnpConfig) -> int:
-    """The kernel's flags of `cfg.tie_break` (`TIE_FIRST` for "first") and `cfg.skip_reward`
-    (`SKIP_EARNS` for "step"), 0 for the defaults."""
-    return (TIE_FIRST if cfg.tie_break == "first" else 0) | (
-        SKIP_EARNS if cfg.skip_reward == "step" else 0
+    """The kernel's flags of `cfg.tie_break` (`TIE_FIRST` for "first"), `cfg.skip_reward`
+    (`SKIP_EARNS` for "step") and `cfg.processing_output` (`EMIT_FUNCTION` for "function"), 0
+    for the defaults."""
+    return (
+        (TIE_FIRST if cfg.tie_break == "first" else 0)
+        | (SKIP_EARNS if cfg.skip_reward == "step" else 0)
+        | (EMIT_FUNCTION if cfg.processing_output == "function" else 0)
     )
 
 

@@ -17,9 +17,10 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, STEP_BUDGET
+from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, SPEED_MAX, STEP_BUDGET
 from gnp.methods import BRANCH_SELECTION as _BS  # `method` is `MethodTraits.kernel_code`
 from gnp.methods import CREDIT as _CS
+from gnp.methods import EMIT_FUNCTION as _EMIT_FUNCTION
 from gnp.methods import SKIP_EARNS as _SKIP_EARNS
 from gnp.methods import TIE_FIRST as _TIE_FIRST
 from gnp.population import CACHE_LINE, record_dtype
@@ -227,7 +228,11 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
             used += _PROCESSING_COST
             # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
             # (left, right): output fn of k sits in column k − 1 − fn.
-            wheels[i, _ix(wheels.shape[1] - 1 - fn)] = float(words8[_ix(b + sp + p)])
+            k_out = wheels.shape[1]
+            if method & _EMIT_FUNCTION:  # output 0: the centre of bin fn of k in −10..10
+                wheels[i, _ix(k_out - 1)] = (fn + 0.5) * (2.0 * SPEED_MAX) / k_out - SPEED_MAX
+            else:
+                wheels[i, _ix(k_out - 1 - fn)] = float(words8[_ix(b + sp + p)])
             branch = 0
         u = 0
         if method & _BS:

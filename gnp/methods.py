@@ -26,6 +26,9 @@ TIE_FIRST = 4
 #: The kernel's flag for `GnpConfig.skip_reward` "step": a credit skip that ends a world step
 #: earns that step's reward, as any step's last visit does (else 0, Eq. 5.3).
 SKIP_EARNS = 8
+#: The kernel's flag for `GnpConfig.processing_output` "function": a processing node sets
+#: output 0 to the centre of its function's bin, not output f to its parameter.
+EMIT_FUNCTION = 16
 
 
 @dataclass(frozen=True)

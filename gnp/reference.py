@@ -120,7 +120,9 @@ class ReferenceController:
                     branch = self.judge(sensors[function], beta, alpha_mu)
                 else:
                     speed = float(g["speed"][node, sub])
-                    if function == 0:
+                    if cfg.processing_output == "function":  # output 0 (P0), bin centre
+                        self.right = (function + 0.5) * 20.0 / cfg.n_outputs - 10.0
+                    elif function == 0:
                         self.right = speed
                     else:
                         self.left = speed

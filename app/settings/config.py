@@ -25,7 +25,13 @@ import gnp
 from app.settings.arenas import inline_arena
 from app.settings.fields import read_setting, setting, settings_of
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method, Schedule
-from gnp.config import GenerationProgress, SkipReward, ThresholdInit, TieBreak
+from gnp.config import (
+    GenerationProgress,
+    ProcessingOutput,
+    SkipReward,
+    ThresholdInit,
+    TieBreak,
+)
 from neuro.neat_params import NeatParams
 from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
 from sim.arena import ArenaSpec
@@ -104,6 +110,7 @@ class ControllerSettings(_Frozen):
     tie_break: TieBreak = _of_gnp("tie_break")
     skip_reward: SkipReward = _of_gnp("skip_reward")
     threshold_init: ThresholdInit = _of_gnp("threshold_init")
+    processing_output: ProcessingOutput = _of_gnp("processing_output")
 
     @property
     def sub_nodes(self) -> int:
@@ -126,6 +133,7 @@ class ControllerSettings(_Frozen):
             tie_break=self.tie_break,
             skip_reward=self.skip_reward,
             threshold_init=self.threshold_init,
+            processing_output=self.processing_output,
         )
 
 

@@ -117,12 +117,24 @@ class TaskRunConfig(_Frozen):
         return self.task.adapter()
 
     def gnp_config(self) -> gnp.GnpConfig:
-        """The brain: the lab's controller settings, inputs and outputs the task's."""
+        """The brain: the lab's controller settings, inputs and outputs the task's; with
+        `processing_output` "function" a Discrete(n) task's brain has n outputs, one processing
+        function per action (output 0 read in n bins: the function is the action).
+
+        Raises:
+            TaskError: `processing_output` "function" on a task whose action is not Discrete.
+        """
         adapter = self.adapter
         settings = self.controller.gnp_config().model_dump()
-        return gnp.GnpConfig(
-            **{**settings, "n_inputs": adapter.n_inputs, "n_outputs": adapter.n_outputs}
-        )
+        outputs = adapter.n_outputs
+        if self.controller.processing_output == "function":
+            if adapter.kind != "discrete":
+                raise TaskError(
+                    f"{self.task.id}: processing_output = 'function' needs a Discrete action; "
+                    "a Box action takes the processing node's parameter ('parameter')"
+                )
+            outputs = adapter.n_actions
+        return gnp.GnpConfig(**{**settings, "n_inputs": adapter.n_inputs, "n_outputs": outputs})
 
     @classmethod
     def from_run_config(

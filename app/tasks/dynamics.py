@@ -27,12 +27,15 @@ from numba import njit
 
 import gnp
 from app.tasks.spaces import TaskAdapter
+from gnp import config as gnp_config
+from gnp import kernel, methods, rng
 from gnp.config import SENSOR_MAX
 from gnp.engine import check_population, kernel_arguments, method_code
 from gnp.kernel import read_observed, records_part, walk_kernel
 from gnp.methods import BRANCH_SELECTION as _BS
 from gnp.methods import CREDIT as _CS
 from gnp.methods import SKIP_EARNS as _SKIP_EARNS
+from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
 CARTPOLE, MOUNTAIN_CAR, ACROBOT = 0, 1, 2
 
@@ -365,3 +368,18 @@ def lives(
         lengths, _NO_TRACE, _NO_COUNT, 2.0,
     )  # fmt: skip
     return returns, lengths
+
+
+#: What this module's cached kernels were compiled against: gnp's walk, which `_lives` inlines,
+#: and the constants and flags numba freezes into it (sim.kernel_cache; without it a changed
+#: `gnp/kernel.py` left this module running the old walk from its cache).
+COMPILED_AGAINST = source_fingerprint(kernel, methods, rng, gnp_config)
+
+
+@njit(cache=True)
+def _frozen_sources() -> np.ndarray:  # pragma: no cover - compiled
+    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
+    return COMPILED_AGAINST.copy()
+
+
+drop_stale_cache(globals(), _frozen_sources, COMPILED_AGAINST)

@@ -86,6 +86,7 @@ def _training(
         ("Acrobot-v1", "CS", {}),
         # the settings made for tasks (#45), the terminal update's credit skip included
         ("Acrobot-v1", "CS", {"skip_reward": "step", "q0": -10.0, "tie_break": "first"}),
+        ("CartPole-v1", "RL", {"processing_output": "function", "threshold_init": "midpoint"}),
     ],
 )
 def test_a_fast_training_is_the_gymnasium_training(

@@ -169,3 +169,20 @@ def test_a_runs_identity_names_the_new_settings_only_when_set() -> None:
     assert base.name == tuned.name == validated.name == "RL-seed40"
     assert len({fingerprint(base), fingerprint(tuned), fingerprint(validated)}) == 3
     assert PeerRun.model_validate_json(tuned.task_json).run.controller.q0 == -10.0
+
+
+def test_emitting_the_function_gives_a_discrete_task_one_output_per_action() -> None:
+    from app.tasks.common import TaskError
+
+    emit = {"processing_output": "function"}
+    for task, actions in (("CartPole-v1", 2), ("Acrobot-v1", 3)):
+        config = TaskRunConfig(
+            task=TaskSettings(id=task), controller=ControllerSettings(method="RL", **emit)
+        )
+        assert config.gnp_config().n_outputs == actions
+        assert TaskRunConfig(task=TaskSettings(id=task)).gnp_config().n_outputs == 1
+    pendulum = TaskRunConfig(
+        task=TaskSettings(id="Pendulum-v1"), controller=ControllerSettings(**emit)
+    )
+    with pytest.raises(TaskError, match="needs a Discrete action"):
+        pendulum.gnp_config()

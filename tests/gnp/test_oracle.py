@@ -21,8 +21,13 @@ def random_learning_population(
 
 @pytest.mark.parametrize(
     "task_settings",
-    [{}, {"tie_break": "first"}, {"skip_reward": "step", "q0": -0.5}],
-    ids=["robot", "tie-first", "skip-earns"],
+    [
+        {},
+        {"tie_break": "first"},
+        {"skip_reward": "step", "q0": -0.5},
+        {"processing_output": "function", "n_outputs": 3},
+    ],
+    ids=["robot", "tie-first", "skip-earns", "emit-function"],
 )
 @pytest.mark.parametrize("fuzzy", [True, False], ids=["fuzzy", "crisp"])
 @pytest.mark.parametrize("method", ["RL", "BS", "CS"])
@@ -47,7 +52,7 @@ def test_engine_matches_reference(method: str, fuzzy: bool, task_settings: dict)
         commands, trace = gnp.step(cfg, pop, state, obs, reward, epsilon, alpha, learn, trace=True)
         for i, ref in enumerate(refs):
             (left, right), visits = ref.step(list(obs[i]), reward[i], epsilon[i], alpha, learn)
-            assert (commands[i, 0], commands[i, 1]) == (left, right)
+            assert (commands[i, 0], commands[i, -1]) == (left, right)
             k = int(trace.count[i])
             columns = (trace.node, trace.sub, trace.branch, trace.u, trace.skipped)
             got = [tuple(int(col[i, j]) for col in columns) for j in range(k)]
@@ -113,7 +118,7 @@ def test_second_stage_off_matches_reference(method: str, fuzzy: bool, pattern: s
             (left, right), visits = ref.step(
                 list(obs[i]), reward[i], epsilon[i], alpha, second_stage=on
             )
-            assert (commands[i, 0], commands[i, 1]) == (left, right)
+            assert (commands[i, 0], commands[i, -1]) == (left, right)
             k = int(trace.count[i])
             columns = (trace.node, trace.sub, trace.branch, trace.u, trace.skipped)
             got = [tuple(int(col[i, j]) for col in columns) for j in range(k)]

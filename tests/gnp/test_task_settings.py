@@ -151,3 +151,31 @@ def test_midpoint_thresholds_halve_every_feature_and_leave_the_other_genes_alone
     judged = (trace.node > 0) & (trace.node <= crisp.n_judgment)
     assert set(trace.branch[0][judged[0]].tolist()) == {0}
     assert set(trace.branch[1][judged[1]].tolist()) == {1}
+
+
+@pytest.mark.parametrize("k", [2, 3, 5])
+def test_emitting_the_function_sets_output_0_to_the_centre_of_the_functions_bin(k: int) -> None:
+    cfg = gnp.GnpConfig(
+        method="RL", fuzzy=False, n_outputs=k, processing_output="function", n_sub=1
+    )
+    pop = gnp.init_population(cfg, 12, np.random.default_rng(k))
+    state = gnp.init_state(cfg, 12, np.arange(12))
+    seen = set()
+    for _ in range(30):
+        obs = np.random.default_rng(len(seen)).integers(0, 1024, (12, 8)).astype(float)
+        commands, trace = gnp.step(cfg, pop, state, obs, np.zeros(12), 0.0, 0.0, trace=True)
+        assert trace is not None
+        for i in range(12):
+            ran = [
+                int(pop.function[i, node, 0])
+                for node in trace.node[i, : trace.count[i]]
+                if node > cfg.n_judgment
+            ]
+            if ran:  # at most one processing node per step: it ends the step
+                (f,) = ran
+                v = commands[i, -1]
+                assert v == -10 + (f + 0.5) * 20 / k
+                assert min(int((v + 10) / 20 * k), k - 1) == f  # its bin is its function
+                assert np.all(commands[i, :-1] == 0.0)  # the other outputs stay unset
+                seen.add(f)
+    assert seen == set(range(k))
