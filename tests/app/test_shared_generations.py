@@ -4,22 +4,37 @@ process, whatever the workers; a cut run resumes to the uncut one; no block outl
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
-from lab_fixtures import assert_same_data, tiny_config
+from lab_fixtures import (
+    assert_same_data,
+    finish,
+    generations_done,
+    gnp_lab,
+    tiny_config,
+    wait_for,
+)
 
 import gnp
 from app.loop.seeds import evolution_rng
 from app.phases.generations import Control, GenerationSummary, Interrupted
 from app.phases.shared_lives import EVOLVE_PARTS, evolve_part
 from app.phases.training import resume, train
-from app.settings.loading import build_config
+from app.settings.loading import build_config, to_toml
 from app.store import RunReader
-from app.system.workers import SHARED_FOLDER, SHARED_PREFIX, SharedArrays, sweep_shared
+from app.system.workers import (
+    SHARED_FOLDER,
+    SHARED_PREFIX,
+    SharedArrays,
+    start_method,
+    sweep_shared,
+)
 
 
 def own_blocks() -> list[str]:
@@ -78,6 +93,24 @@ def test_a_run_is_the_same_on_any_number_of_workers(tmp_path: Path) -> None:
         assert_same_data(tmp_path / "one.h5", tmp_path / f"{name}.h5")
 
 
+def test_spawned_workers_attach_to_the_block_too(tmp_path: Path) -> None:
+    # With another thread running (the dashboard's case) the pool spawns instead of forking:
+    # the workers find the block by its name alone.
+    config = tiny_config(population=10, generations=2, steps=30)
+    train(config, tmp_path / "one.h5", workers=1)
+    waiting = threading.Event()
+    other = threading.Thread(target=waiting.wait)
+    other.start()
+    try:
+        assert start_method() == "spawn"
+        train(config, tmp_path / "spawned.h5", workers=2)
+    finally:
+        waiting.set()
+        other.join()
+    assert_same_data(tmp_path / "one.h5", tmp_path / "spawned.h5")
+    assert own_blocks() == []
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_run_cut_between_checkpoints_resumes_to_the_uncut_run(
     tmp_path: Path, workers: int
@@ -125,6 +158,34 @@ def test_no_shared_block_outlives_a_failed_or_stopped_run(tmp_path: Path) -> Non
     assert own_blocks() == []
     with RunReader(tmp_path / "failed.h5") as run:  # the generation that failed is written
         assert run.generations_done == 1
+
+
+def blocks_of(pid: int) -> list[Path]:
+    return list(SHARED_FOLDER.glob(f"{SHARED_PREFIX}{pid}_*"))
+
+
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_a_training_process_stopped_or_killed_leaves_no_block(
+    tmp_path: Path, how: signal.Signals
+) -> None:
+    config = tmp_path / "run.toml"
+    config.write_text(to_toml(tiny_config(population=10, generations=400, steps=200)))
+    out = tmp_path / "run.h5"
+    process = gnp_lab("train", "--config", config, "--out", out, "--workers", "2", "--quiet")
+    try:
+        wait_for(lambda: generations_done(out) >= 1)
+        assert blocks_of(process.pid), "the run works through a shared block"
+        os.killpg(process.pid, how)  # as a terminal's Ctrl-C, `kill`, or `kill -9` of the group
+        finish(process)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    if how != signal.SIGKILL:
+        assert blocks_of(process.pid) == []  # unlinked by the run itself
+    else:  # the resource tracker died with the group: the next block swept it
+        SharedArrays.create({"x": ((1,), np.float64)}).close()
+        assert blocks_of(process.pid) == []
 
 
 def test_a_block_left_by_a_killed_run_is_swept() -> None:
