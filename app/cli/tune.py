@@ -89,8 +89,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         raise TuneError(f"--population must be at least 2, got {args.population}")
     fixed = _fixed(args)
     task = task_settings(args.task, list(args.assignments))
-    if args.brain == "gnp":
-        task.adapter()  # an unusable task: one line, before any file
+    # an unusable task: one line, before any file
+    discrete = task.adapter().kind == "discrete" if args.brain == "gnp" else True
     declared = tuning.Declared(
         task=args.task,
         brain=args.brain,
@@ -102,6 +102,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         validation=args.validation,
         sampler_seed=args.sampler_seed,
         fixed=fixed,
+        discrete=discrete,
     )
     if args.brain == "gnp":  # the study's settings hold before any file is made
         tuning.gnp_config(declared, task, {}, run_seeds(1)[0]).gnp_config()

@@ -64,7 +64,8 @@ class Param:
     stored as that share of the setting `of` (e.g. ε_min = share × ε_max, so min ≤ max always).
     `fixed` are settings that come with it (e.g. the schedule "changing" its ε needs);
     `excludes` the settings which, fixed by the study, leave it out of the space; `methods`
-    the GNP methods it acts in (all when empty)."""
+    the GNP methods it acts in (all when empty); `discrete_only` for tasks whose action is
+    Discrete."""
 
     path: str
     kind: Kind
@@ -76,6 +77,7 @@ class Param:
     fixed: tuple[tuple[str, Any], ...] = ()
     excludes: tuple[str, ...] = ()
     methods: tuple[str, ...] = ()
+    discrete_only: bool = False
     why: str = ""
 
     @property
@@ -115,6 +117,9 @@ GNP_SPACE: tuple[Param, ...] = (
           why="generation 0's judgments drawn, or each at its feature's midpoint (#45 item 2)"),
     Param("controller.skip_reward", "categorical", choices=("zero", "step"), methods=("CS",),
           why="what a credit skip ending a step earns (CS): Eq. 5.3's zero, or the step's"),
+    Param("controller.processing_output", "categorical", choices=("parameter", "function"),
+          discrete_only=True,
+          why="a processing node's parameter read in action bins, or its function the action"),
     Param("training.epsilon_max", "float", 0.0, 0.3, fixed=_CHANGING, excludes=_RATES,
           why="ε at generation 0 (Eq. 4.1)"),
     Param("training.epsilon_min", "share", of="training.epsilon_max", excludes=_RATES,
@@ -152,16 +157,19 @@ def space(
     fixed: Mapping[str, Any] = MappingProxyType({}),
     population: int | None = None,
     method: str | None = None,
+    discrete: bool = True,
 ) -> list[Param]:
     """The parameters searched for `brain`: its table less the settings the study fixes
     (`--set`: a fixed setting leaves the space, and so do the parameters it `excludes`) and
-    those of other methods than the study's (`methods`), a tournament no larger than the
-    population."""
+    those of other methods than the study's (`methods`) or for Discrete actions only on
+    another task, a tournament no larger than the population."""
     params = []
     for p in SPACES[brain]:
         if p.path in fixed or set(fixed) & set(p.excludes):
             continue
         if p.methods and method is not None and method not in p.methods:
+            continue
+        if p.discrete_only and not discrete:
             continue
         if population is not None and p.path in _TOURNAMENTS:
             p = replace(p, high=min(p.high, population))

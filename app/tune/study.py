@@ -64,6 +64,7 @@ class Declared:
     validation: int  # validation episodes per run
     sampler_seed: int
     fixed: dict[str, Any] = field(default_factory=dict)  # the study's --set settings, flat
+    discrete: bool = True  # the task's action is Discrete
 
     def __post_init__(self) -> None:
         if not 1 <= self.budget <= MAX_BUDGET:
@@ -96,7 +97,7 @@ class Declared:
             from app.settings.config import ControllerSettings
 
             method = ControllerSettings().method  # the lab's default
-        return space(self.brain, self.fixed, self.population, method)
+        return space(self.brain, self.fixed, self.population, method, self.discrete)
 
     def protocol(self) -> dict[str, Any]:
         """A GNP run's episode protocol (`app.tasks.common.EpisodeProtocol`): greedy tests
@@ -379,6 +380,25 @@ class Outcome:
     best: float | None
 
 
+class _Reporter:
+    """A trial's intermediate results, each step once (a run may say its last generation again
+    as it stops), and the pruner's word after each."""
+
+    def __init__(self, trial: optuna.Trial, hook: Callable[[int, int], None] | None) -> None:
+        self.trial, self.hook, self.steps = trial, hook, set[int]()
+
+    def __call__(self, step: int, value: float) -> None:
+        import optuna
+
+        if step not in self.steps:
+            self.steps.add(step)
+            if self.hook is not None:
+                self.hook(self.trial.number, step)
+            self.trial.report(value, step)
+        if self.trial.should_prune():
+            raise optuna.TrialPruned()
+
+
 def run_trials(
     study: optuna.Study,
     declared: Declared,
@@ -401,14 +421,7 @@ def run_trials(
     while (done := len(finished(study))) < trials:
         study.sampler = trial_sampler(declared, done)
         trial, spent = study.ask(), Spent()
-
-        def report(step: int, value: float, trial: optuna.Trial = trial) -> None:
-            if report_hook is not None:
-                report_hook(trial.number, step)
-            trial.report(value, step)
-            if trial.should_prune():
-                raise optuna.TrialPruned()
-
+        report = _Reporter(trial, report_hook)
         try:
             values = draw(trial, params)
             trial.set_user_attr("settings", json.dumps(values, sort_keys=True))

@@ -90,11 +90,14 @@ def test_help_imports_no_optuna() -> None:
 def test_the_space_is_its_table_less_what_the_study_fixes() -> None:
     full = {p.path for p in space("gnp")}
     assert {"evolution.p_mutation", "controller.q0", "controller.tie_break"} <= full
+    assert "controller.processing_output" in full
     fixed = {"training.epsilon": 0.01, "controller.n_sub": 2}
     less = {p.path for p in space("gnp", fixed, population=4, method="RL")}
     assert less == full - {"controller.n_sub", "controller.skip_reward"} - {
         p for p in full if p.startswith("training.")
     }  # skip_reward acts in CS only
+    box = {p.path for p in space("gnp", discrete=False)}
+    assert box == full - {"controller.processing_output"}  # a Box action takes parameters
     (tournament,) = [p for p in space("gnp", population=4) if p.name.endswith("tournament_size")]
     assert tournament.high == 4
     drawn = {"training.epsilon_max": 0.2, "training.epsilon_min_share": 0.5}
