@@ -148,6 +148,8 @@ def main() -> None:
     parser.add_argument("--noise", type=float, default=50.0)
     parser.add_argument("--physics", default="analytic")
     args = parser.parse_args()
+    if args.generations < 3:  # the first two are not timed
+        parser.error(f"--generations must be at least 3 (got {args.generations})")
     print(
         f"{args.preset}, σ = {args.noise:g}, {args.physics}, {args.steps} steps; medians per "
         f"generation of {args.rounds} rounds × {args.generations - 2} generations"

@@ -46,6 +46,10 @@ TINY = {
         "--population 4 --steps 20 --generations 2 --trials 10 --impl-steps 20 --rounds 1",
         [rf"implementation, 2 workers / 1 worker: {RATIO}", r"on 2 idle cores \(from CPU s"],
     ),
+    "workers": (
+        "--populations 8 --steps 20 --generations 3 --rounds 1",
+        [rf"2 / 1 worker: wall {RATIO}, on idle cores \(from CPU\) {RATIO}; CPU [-+][\d.]+%"],
+    ),
     "world": (
         "--robots 4 --steps 20 --naive-robots 2 --naive-steps 10 --repeats 1",
         [rf"iid: batched\s+{RATE} robot-steps/s.*ratio \d+×", rf"held: batched\s+{RATE}"],
@@ -138,6 +142,7 @@ def test_our_side_of_versus_kheperax_and_its_missing_peer() -> None:
     [
         ("physics", "--generations 1", "--generations must be at least 2 (got 1)"),
         ("training", "--trials 4", "--trials must be at least 10 (got 4)"),
+        ("workers", "--generations 2", "--generations must be at least 3 (got 2)"),
     ],
 )
 def test_a_size_no_bench_can_time_is_refused(name: str, arguments: str, message: str) -> None:
