@@ -22,6 +22,7 @@ whose individuals do not learn, keep the pipes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -62,6 +63,9 @@ class EvolveJob:
 
 
 EVOLVE_PARTS = 2
+
+#: Gives each job to the pool (job i to worker i mod the workers); their answers, in job order.
+RunJobs = Callable[[list[Any]], list[Any]]
 
 
 @dataclass(frozen=True)
@@ -159,6 +163,7 @@ class RowsWorker:
         self.lives = ShardLives(config)  # the pipes' jobs (`app.phases.generations`)
         self.family = self.lives.family
         self._world: sim.World | None = None
+        self._world_rows = 0
         self.cfg = config.controller.gnp_config()
         training = config.training
         self._segments = n_segments(training.steps, training.redraw_every)
@@ -177,8 +182,10 @@ class RowsWorker:
             self._segments,
             self._n_starts,
         )
-        if self._world is None:
+        if self._world is None or self._world_rows != job.stop - job.start:
+            # built once: a worker is given the same rows every generation
             self._world = make_world(config, job.stop - job.start)
+            self._world_rows = job.stop - job.start
         # `ShardLives.run` without its copy: this one, out of the block, is what lives learn into
         after = Population.from_records(block["population"][rows])
         training = config.training
@@ -220,7 +227,7 @@ class SharedEvolution:
     `individuals()` and what `advance` returns are views of the block (`InBlock`): the loop
     copies what it keeps beyond the next generation's start (the best genome's row)."""
 
-    def __init__(self, config: RunConfig, block: SharedArrays, run: Any) -> None:
+    def __init__(self, config: RunConfig, block: SharedArrays, run: RunJobs) -> None:
         """`run(jobs)`: each job given to the pool (job i to worker i mod workers), until done."""
         self._config, self._block, self._run = config, block, run
         self._rates = partial(generation_epsilon_alpha, config.training)
@@ -241,14 +248,14 @@ class SharedEvolution:
         if not np.all(np.isfinite(fit)):  # as gnp.evolve refuses it, before any worker starts
             raise gnp.GnpError("fitness must be finite")
         if not (isinstance(learned, InBlock) and learned.records is self._block["learned"]):
-            self._block["learned"][...] = learned.records  # lived elsewhere (the last life)
+            self._block["learned"][...] = learned.records  # learned outside this block
         self._block["fitness"][...] = fit
         self._run([EvolveJob(part, generation) for part in range(EVOLVE_PARTS)])
         return self.individuals().arrays()
 
 
 def shared_evolution(
-    evolution: Evolution, config: RunConfig, block: SharedArrays, run: Any
+    evolution: Evolution, config: RunConfig, block: SharedArrays, run: RunJobs
 ) -> Evolution:
     """`evolution` moved into the block (a GNP population; another family's is left as it
     is)."""
