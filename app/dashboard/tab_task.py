@@ -146,11 +146,11 @@ class TaskPanel:
 
     def _show(self, replay: TaskReplay) -> None:
         """The task on show: its frame where the arena was, its brain's graph."""
-        from app.dashboard.task_replay import action_captions, feature_captions
+        from app.dashboard.task_replay import captions, feature_captions
 
         adapter = replay.adapter
         inputs = feature_captions(replay.task, adapter.n_inputs)
-        outputs = action_captions(replay.task, adapter.n_outputs, adapter.kind == "discrete")
+        outputs = captions(replay.cfg, adapter, replay.task)
         with self.server.atomic():
             self.arena.set_visible(False)
             self.network.visible = False

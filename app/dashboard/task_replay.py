@@ -55,11 +55,23 @@ def feature_captions(task: str, n: int) -> tuple[str, ...]:
     return tuple(f"f{j} {names[j]}" if j < len(names) == n else f"f{j}" for j in range(n))
 
 
-def action_captions(task: str, n_outputs: int, discrete: bool) -> tuple[str, ...]:
-    """The processing columns: one for a Discrete action, one per component of a Box."""
+def action_captions(
+    task: str, n_outputs: int, discrete: bool, per_action: bool = False
+) -> tuple[str, ...]:
+    """The processing columns: one for a Discrete action, one per component of a Box; with
+    `per_action` (`GnpConfig.processing_output` "function") one per action, the function."""
+    if discrete and per_action:
+        return tuple(f"action {k}" for k in range(n_outputs))
     if discrete:
         return (f"action ({ACTION_NAMES[task]})" if task in ACTION_NAMES else "action",)
     return tuple(f"a{j}" for j in range(n_outputs))
+
+
+def captions(cfg: gnp.GnpConfig, adapter: TaskAdapter, task: str) -> tuple[str, ...]:
+    """`action_captions` of a task run's brain: its outputs as its processing nodes set them."""
+    per_action = cfg.processing_output == "function"
+    count = cfg.n_outputs if per_action else adapter.n_outputs
+    return action_captions(task, count, adapter.kind == "discrete", per_action)
 
 
 @dataclass(frozen=True)
@@ -232,7 +244,9 @@ class TaskReplay:
             return f"node {node} · J " + "/".join(names[int(f)] for f in functions)
         if kind == START:
             return f"node {node} · start"
-        outputs = action_captions("", self.adapter.n_outputs, self.adapter.kind == "discrete")
+        outputs = captions(self.cfg, self.adapter, "")
+        if self.cfg.processing_output == "function":  # the function is the action
+            return f"node {node} · P " + "/".join(outputs[int(f)] for f in functions)
         speeds = self.population.speed[0, node]
         sets = (f"{outputs[int(f)]} {int(v):+d}" for f, v in zip(functions, speeds, strict=True))
         return f"node {node} · P " + "/".join(sets)

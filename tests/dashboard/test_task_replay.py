@@ -119,6 +119,37 @@ def test_captions_name_features_and_actions() -> None:
     assert feature_captions("Other-v0", 2) == ("f0", "f1")
     assert action_captions("CartPole-v1", 1, True) == ("action (push ← | →)",)
     assert action_captions("Other-v0", 2, False) == ("a0", "a1")
+    assert action_captions("Acrobot-v1", 3, True, per_action=True) == (
+        "action 0",
+        "action 1",
+        "action 2",
+    )
+
+
+def test_a_run_whose_processing_nodes_emit_their_function_replays(tmp_path: Path) -> None:
+    config = tiny_task_config().model_copy(update={"task": TaskSettings(id="Acrobot-v1")})
+    config = config.model_copy(
+        update={
+            "controller": config.controller.model_copy(update={"processing_output": "function"})
+        }
+    )
+    path = train_task(config, tmp_path / "acrobot.h5")
+    replay = TaskReplay(TaskReplayRequest(path, seed=3, greedy=True))
+    expected = replay_task(path, seed=3, epsilon=0.0)
+    replay.step(expected.length)
+    assert replay.returns == [pytest.approx(expected.episode_return)]
+    processing = np.flatnonzero(replay.cfg.node_type == gnp.config.PROCESSING)
+    functions = replay.population.function[0, processing, 0]
+    for node, f in zip(processing, functions, strict=True):
+        assert replay.node_words(int(node)).startswith(f"node {node} · P action {f}")
+    from app.dashboard.task_replay import captions
+    from app.views.graph_layout import graph_layout
+
+    outputs = captions(replay.cfg, replay.adapter, "Acrobot-v1")
+    view = genome_view(replay.cfg, replay.population, None, outputs)
+    layout = graph_layout(view.kinds, view.column_function, 100.0, 100.0, None, outputs)
+    assert layout.positions.shape == (replay.cfg.n_nodes, 2)  # a column per action
+    replay.close()
 
 
 def test_the_sketch_draws_the_pole_where_it_leans() -> None:
