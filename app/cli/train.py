@@ -72,13 +72,14 @@ def _preset_file(preset: str, task: str | None) -> dict[str, Any]:
     return train_layer(preset, task)
 
 
-def _preset_protocol(preset: str | None) -> EpisodeProtocol | None:
-    """A preset file's episode protocol (a tuned preset's `[task]`), None for any other."""
+def _preset_task(preset: str | None) -> tuple[EpisodeProtocol | None, dict[str, Any]]:
+    """A preset file's episode protocol and task bounds (a tuned preset's `[task]`); none for
+    any other."""
     if preset is None or preset in PRESET_NAMES or not Path(preset).is_file():
-        return None
-    from app.tune.preset import train_protocol
+        return None, {}
+    from app.tune.preset import train_task_table
 
-    return train_protocol(preset)
+    return train_task_table(preset)
 
 
 class Bar:
@@ -178,8 +179,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     elif args.task:
         from app.tasks import cli as task_cli
 
-        task = task_cli.task_settings(args.task, args.assignments)
-        protocol = _preset_protocol(args.preset)
+        protocol, bounds = _preset_task(args.preset)
+        args.assignments[:0] = [(["task", key], value) for key, value in bounds.items()]
+        task = task_cli.task_settings(args.task, args.assignments)  # --set task.* wins
         return task_cli.train(args, task, config_from_args(args), protocol)
     else:
         config = config_from_args(args)

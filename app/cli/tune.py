@@ -53,16 +53,15 @@ _SIZES = {
 
 
 def _fixed(args: argparse.Namespace) -> dict[str, Any]:
-    """The study's fixed settings: --set's (the task's bounds left to `task_settings`, its
-    episode protocol kept as task.KEY) and --method."""
+    """The study's fixed settings: --set's (the task's bounds and episode protocol as task.KEY,
+    the bounds also left to `task_settings`) and --method."""
     from app.tasks.common import EpisodeProtocol
 
     protocol = {f"task.{key}" for key in EpisodeProtocol.model_fields}
     fixed = {}
     for path, value in list(args.assignments):
         key = ".".join(path)
-        if path[0] != "task" or key in protocol:
-            fixed[key] = value
+        fixed[key] = value
         if key in protocol:
             args.assignments.remove((path, value))
     for key, option in _SIZES.items():

@@ -151,8 +151,9 @@ def train_layer(path: str, task: str | None) -> dict[str, Any]:
     return layer
 
 
-def train_protocol(path: str) -> EpisodeProtocol | None:
-    """A preset's `[task]` table: the episode protocol its runs were tuned with (None: none).
+def train_task_table(path: str) -> tuple[EpisodeProtocol | None, dict[str, Any]]:
+    """A preset's `[task]` table: the episode protocol its runs were tuned with (None: none)
+    and the task's bounds it was given (checked by `app.tasks.cli.task_settings`).
 
     Raises:
         ConfigError: an invalid table (one line).
@@ -162,11 +163,13 @@ def train_protocol(path: str) -> EpisodeProtocol | None:
 
     table = read_preset(path)[0].get("task")
     if table is None:
-        return None
+        return None, {}
     if not isinstance(table, dict):
         raise ConfigError(f"preset {path}: [task] must be a table")
+    fields = EpisodeProtocol.model_fields
+    bounds = {k: v for k, v in table.items() if k not in fields}
     try:
-        return EpisodeProtocol.model_validate(table)
+        return EpisodeProtocol.model_validate({k: table[k] for k in fields if k in table}), bounds
     except ValidationError as error:
         first = error.errors()[0]
         where = ".".join(str(p) for p in first["loc"])

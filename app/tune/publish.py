@@ -54,7 +54,8 @@ def preset_settings(
     order = ("controller", "evolution", "training")
     tables = {s: merged[s] for s in (*order, *sorted(set(merged) - set(order))) if s in merged}
     protocol = run.training.model_dump(include=set(EpisodeProtocol.model_fields))
-    return {**tables, "task": protocol}  # the episode protocol (`train --preset` takes it)
+    bounds = {k: v for k, v in declared.task_settings().items() if k not in protocol}
+    return {**tables, "task": protocol | bounds}  # `train --preset` takes both
 
 
 def write_study_preset(

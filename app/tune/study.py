@@ -102,8 +102,14 @@ class Declared:
     def protocol(self) -> dict[str, Any]:
         """A GNP run's episode protocol (`app.tasks.common.EpisodeProtocol`): greedy tests
         unless the study sets `task.test_protocol`, the rest its defaults unless set."""
-        given = {k[len("task.") :]: v for k, v in self.fixed.items() if k.startswith("task.")}
+        from app.tasks.common import EpisodeProtocol
+
+        given = {k: v for k, v in self.task_settings().items() if k in EpisodeProtocol.model_fields}
         return {"test_protocol": "greedy", **given}
+
+    def task_settings(self) -> dict[str, Any]:
+        """The study's `task.KEY` settings: the task's bounds and its runs' episode protocol."""
+        return {k[len("task.") :]: v for k, v in self.fixed.items() if k.startswith("task.")}
 
     def run_settings(self) -> dict[str, Any]:
         """The study's fixed settings of the run config (not its protocol's)."""
@@ -303,8 +309,11 @@ def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> Fracnetic
     """fracnetics' documented settings of the task, with the study's and the trial's."""
     from app.tasks.fracnetics_arm import arm_settings
 
-    if declared.protocol() != {"test_protocol": "greedy"}:
-        raise TuneError("--set task.*: fracnetics lives and tests its episodes its own way")
+    if declared.task_settings():
+        raise TuneError(
+            "--set task.*: fracnetics lives and tests its episodes its own way, in the bounds "
+            "it documents"
+        )
     overlay = {}
     for path, value in {**declared.fixed, **values}.items():
         section, _, key = path.partition(".")

@@ -35,7 +35,12 @@ def tune(tmp_path: Path, *words: str) -> int:
 def test_a_study_writes_a_preset_that_train_takes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    elite_on_2 = ["--set", "task.validation_episodes=2"]
+    elite_on_2 = [
+        "--set",
+        "task.validation_episodes=2",
+        "--set",
+        "task.obs_high=[4.8, 3, 0.42, nan]",
+    ]
     assert tune(tmp_path, *CRISP_RL, *elite_on_2, "--trials", "3", "--quiet") == 0
     preset = tmp_path / "tuning" / "CartPole-v1-gnp-RL.toml"
     out = capsys.readouterr().out
@@ -68,8 +73,11 @@ def test_a_study_writes_a_preset_that_train_takes(
     assert config.training.generations == 4 and config.training.population == 10
     assert config.training.epsilon.max == layer["training"]["epsilon_max"]
     assert config.seed == 5
+    bounds = layer["task"].pop("obs_high")
+    assert bounds[:3] == [4.8, 3, 0.42] and bounds[3] != bounds[3]  # NaN: the space's
     assert layer["task"] == {"test_protocol": "greedy", "validation_episodes": 2,
                              "shared_episodes": False}  # fmt: skip
+    assert config.task.obs_high == (4.8, 3.0, 0.42, None)
     assert config.training.test_protocol == "greedy"
     assert config.training.validation_episodes == 2
 
