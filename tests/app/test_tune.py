@@ -221,6 +221,9 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     (tmp_path / "bad.toml").write_text('[tuning]\ntask = "CartPole-v1"\n')
     assert main(argv) == 1
     assert "[tuning]" in _error(capsys)
+    (tmp_path / "bad.toml").write_text('[task]\ntest_protocol = "best"\n')
+    assert main(argv) == 1
+    assert "[task] test_protocol" in _error(capsys)
     assert main(["train", "--task", "CartPole-v1", "--preset", "nosuch"]) == 1
     assert "unknown preset 'nosuch'" in _error(capsys)
 
