@@ -9,7 +9,9 @@ experiment's, the same episode budget as every arm's: one episode per individual
 (fracnetics' `gymnasium(..., seeds=[seed + g])`: every individual of generation g starts from
 episode seed `seed + g`, its examples' scheme). Its population lives in C++ and is not written
 to the run file: a fracnetics run stores its results only and is not resumable (a cut run
-starts again; runs are short).
+starts again; runs are short). Its env-steps are counted where they are spent: its library steps
+the env it is given, which is wrapped in `StepCounter` (one count per `step`, one episode per
+`reset`), so a run reports the env-steps of each generation and of each test episode.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -128,13 +131,37 @@ def check_population(settings: FracneticsSettings, population: int) -> None:
         )
 
 
+class StepCounter(gym.Wrapper):
+    """The env as it is, counting its steps: `lengths` holds one entry per `reset` (an
+    episode), the `step` calls made since it; `take()` hands them over and starts afresh."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.lengths: list[int] = []
+
+    def reset(self, **kwargs: Any) -> Any:
+        self.lengths.append(0)
+        return self.env.reset(**kwargs)
+
+    def step(self, action: Any) -> Any:
+        self.lengths[-1] += 1
+        return self.env.step(action)
+
+    def take(self) -> np.ndarray:
+        """The episodes' lengths since the last `take` (int64)."""
+        lengths, self.lengths = np.asarray(self.lengths, np.int64), []
+        return lengths
+
+
 @dataclass(frozen=True)
 class FracneticsResult:
-    """A fracnetics run: every individual's return per generation, and the final elite's
-    return on each test seed."""
+    """A fracnetics run: every individual's return per generation, the env-steps each
+    generation spent, and the final elite's return and episode length on each test seed."""
 
     fitness: np.ndarray  # (G, N)
     test_returns: np.ndarray  # (K,)
+    env_steps: np.ndarray  # (G,) int64: the steps of every episode of a generation
+    test_lengths: np.ndarray  # (K,) int64
 
 
 def train_fracnetics(
@@ -150,7 +177,6 @@ def train_fracnetics(
     """Evolve fracnetics' population on `task` for `generations` (its loop, its operators),
     then live its final elite (the best of the last generation) one episode per test seed."""
     import fracnetics as fn
-    import gymnasium as gym
 
     if not 0 <= seed < 2**31 - generations:
         raise TaskError(f"fracnetics arm: seed {seed} must fit its int episode seeds")
@@ -162,8 +188,9 @@ def train_fracnetics(
         fractalJudgment=False, nFeatureValues=[0] * s.jnf,
     )  # fmt: skip
     pop.setAllNodeBoundaries(lo, hi)
-    env = gym.make(task)
+    env = StepCounter(gym.make(task))
     fitness = np.zeros((generations, population))
+    env_steps = np.zeros(generations, np.int64)
     try:
         for g in range(generations):
             pop.gymnasium(
@@ -171,6 +198,7 @@ def train_fracnetics(
                 seeds=[seed + g],
             )  # fmt: skip
             fitness[g] = [ind.fitness for ind in pop.individuals]
+            env_steps[g] = env.take().sum()
             if progress is not None:
                 progress(g, float(fitness[g].max()))
             if g + 1 == generations:
@@ -187,6 +215,7 @@ def train_fracnetics(
             seeds=[int(t) for t in test_seeds],
         )  # fmt: skip
         test = np.asarray(pop.individuals[0].caseScores, dtype=np.float64)
+        lengths = env.take()
     finally:
         env.close()
-    return FracneticsResult(fitness=fitness, test_returns=test)
+    return FracneticsResult(fitness, test, env_steps, lengths)

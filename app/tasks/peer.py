@@ -9,9 +9,12 @@ from the Q tables it ended training with; and greedy, ε = α = 0, Sarsa frozen)
 holds the returns of the run's own `test_protocol` (the metric `test_return`), and
 `test/returns_<protocol>` each protocol's (the metrics `test_return_<protocol>`; a file tested
 before #45 holds `returns` only, as trained). fracnetics' elite is a fixed policy (its library
-has no learning): its returns are every protocol's. fracnetics runs (`app.tasks.fracnetics_arm`)
-write a file of their own format with their results only. Both carry the `PeerRun` they ran as
-the root attribute `peer`, and `read_peer` reads either.
+has no learning): its returns are every protocol's. Env-steps, for either brain:
+`history/env_steps` (G,) int64 the steps each generation's episodes took, and
+`test/lengths_<protocol>` (K,) int64 each test episode's length (a file written before #45 holds
+neither: `PeerResult.env_steps` and `test_lengths` read None). fracnetics runs
+(`app.tasks.fracnetics_arm`) write a file of their own format with their results only. Both
+carry the `PeerRun` they ran as the root attribute `peer`, and `read_peer` reads either.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from app.store.schema import package_version
 from app.store.validation import check_progress, plain_dataset
 from app.tasks.common import FORMAT
 from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig
-from app.tasks.fracnetics_arm import FracneticsSettings
+from app.tasks.fracnetics_arm import FracneticsResult, FracneticsSettings
 
 FRACNETICS_FORMAT = "gnp-lab-fracnetics-run"
 PeerBrain = Literal["gnp", "fracnetics"]
@@ -60,6 +63,15 @@ class PeerResult:
     test_returns: np.ndarray | None
     #: test returns per protocol (`TEST_PROTOCOLS`) the file holds (none before #45)
     protocol_returns: dict[str, np.ndarray] | None = None
+    #: (generations_done,) env-steps each generation's episodes took (None before #45)
+    env_steps: np.ndarray | None = None
+    #: test episode lengths (env-steps) per protocol the file holds (None before #45)
+    test_lengths: dict[str, np.ndarray] | None = None
+
+    @property
+    def training_env_steps(self) -> int | None:
+        """The env-steps training spent, over every generation done (None: not recorded)."""
+        return None if self.env_steps is None else int(self.env_steps.sum())
 
     @property
     def finished(self) -> bool:
@@ -109,6 +121,17 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
         for p in TEST_PROTOCOLS
         if _protocol_dataset(p) in handle
     }
+    steps = None
+    if "history/env_steps" in handle:
+        column = plain_dataset(handle, "history/env_steps")
+        if column.ndim != 1 or column.shape[0] < done or column.dtype.kind not in "iu":
+            raise RunFileError(f"{path}: history/env_steps is {column.shape} {column.dtype}")
+        steps = np.asarray(column[:done], np.int64)
+    lengths: dict[str, np.ndarray] = {
+        p: np.asarray(plain_dataset(handle, _protocol_dataset(p, "lengths"))[()], np.int64)
+        for p in TEST_PROTOCOLS
+        if _protocol_dataset(p, "lengths") in handle
+    }
     return PeerResult(
         peer_json=str(handle.attrs.get("peer", "")),
         run=config,
@@ -117,21 +140,33 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
         best_curve=fitness.max(axis=1) if done else np.zeros(0),
         test_returns=test,
         protocol_returns=protocols or None,
+        env_steps=steps,
+        test_lengths=lengths or None,
     )
 
 
-def _protocol_dataset(protocol: str) -> str:
-    """Where a test protocol's returns are: test/returns_as_trained, test/returns_greedy."""
-    return "test/returns_" + protocol.replace("-", "_")
+def _protocol_dataset(protocol: str, what: str = "returns") -> str:
+    """Where a test protocol's returns (or episode lengths) are: test/returns_as_trained,
+    test/returns_greedy, test/lengths_as_trained, test/lengths_greedy."""
+    return f"test/{what}_" + protocol.replace("-", "_")
 
 
-def _write_protocols(group: h5py.Group, returns: dict[str, np.ndarray]) -> None:
+def _write_protocols(
+    group: h5py.Group, returns: dict[str, np.ndarray], lengths: dict[str, np.ndarray]
+) -> None:
     for protocol, values in returns.items():
         group.create_dataset(_protocol_dataset(protocol).split("/")[1], data=values)
+    for protocol, values in lengths.items():
+        name = _protocol_dataset(protocol, "lengths").split("/")[1]
+        group.create_dataset(name, data=np.asarray(values, np.int64)).attrs["unit"] = "env steps"
 
 
 def _write_test(
-    path: Path, peer: PeerRun, by_protocol: dict[str, np.ndarray], elite_generation: int
+    path: Path,
+    peer: PeerRun,
+    by_protocol: dict[str, np.ndarray],
+    lengths: dict[str, np.ndarray],
+    elite_generation: int,
 ) -> None:
     with h5py.File(path, "r+", locking=False) as handle:
         handle.attrs["peer"] = peer.model_dump_json()
@@ -143,10 +178,11 @@ def _write_test(
         group.attrs["elite_generation"] = elite_generation
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
         group.create_dataset("returns", data=by_protocol[peer.run.training.test_protocol])
-        _write_protocols(group, by_protocol)
+        _write_protocols(group, by_protocol, lengths)
 
 
-def _write_fracnetics(path: Path, peer: PeerRun, fitness: np.ndarray, test: np.ndarray) -> None:
+def _write_fracnetics(path: Path, peer: PeerRun, result: FracneticsResult) -> None:
+    fitness, test = result.fitness, result.test_returns
     tmp = path.with_name(path.name + ".part")
     tmp.unlink(missing_ok=True)
     with h5py.File(tmp, "w-", libver=LIBVER, locking=False) as handle:
@@ -160,11 +196,17 @@ def _write_fracnetics(path: Path, peer: PeerRun, fitness: np.ndarray, test: np.n
         handle.attrs["generations_done"] = fitness.shape[0]
         history = handle.create_group("history")
         history.create_dataset("fitness", data=fitness).attrs["unit"] = "episode return"
+        steps = history.create_dataset("env_steps", data=np.asarray(result.env_steps, np.int64))
+        steps.attrs["unit"] = "env steps"
         group = handle.create_group("test")
         group.attrs["unit"] = "episode return"
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
         group.create_dataset("returns", data=test)
-        _write_protocols(group, dict.fromkeys(TEST_PROTOCOLS, test))
+        _write_protocols(
+            group,
+            dict.fromkeys(TEST_PROTOCOLS, test),
+            dict.fromkeys(TEST_PROTOCOLS, result.test_lengths),
+        )
     tmp.replace(path)  # whole or absent: a fracnetics run is not resumable
 
 
@@ -193,7 +235,7 @@ def run_peer(
             peer.test_seeds,
             progress=(lambda g, best: progress(g)) if progress is not None else None,
         )
-        _write_fracnetics(path, peer, result.fitness, result.test_returns)
+        _write_fracnetics(path, peer, result)
         return read_peer(path)
 
     def each(generation: object) -> None:
@@ -205,9 +247,12 @@ def run_peer(
     elif read_peer(path).generations_done < peer.run.training.generations:
         resume_task(path, progress=each)
     elite = elite_generation(path)
+    lives = {p: protocol_episodes(path, peer.test_seeds, elite, p) for p in TEST_PROTOCOLS}
     by_protocol: dict[str, np.ndarray] = {
-        p: np.asarray(protocol_episodes(path, peer.test_seeds, elite, p).returns, np.float64)
-        for p in TEST_PROTOCOLS
+        p: np.asarray(life.returns, np.float64) for p, life in lives.items()
     }
-    _write_test(path, peer, by_protocol, elite)
+    lengths: dict[str, np.ndarray] = {
+        p: np.asarray(life.lengths, np.int64) for p, life in lives.items()
+    }
+    _write_test(path, peer, by_protocol, lengths, elite)
     return read_peer(path)

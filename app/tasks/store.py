@@ -2,7 +2,9 @@
 
 Root attributes `format` ("gnp-lab-task-run"), `schema_version`, `package_version`, `seed`,
 `config` (the `TaskRunConfig` as JSON), `task` (the Gymnasium id) and `generations_done`;
-`history/fitness` (G, N) returns, `history/epsilon`, `history/alpha` (G,), `history/best/<field>`
+`history/fitness` (G, N) returns, `history/epsilon`, `history/alpha` (G,), `history/env_steps`
+(G,) int64 the env-steps each generation's episodes took (the sum of their lengths; a file
+written before #45 has none, and a run resumed from one writes none), `history/best/<field>`
 (G, ...) the genome and Q tables of each generation's best after its life, and
 `checkpoint/<field>` (N, ...) the population the next generation (`checkpoint.attrs
 ["generation"]`) starts from. Plain h5py, no pickled objects; rows past `generations_done` are
@@ -67,6 +69,8 @@ class TaskRunWriter:
         history["fitness"].attrs["unit"] = "episode return"
         for name in ("epsilon", "alpha"):
             history.create_dataset(name, (0,), np.float64, maxshape=(None,))
+        steps = history.create_dataset("env_steps", (0,), np.int64, maxshape=(None,))
+        steps.attrs["unit"] = "env steps"
         cfg = config.gnp_config()
         best = history.create_group("best")
         for name, shape in gnp.field_shapes(cfg).items():
@@ -95,10 +99,18 @@ class TaskRunWriter:
         epsilon: float,
         alpha: float,
         best: dict[str, np.ndarray],
+        env_steps: int | None = None,
     ) -> None:
+        """Generation `generation`'s row; `env_steps` (the steps its episodes took) goes to
+        `history/env_steps` where the file has it (not in a file begun before #45)."""
         history = self._file["history"]
         rows = generation + 1
-        for name, value in (("fitness", fitness), ("epsilon", epsilon), ("alpha", alpha)):
+        columns: list[tuple[str, object]] = [
+            ("fitness", fitness), ("epsilon", epsilon), ("alpha", alpha)
+        ]  # fmt: skip
+        if env_steps is not None and "env_steps" in history:
+            columns.append(("env_steps", env_steps))
+        for name, value in columns:
             ds = history[name]
             ds.resize(rows, axis=0)
             ds[generation] = value
@@ -135,6 +147,8 @@ class TaskRun:
     epsilon: np.ndarray
     alpha: np.ndarray
     package_version: str
+    #: (generations_done,) env-steps per generation; None for a file written before #45
+    env_steps: np.ndarray | None = None
 
     def best_genome(self, generation: int | None = None) -> tuple[gnp.GnpConfig, gnp.Population]:
         """(brain config, 1-individual population) of a generation's best (default: last)."""
@@ -194,6 +208,11 @@ def _task_run(path: Path, handle: h5py.File) -> TaskRun:
     for name, dataset in columns.items():
         if dataset.shape != (rows,) or dataset.dtype.kind != "f":
             raise RunFileError(f"{path}: history/{name} is {dataset.shape} {dataset.dtype}")
+    steps = None
+    if "env_steps" in handle["history"]:
+        steps = plain_dataset(handle, "history/env_steps")
+        if steps.ndim != 1 or steps.shape[0] < done or steps.dtype.kind not in "iu":
+            raise RunFileError(f"{path}: history/env_steps is {steps.shape} {steps.dtype}")
     best = plain_group(handle, "history/best")
     for name in best:
         genes = plain_dataset(best, name)
@@ -207,4 +226,5 @@ def _task_run(path: Path, handle: h5py.File) -> TaskRun:
         epsilon=columns["epsilon"][:done],
         alpha=columns["alpha"][:done],
         package_version=str(handle.attrs["package_version"]),
+        env_steps=None if steps is None else np.asarray(steps[:done], np.int64),
     )

@@ -123,7 +123,9 @@ class TaskLab:
         alpha: float,
         best_genome: dict[str, np.ndarray],
     ) -> None:
-        self.writer.write_generation(generation, lived.fitness, epsilon, alpha, best_genome)
+        self.writer.write_generation(
+            generation, lived.fitness, epsilon, alpha, best_genome, env_steps=lived.steps
+        )
 
     def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
         self.writer.write_checkpoint(next_generation, arrays)

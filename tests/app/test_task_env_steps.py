@@ -1,0 +1,110 @@
+"""Env-steps reported per arm (issue #45, DESIGN §4): a task run of either brain records the
+env-steps each generation's episodes took and each test episode's length; a file written
+before them still reads; a task experiment harvests `training_env_steps`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import h5py
+import numpy as np
+import pytest
+
+from app.phases.generations import Interrupted
+from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig, TaskSettings, TaskTraining
+from app.tasks.fracnetics_arm import StepCounter, documented
+from app.tasks.peer import PeerRun, read_peer, run_peer
+from app.tasks.store import read_task_run
+from app.tasks.training import resume_task, train_task
+
+TEST_SEEDS = (1_000_000, 1_000_001, 1_000_002)
+
+
+def _peer(brain: str) -> PeerRun:
+    run = TaskRunConfig(
+        seed=3,
+        task=TaskSettings(id="CartPole-v1"),
+        training=TaskTraining(population=6, generations=2, steps=60),
+    )
+    settings = documented("CartPole-v1") if brain == "fracnetics" else None
+    return PeerRun(brain=brain, run=run, fracnetics=settings, test_seeds=TEST_SEEDS)  # type: ignore[arg-type]
+
+
+def _fitness(path: Path) -> np.ndarray:
+    with h5py.File(path, "r") as handle:
+        return np.asarray(handle["history/fitness"][()])
+
+
+@pytest.mark.parametrize("brain", ["gnp", "fracnetics"])
+def test_a_run_records_the_env_steps_of_every_generation_and_test_episode(
+    brain: str, tmp_path: Path
+) -> None:
+    result = run_peer(_peer(brain), tmp_path / "run.h5")
+    # CartPole pays 1 a step: a generation's env-steps are the sum of its episodes' returns
+    fitness = _fitness(tmp_path / "run.h5")
+    assert result.env_steps is not None and result.env_steps.dtype == np.int64
+    np.testing.assert_array_equal(result.env_steps, fitness.sum(axis=1).astype(np.int64))
+    assert result.training_env_steps == int(fitness.sum())
+    assert 6 * 2 <= result.training_env_steps <= 6 * 2 * 60  # capped at 60 steps an episode
+    assert result.test_lengths is not None and set(result.test_lengths) == set(TEST_PROTOCOLS)
+    assert result.protocol_returns is not None
+    for protocol, lengths in result.test_lengths.items():
+        assert lengths.shape == (len(TEST_SEEDS),)
+        np.testing.assert_array_equal(lengths, result.protocol_returns[protocol])
+    if brain == "gnp":  # the task run's own reader agrees
+        run = read_task_run(tmp_path / "run.h5")
+        np.testing.assert_array_equal(run.env_steps, result.env_steps)
+
+
+def test_the_step_counter_counts_each_episode_and_changes_nothing() -> None:
+    plain, counted = gym.make("CartPole-v1"), StepCounter(gym.make("CartPole-v1"))
+    for seed in (1, 2):
+        a, _ = plain.reset(seed=seed)
+        b, _ = counted.reset(seed=seed)
+        np.testing.assert_array_equal(a, b)
+        for _ in range(5 + seed):
+            np.testing.assert_array_equal(plain.step(0)[0], counted.step(0)[0])
+    np.testing.assert_array_equal(counted.take(), [6, 7])
+    assert counted.take().size == 0
+
+
+def test_a_file_written_before_env_steps_still_reads(tmp_path: Path) -> None:
+    for brain in ("gnp", "fracnetics"):
+        path = tmp_path / f"{brain}.h5"
+        result = run_peer(_peer(brain), path)
+        with h5py.File(path, "r+") as handle:
+            del handle["history/env_steps"]
+            for protocol in TEST_PROTOCOLS:
+                del handle["test/lengths_" + protocol.replace("-", "_")]
+        old = read_peer(path)
+        assert old.finished and old.env_steps is None and old.test_lengths is None
+        assert old.training_env_steps is None
+        np.testing.assert_array_equal(old.test_returns, result.test_returns)
+        if brain == "gnp":
+            assert read_task_run(path).env_steps is None
+
+
+def test_a_resumed_run_records_the_same_env_steps_and_an_old_one_none(tmp_path: Path) -> None:
+    config = _peer("gnp").run.model_copy(
+        update={"training": TaskTraining(population=6, generations=3, steps=60)}
+    )
+    whole = read_task_run(train_task(config, tmp_path / "whole.h5"))
+
+    def stop_after_one(summary: object) -> None:
+        raise KeyboardInterrupt
+
+    for name, old in (("cut.h5", False), ("old.h5", True)):
+        cut = tmp_path / name
+        with pytest.raises(Interrupted):
+            train_task(config, cut, stop_after_one)
+        if old:  # begun before #45: no column to fill, none written on resume
+            with h5py.File(cut, "r+") as handle:
+                del handle["history/env_steps"]
+        resume_task(cut)
+        run = read_task_run(cut)
+        np.testing.assert_array_equal(run.fitness, whole.fitness)
+        if old:
+            assert run.env_steps is None
+        else:
+            np.testing.assert_array_equal(run.env_steps, whole.env_steps)
