@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from sim import drive, khepera, sensors
+from sim import drive, khepera, rays, sensors
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
 from sim.khepera import BODY_RADIUS_MM, MASS, MOMENT
 from sim.sensors import WallGrid
@@ -40,6 +40,13 @@ COLLISION_PERSISTENCE = 3
 MAX_REMEMBERED = 8
 """Contacts a robot remembers at once; more walls than this within a body radius in three
 substeps cannot happen in a room of straight walls (a point touches at most a few)."""
+
+REACH_MM = rays.REACH_MM
+"""Every wall this close to a robot's centre is listed for its grid cell (``sim.sensors``)."""
+FLIGHT_MARGIN_MM = 1.0
+"""How much farther than its radius plus the most it can move in a period a robot's nearest wall
+must be for the robot to fly free of the contact solver for that period (``solve_discs``): the
+margin dwarfs the rounding of the distances (1e-12 mm at the copy frame's coordinates)."""
 
 _X, _Y, _A, _VX, _VY, _W, _BX, _BY, _BW = range(9)
 """Columns of the state: position, heading, velocity, angular velocity, bias velocities."""
@@ -87,6 +94,9 @@ class AnalyticBodies:
         self.seen_stamp = np.zeros((n, MAX_REMEMBERED), dtype=np.int64)
         self.rows = np.arange(n)
         self.forces = np.zeros((0, n, 3))
+        self.free_flight = True
+        """Robots far from every wall skip the contact search (``solve_discs``); False sends
+        every robot through it (the same bits: the tests compare the two)."""
 
     def place(self, index: Sequence[int] | np.ndarray, poses: np.ndarray) -> None:
         """Put robots ``index`` at rest at arena-local ``poses``, forgetting their contacts."""
@@ -126,6 +136,7 @@ class AnalyticBodies:
             self.grid.frame,
             self.grid.starts,
             self.grid.members,
+            self.free_flight,
         )
 
     def advance(
@@ -157,6 +168,7 @@ class BodyArrays(NamedTuple):
     grid_frame: np.ndarray
     grid_starts: np.ndarray
     grid_members: np.ndarray
+    free_flight: bool
 
 
 @nb.njit(cache=True)
@@ -181,6 +193,7 @@ def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np
         bodies.grid_frame,
         bodies.grid_starts,
         bodies.grid_members,
+        bodies.free_flight,
     )
 
 
@@ -212,6 +225,7 @@ def solve_discs(
     grid_frame: np.ndarray,
     grid_starts: np.ndarray,
     grid_members: np.ndarray,
+    free_flight: bool,
 ) -> None:
     """Step every robot through the substeps of ``forces``, chipmunk's cpSpaceStep for one disc.
 
@@ -240,6 +254,12 @@ def solve_discs(
             the same ascending order; they include every wall closer than a sensor's reach, and
             a farther one holds no contact, so the contacts, their order and the bits are those
             of testing every wall. A body off the grid tests every wall.
+        free_flight: let a robot whose nearest wall is farther than its radius plus the most
+            it can move in the period (plus ``FLIGHT_MARGIN_MM``) skip the substeps' contact
+            search, solver and bookkeeping: it has no contact in any of them, so
+            it does the same floating-point operations on its motion and its memory of
+            contacts ends as the bookkeeping would leave it; False: every robot goes through
+            the search (the reference the tests compare with).
     """
     radius, m_inv, i_inv, slop = body[0], body[1], body[2], body[3]
     k_walls = walls.shape[0]
@@ -256,10 +276,56 @@ def solve_discs(
     c_warm = np.empty(k_walls, dtype=np.bool_)
     c_key = np.empty((k_walls, 2))
     every = np.arange(k_walls)
+    n_sub = forces.shape[0]
     for i in range(state.shape[0]):
         x, y, a = state[i, 0], state[i, 1], state[i, 2]
         vx, vy, w = state[i, 3], state[i, 4], state[i, 5]
         bx, by, bw = state[i, 6], state[i, 7], state[i, 8]
+        # Free flight: no wall within its radius plus the most it can move in the period
+        # (its velocity and bias velocity, then the velocities its forces set, in L1: no
+        # contact changes them) plus a margin. The walls listed for its cell include every
+        # one within a sensor's reach of its centre, so while that bound stays within the
+        # reach a wall not listed is out of it. Written out here, not in a helper: numba's
+        # reference counting on a helper's array arguments costs more than the search saves.
+        free = free_flight
+        if free:
+            moved = abs(vx + bx) + abs(vy + by)
+            for s in range(n_sub):
+                moved += (abs(forces[s, i, 0]) + abs(forces[s, i, 1])) * m_inv * dt
+            clear = radius + moved * dt + FLIGHT_MARGIN_MM
+            col = np.floor((x - offset[0] - grid_frame[0]) / grid_frame[2])
+            row = np.floor((y - offset[1] - grid_frame[1]) / grid_frame[2])
+            # NaN fails every test: such a robot goes through the search
+            free = clear < REACH_MM and 0.0 <= col < grid_frame[3] and 0.0 <= row < grid_frame[4]
+            if free:
+                near = int(row) * int(grid_frame[3]) + int(col)
+                for q in range(grid_starts[near], grid_starts[near + 1]):
+                    k = grid_members[q]
+                    ax, ay, ex, ey = walls[k, 0], walls[k, 1], walls[k, 2], walls[k, 3]
+                    if not _farther(x, y, ax, ay, ex, ey, walls[k, 4], clear * clear):
+                        free = False
+                        break
+        if free:
+            # The substeps with no contact found, operation by operation (the same bits).
+            for s in range(n_sub):
+                x = x + (vx + bx) * dt
+                y = y + (vy + by) * dt
+                a = a + (w + bw) * dt
+                bx, by, bw = 0.0, 0.0, 0.0
+                vx = vx * 0.0 + (0.0 + forces[s, i, 0] * m_inv) * dt
+                vy = vy * 0.0 + (0.0 + forces[s, i, 1] * m_inv) * dt
+                w = w * 0.0 + forces[s, i, 2] * i_inv * dt
+            # Forgetting depends on the stamp alone, which only grows: checked once at the
+            # last substep's stamp, it forgets what the substeps would have.
+            stamp = stamps[i] + n_sub
+            stamps[i] = stamp
+            for q in range(cap):
+                if seen_wall[i, q] >= 0 and stamp - seen_stamp[i, q] >= persistence:
+                    seen_wall[i, q] = -1
+            state[i, 0], state[i, 1], state[i, 2] = x, y, a
+            state[i, 3], state[i, 4], state[i, 5] = vx, vy, w
+            state[i, 6], state[i, 7], state[i, 8] = bx, by, bw
+            continue
         for s in range(forces.shape[0]):
             stamp = stamps[i] + 1
             stamps[i] = stamp
@@ -414,6 +480,20 @@ def solve_discs(
 
 
 @nb.njit(cache=True, inline="always")
+def _farther(
+    x: float, y: float, ax: float, ay: float, ex: float, ey: float, e2: float, clear2: float
+) -> bool:
+    """Whether the segment from (ax, ay) to (ax + ex, ay + ey) (|e|² = e2) is farther than
+    √clear2 from (x, y); False for NaN. Scalars only: a helper taking arrays costs numba's
+    reference counting on each of them at every call."""
+    t = (ex * (x - ax) + ey * (y - ay)) / e2
+    t = 0.0 if not t > 0.0 else (1.0 if not t < 1.0 else t)
+    dx = ax + ex * t - x
+    dy = ay + ey * t - y
+    return dx * dx + dy * dy > clear2
+
+
+@nb.njit(cache=True, inline="always")
 def _impulse(
     nx: float,
     ny: float,
@@ -480,7 +560,7 @@ def _swap(
 
 #: What this module's cached kernels were compiled against: sim/khepera.py's constants and
 #: the modules whose kernels it calls (sim.kernel_cache).
-COMPILED_AGAINST = source_fingerprint(drive, khepera, sensors)
+COMPILED_AGAINST = source_fingerprint(drive, khepera, rays, sensors)
 
 
 @nb.njit(cache=True)

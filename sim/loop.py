@@ -63,6 +63,7 @@ def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
         b.grid_frame,
         b.grid_starts,
         b.grid_members,
+        b.free_flight,
     )
     return WorldArrays(
         world.poses[lo:hi],
