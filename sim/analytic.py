@@ -137,6 +137,7 @@ class AnalyticBodies:
             self.grid.starts,
             self.grid.members,
             self.free_flight,
+            drive.turns_for(dt),
         )
 
     def advance(
@@ -169,12 +170,13 @@ class BodyArrays(NamedTuple):
     grid_starts: np.ndarray
     grid_members: np.ndarray
     free_flight: bool
+    turns: np.ndarray  # sim.drive.turn_table(dt)
 
 
 @nb.njit(cache=True)
 def move(bodies: BodyArrays, angles: np.ndarray, spins: np.ndarray, commands: np.ndarray) -> None:
     """One control period of every body: the force drive, then the substeps' contacts."""
-    drive.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces)
+    drive.drive_forces(angles, spins, commands, bodies.rows, bodies.dt, bodies.forces, bodies.turns)
     solve_discs(
         bodies.state,
         bodies.forces,

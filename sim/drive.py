@@ -1,6 +1,8 @@
 """numba kernels of the force drive: wheel commands clipped, turned into the forces and torques
 that move the robots' bodies, and the bodies' poses read back."""
 
+import functools
+
 import numba as nb
 import numpy as np
 
@@ -16,6 +18,7 @@ def drive_forces(
     rows: np.ndarray,
     dt: float,
     out: np.ndarray,
+    turns: np.ndarray,
 ) -> None:
     """Forces and torques that drive each robot at its wheel commands, for every substep.
 
@@ -32,6 +35,9 @@ def drive_forces(
         dt: Substep length (s).
         out: (K, B, 3) fx, fy, τ for K substeps and every body of the space; rows of other
             bodies are left as they are.
+        turns: ``turn_table(dt)``, the turn per substep of whole-number commands (their
+            `cos` and `sin` looked up, not computed: the same bits), or an empty (0, 2) array
+            to compute every one.
     """
     for i in range(commands.shape[0]):
         left = commands[i, 0] * WHEEL_RADIUS_MM
@@ -42,14 +48,60 @@ def drive_forces(
         heading = angles[i] + spins[i] * dt + 0.5 * spin * dt
         c = np.cos(heading)  # direction in substep 0, then turned by spin·dt per substep
         s = np.sin(heading)
-        turn_c = np.cos(spin * dt)
-        turn_s = np.sin(spin * dt)
+        turn_c, turn_s = _turn(commands[i, 0], commands[i, 1], spin * dt, turns)
         r = rows[i]
         for j in range(out.shape[0]):
             out[j, r, 0] = force * c
             out[j, r, 1] = force * s
             out[j, r, 2] = torque
             c, s = c * turn_c - s * turn_s, s * turn_c + c * turn_s
+
+
+TURN_SPAN = 2 * int(MAX_COMMAND)
+"""Whole-number commands −MAX_COMMAND..MAX_COMMAND differ by −TURN_SPAN..TURN_SPAN."""
+
+
+@functools.cache
+def turns_for(dt: float) -> np.ndarray:
+    """``turn_table(dt)``, made once per substep length (read-only)."""
+    table = turn_table(dt)
+    table.setflags(write=False)
+    return table
+
+
+@nb.njit(cache=True)
+def turn_table(dt: float) -> np.ndarray:
+    """(2·TURN_SPAN + 1, 2) `cos` and `sin` of the turn per substep of `dt` for wheel commands
+    that are whole numbers, by their difference right − left = d (row d + TURN_SPAN): the
+    operations `drive_forces` does on them. Both commands times WHEEL_RADIUS_MM are exact
+    (halves of whole numbers), so their difference is d·WHEEL_RADIUS_MM exactly, whichever
+    the pair; `cos` and `sin` are the same libm calls on the same argument."""
+    table = np.empty((2 * TURN_SPAN + 1, 2))
+    for d in range(-TURN_SPAN, TURN_SPAN + 1):
+        spin = float(d) * WHEEL_RADIUS_MM / AXLE_MM
+        table[d + TURN_SPAN, 0] = np.cos(spin * dt)
+        table[d + TURN_SPAN, 1] = np.sin(spin * dt)
+    return table
+
+
+@nb.njit(cache=True, inline="always")
+def _turn(left: float, right: float, angle: float, turns: np.ndarray) -> tuple[float, float]:
+    """`cos` and `sin` of `angle`, the turn per substep at commands (left, right): a row of
+    `turns` when both are whole numbers within ±MAX_COMMAND (commands take few values: a GNP
+    controller's are whole numbers), exactly (1, angle) for no turn (cos ±0 = 1 and sin ±0 =
+    ±0, the zero's sign kept), else computed."""
+    if angle == 0.0:
+        return 1.0, angle
+    if (
+        turns.shape[0] > 0
+        and abs(left) <= MAX_COMMAND
+        and abs(right) <= MAX_COMMAND
+        and left == np.floor(left)
+        and right == np.floor(right)
+    ):
+        d = int(right) - int(left) + TURN_SPAN
+        return turns[d, 0], turns[d, 1]
+    return np.cos(angle), np.sin(angle)
 
 
 @nb.njit(cache=True)

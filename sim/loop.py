@@ -64,6 +64,7 @@ def part(world: WorldArrays, lo: int, hi: int) -> WorldArrays:
         b.grid_starts,
         b.grid_members,
         b.free_flight,
+        b.turns,
     )
     return WorldArrays(
         world.poses[lo:hi],

@@ -119,7 +119,7 @@ class Chunk:
                 buffer = pb.Buffer()
                 buffer.set_float_buf(forces.reshape(-1))
                 self.set_buffers.append(buffer)
-        drive.drive_forces(angles, spins, commands, self.rows, dt, self.forces)
+        drive.drive_forces(angles, spins, commands, self.rows, dt, self.forces, drive.turns_for(dt))
         for buffer in self.set_buffers:
             pb.set_space_bodies(self.space, _DRIVE_FIELDS, buffer)
             self.space.step(dt)
