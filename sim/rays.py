@@ -114,7 +114,6 @@ def ir_readings_grid(
         out: (N, 8) readings.
     """
     near = np.empty(table.shape[0], dtype=np.int64)
-    every = np.arange(table.shape[0])
     ray_dx = np.empty(N_SENSORS)
     ray_dy = np.empty(N_SENSORS)
     ray_ax = np.empty(N_SENSORS)
@@ -127,13 +126,16 @@ def ir_readings_grid(
         y = poses[i, 1]
         col = np.floor((x - frame[0]) / frame[2])
         row = np.floor((y - frame[1]) / frame[2])
-        if 0.0 <= col < frame[3] and 0.0 <= row < frame[4]:
+        # The cell's walls by index, not as a slice: a slice is a new array, whose reference
+        # counting (two atomic operations) costs more than the loop it feeds.
+        on_grid = 0.0 <= col < frame[3] and 0.0 <= row < frame[4]
+        first, last = 0, table.shape[0]
+        if on_grid:
             cell = int(row) * int(frame[3]) + int(col)
-            listed = members[starts[cell] : starts[cell + 1]]
-        else:
-            listed = every
+            first, last = starts[cell], starts[cell + 1]
         m = 0
-        for w in listed:
+        for listed in range(first, last):
+            w = members[listed] if on_grid else listed
             px = table[w, 0]
             py = table[w, 1]
             ex = table[w, 2]
