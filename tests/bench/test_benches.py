@@ -78,6 +78,10 @@ TINY = {
         "--rounds 1",
         [rf"gnp-lab (--help|runs)\s+lazy\s+{TIMES}\s+eager\s+{TIMES}\s+eager / lazy\s+{RATIO}"],
     ),
+    "profile_loop": (
+        "--robots 4 --steps 20 --lives 1 --pid-file /dev/null",
+        [rf"\d+ numba symbols mapped; rollout analytic {RATE} robot-steps per CPU second"],
+    ),
     "dashboard_latency": (
         "--seconds 3",
         [r"\d+ control actions during training.*median [\d.]+ ms, p95 [\d.]+ ms"],
@@ -117,9 +121,23 @@ def test_versus_runs_a_tree_against_itself() -> None:
     assert "implementation 10 trials × 20 steps" in done.stdout
 
 
+def test_kernels_runs_a_tree_against_itself() -> None:
+    """Issue #48's bench compares trees side by side; here this tree is its own baseline."""
+    tiny = "--population 4 --steps 10 --loop-steps 10 --rounds 1"
+    done = bench("kernels", f"--baseline {ROOT} {tiny}")
+    assert done.returncode == 0, done.stderr[-3000:]
+    for case in ("training generation", "compiled loop"):
+        row = rf"{case}\s+this tree\s+[\d.]+\s+baseline\s+[\d.]+\s+baseline / this tree\s+[\d.]+×"
+        assert re.search(row, done.stdout), done.stdout
+    assert re.search(
+        r"generation target ≥ 1.4× the baseline's speed: [\d.]+×, (not )?met", done.stdout
+    )
+    assert re.search(r"this tree: compiled loop [\d.]+ M robot-steps per CPU second", done.stdout)
+
+
 def test_every_bench_is_run_by_a_test() -> None:
     """A new bench joins TINY (or has a test of its own), so it cannot rot unseen either."""
-    tested = set(TINY) | {"versus", "versus_kheperax", "soak"}
+    tested = set(TINY) | {"versus", "versus_kheperax", "soak", "kernels"}
     assert {path.stem for path in (ROOT / "bench").glob("*.py")} == tested
 
 
