@@ -95,8 +95,8 @@ def main() -> None:
     if args.child:
         tree, kind, *numbers = args.child
         values = [int(v) for v in numbers]
-        child = generation_child if kind == "generation" else loop_child
-        print(json.dumps(child(Path(tree), *values)))
+        measure = generation_child if kind == "generation" else loop_child
+        print(json.dumps(measure(Path(tree), *values)))
         return
     if args.baseline is None:
         parser.error("--baseline (a git worktree of the commit to compare with) is required")
@@ -107,10 +107,10 @@ def main() -> None:
     }
     best = {(case, tree): float("inf") for case in cases for tree in trees}
     for r in range(args.rounds):
-        for case, child in cases.items():
+        for case, arguments in cases.items():
             order = list(trees) if r % 2 == 0 else list(trees)[::-1]
             for tree in order:
-                seconds = _measure(trees[tree], child)
+                seconds = _measure(trees[tree], arguments)
                 best[case, tree] = min(best[case, tree], seconds)
     print(
         f"thesis-ch3, σ = 50, analytic, 1 worker; generation {args.population} × {args.steps} "

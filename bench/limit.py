@@ -27,18 +27,22 @@ built once, outside the timing (300 copies of an arena's walls take pymunk a few
 second); each timed life starts with a reset (and fresh controllers): a small share of it.
 
 What each stage's arithmetic costs, against what it takes (the figures `--steps 500` prints on a
-loaded 2-core VM, ns per robot-step; issue #31):
-- sensing ~105 ns: 8 rays against the 1.2 walls of the robot's cell, one `sincos`: ~15 ns;
-- noise ~185 ns: four Box–Muller pairs, 4 × (`log`, `sqrt`, `sincos`) of glibc and 4 hashes:
-  ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md); "noise ziggurat-v1"
-  ~40 ns (8 hashes, 8 table look-ups; 134 against 41 ns on 2026-12-04), the faster stream a
-  run may declare (`training.noise_stream`), not bit-compatible;
-- physics analytic ~345 ns: the drive's two `sincos`, then 3 substeps of integration, contact
-  search and, on a wall (a third of the robots), 5 solver passes: ~30-60 ns of arithmetic, the
-  rest chipmunk's branchy contact bookkeeping done operation by operation;
-- controller ~210 ns: 2-4 visits, each an ε-greedy draw or two, a Sarsa update and 2-3 dependent
-  loads of the next record: ~20 ns of arithmetic, the rest load latency;
-- reward ~20 ns: 16 comparisons and a `sqrt`: ~5 ns.
+loaded 2-core VM, ns per robot-step; issue #31, again after issue #48 on 2026-12-06; the compiled
+loop's own profile is docs/speed.md):
+- sensing ~105 ns (58 after #48): 8 rays against the 1.2 walls of the robot's cell, one `sincos`:
+  ~15 ns;
+- noise ~185 ns (121): four Box–Muller pairs, 4 × (`log`, `sqrt`, `sincos`) of glibc and 4
+  hashes: ~100-150 ns of libm calls that bit-identity fixes (docs/decisions.md); "noise
+  ziggurat-v1" ~40 ns (36; 8 hashes, 8 table look-ups), the faster stream a run may declare
+  (`training.noise_stream`), not bit-compatible;
+- physics analytic ~345 ns (142; 164-172 at f8707a9 on the same machine): the drive's `sincos`
+  of the heading (the turn's comes from a table for whole-number commands), then 3 substeps:
+  for the two thirds of robot-steps in free flight (no wall within reach of a period's motion)
+  integration alone, ~15 ns; for a robot near a wall, contact search and up to 5 solver passes
+  each substep, ~270 ns: chipmunk's branchy contact bookkeeping done operation by operation;
+- controller ~210 ns (99): 2-4 visits, each an ε-greedy draw or two, a Sarsa update and 2-3
+  dependent loads of the next record: ~20 ns of arithmetic, the rest load latency;
+- reward ~20 ns (11): 16 comparisons and a `sqrt`: ~5 ns.
 
 Another physics is one more line in STAGES (as "physics analytic" is), and a loop that runs it
 one more line in LOOPS.

@@ -24,6 +24,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from numba.core.registry import CPUDispatcher
 
@@ -55,6 +56,7 @@ def write_perf_map() -> int:
         if isinstance(value, CPUDispatcher)
     }
     for dispatcher in dispatchers.values():
+        compiled: Any  # numba's CompileResult, whose fields its stubs do not name
         for compiled in dispatcher.overloads.values():
             library = compiled.library
             try:
