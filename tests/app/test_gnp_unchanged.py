@@ -26,6 +26,12 @@ ADDED_SINCE: dict[tuple[str, ...], object] = {
     ("reward",): {"c_from": "true"},
     ("training", "physics"): "pymunk",
     ("training", "noise_stream"): "box-muller-v1",
+    # GNP's task settings (#45), at the robot's defaults
+    ("controller", "q0"): 0.0,
+    ("controller", "tie_break"): "random",
+    ("controller", "skip_reward"): "zero",
+    ("controller", "threshold_init"): "uniform",
+    ("controller", "processing_output"): "parameter",
 }
 
 
