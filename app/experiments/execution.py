@@ -91,6 +91,11 @@ def _run_task_run(task: Task, emit: Callable[[dict[str, Any]], None]) -> dict[st
             for protocol, metric in PROTOCOL_METRICS.items()
             if result.protocol_returns and protocol in result.protocol_returns
         },
+        **(
+            {}
+            if result.training_env_steps is None
+            else {"training_env_steps": result.training_env_steps}
+        ),
         "conditions": {},
     }
 

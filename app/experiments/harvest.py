@@ -12,6 +12,7 @@ import numpy as np
 from app.experiments.planning import Task, inspect, plan, work
 from app.experiments.results import (
     CONVERGENCE_SHARE,
+    ENV_STEPS_METRIC,
     PROTOCOL_METRICS,
     Condition,
     ExperimentResults,
@@ -67,12 +68,21 @@ def _task_results(
     curves: dict[tuple[str, str, str], np.ndarray],
 ) -> None:
     """A task experiment's values: final best return, the final elite's mean test return (and
-    per test protocol, for the runs whose files hold them: `PROTOCOL_METRICS`), and the best
-    return per generation (as `best_fitness_curve`), from each run's file."""
+    per test protocol, for the runs whose files hold them: `PROTOCOL_METRICS`), the env-steps
+    its training spent (`ENV_STEPS_METRIC`, likewise), and the best return per generation (as
+    `best_fitness_curve`), from each run's file. A metric a run may lack has its columns only
+    where a claim names it or a run holds it, so results of files before them are as they were."""
     from app.tasks.peer import read_peer
 
     n = len(seed_list)
-    claimed = {c.metric for c in spec.comparisons} & set(PROTOCOL_METRICS.values())
+    named = {m for c in spec.comparisons for m in (c.metric, c.metric_b) if m is not None}
+    claimed = named & {*PROTOCOL_METRICS.values(), ENV_STEPS_METRIC}
+
+    def held(metric: str, arm: str, row: int, value: float) -> None:
+        for each in spec.arms:  # every arm's column once any run holds the metric
+            scalars.setdefault((metric, each.name, ""), np.full(n, np.nan))
+        scalars[(metric, arm, "")][row] = value
+
     for arm in spec.arms:
         for metric in ("final_best_return", "test_return", *sorted(claimed)):
             scalars[(metric, arm.name, "")] = np.full(n, np.nan)
@@ -90,10 +100,9 @@ def _task_results(
             scalars[("final_best_return", task.arm, "")][row] = result.best_curve[-1]
             scalars[("test_return", task.arm, "")][row] = float(np.mean(result.test_returns))
             for protocol, returns in (result.protocol_returns or {}).items():
-                metric = PROTOCOL_METRICS[protocol]
-                for arm in spec.arms:  # every arm's column once any run holds the metric
-                    scalars.setdefault((metric, arm.name, ""), np.full(n, np.nan))
-                scalars[(metric, task.arm, "")][row] = float(np.mean(returns))
+                held(PROTOCOL_METRICS[protocol], task.arm, row, float(np.mean(returns)))
+            if result.training_env_steps is not None:
+                held(ENV_STEPS_METRIC, task.arm, row, float(result.training_env_steps))
 
 
 def collect(

@@ -137,10 +137,12 @@ class Progress:
 
 def outcome_line(outcome: dict[str, Any]) -> str:
     """The live line printed when a run finishes."""
-    if "test_return" in outcome:  # a task experiment's run: returns
+    if "test_return" in outcome:  # a task experiment's run: returns (and its env-steps)
+        steps = outcome.get("training_env_steps")
         return (
             f"{outcome['arm']} seed {outcome['seed']}: final best return "
             f"{outcome['final_best_fitness']:.1f}; test return {outcome['test_return']:.1f}"
+            + ("" if steps is None else f"; {steps:,} env-steps in training")
         )
     parts = [f"{outcome['arm']} seed {outcome['seed']}: final best fitness "]
     parts[0] += f"{outcome['final_best_fitness']:.4f}"

@@ -22,6 +22,7 @@ from app.experiments.report import (
 )
 from app.experiments.report_json import stages_json, to_json
 from app.experiments.report_text import (
+    arm_cost_rows,
     estimate_rows,
     format_number,
     interval_level,
@@ -235,6 +236,17 @@ def _page(report: ExperimentReport, figures: SavedFigures) -> str:
     thesis_header = _row(
         "arm", "metric", "condition", "thesis", "ours: mean ± sd over runs", header=True
     )
+    cost_rows = "".join(_row(*map(_e, row)) for row in arm_cost_rows(results))
+    cost_section = (
+        "<h2>Arms: test return and env-steps</h2><p>Each arm's runs, mean ± sd: the test "
+        "return of its final elite and the env-steps its training spent (every episode of "
+        "every generation; validation and test episodes not counted).</p><table>"
+        + _row("arm", "test return", "env-steps in training", header=True)
+        + cost_rows
+        + "</table>"
+        if cost_rows
+        else ""
+    )
     thesis_section = (
         f"<h2>The thesis's numbers beside ours</h2><table>{thesis_header}{thesis_rows}</table>"
         if thesis_rows
@@ -314,6 +326,7 @@ left out and counted.</p>
 {summary}
 {stages}
 {thesis_section}
+{cost_section}
 <h2>Comparisons</h2>{comparisons}
 <h2>Figures</h2>{other_figures or "<p>No curves were recorded.</p>"}
 <h2>Conditions</h2>

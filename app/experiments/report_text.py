@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from app.experiments.report import ClaimStats, ComparisonReport, ExperimentReport, Need
-from app.experiments.results import ExperimentResults
+from app.experiments.results import ENV_STEPS_METRIC, ExperimentResults
+from app.experiments.stats import summarise
 
 
 def format_number(x: float | None) -> str:
@@ -16,6 +19,29 @@ def format_number(x: float | None) -> str:
     if math.isinf(x):
         return "∞" if x > 0 else "−∞"
     return f"{x:.4g}"
+
+
+def mean_sd_text(values: object) -> str:
+    """A per-run value over an arm's runs: mean ± sd (n = finished runs)."""
+    s = summarise(np.asarray(values, dtype=float))
+    return f"{format_number(s.mean)} ± {format_number(s.sd)} (n = {s.n})"
+
+
+def arm_cost_rows(results: ExperimentResults) -> list[tuple[str, str, str]]:
+    """A task experiment's arms beside what their training cost: (arm, test return, env-steps
+    in training), each mean ± sd over its runs; none when no run holds its env-steps (a task
+    experiment run before #45, or the robot's)."""
+    if not any(key[0] == ENV_STEPS_METRIC for key in results.scalars):
+        return []
+    missing = np.full(len(results.seeds), np.nan)
+    return [
+        (
+            f"{arm.name}: {arm.label}",
+            mean_sd_text(results.scalars.get(("test_return", arm.name, ""), missing)),
+            mean_sd_text(results.scalars.get((ENV_STEPS_METRIC, arm.name, ""), missing)),
+        )
+        for arm in results.arms
+    ]
 
 
 def seeds_text(results: ExperimentResults) -> str:

@@ -21,7 +21,11 @@ TASK_METRICS = (
     "test_return",
     "test_return_as_trained",
     "test_return_greedy",
+    "training_env_steps",
 )
+#: A task run's env-steps in training (DESIGN §4: env-steps reported per arm), harvested only
+#: where a run file holds them or a claim names it (files before #45 hold none).
+ENV_STEPS_METRIC = "training_env_steps"
 #: Each test protocol's metric (app.tasks.config.TEST_PROTOCOLS), as a task run file names it.
 PROTOCOL_METRICS = {"as-trained": "test_return_as_trained", "greedy": "test_return_greedy"}
 Direction = Literal["greater", "less", "equivalent"]
@@ -184,6 +188,16 @@ METRICS: dict[str, Metric] = {
             "test_return with the final elite living its test episodes greedily (ε = α = 0, "
             "Sarsa frozen; fracnetics: its fixed policy)",
             bounds=(-math.inf, math.inf),
+        ),
+        Metric(
+            ENV_STEPS_METRIC,
+            "env-steps in training",
+            "scalar",
+            "training",
+            "env-steps the run's training spent: the lengths of every episode of every "
+            "generation, summed (one episode per individual per generation; a task experiment, "
+            "either brain; not the validation or test episodes)",
+            bounds=(0.0, math.inf),
         ),
         Metric(
             "reward_per_step",

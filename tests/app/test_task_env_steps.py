@@ -4,13 +4,21 @@ before them still reads; a task experiment harvests `training_env_steps`."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import gymnasium as gym
 import h5py
 import numpy as np
 import pytest
+from experiment_fixtures import in_process_client
+from test_peer import _spec
 
+from app.experiments.harvest import collect
+from app.experiments.planning import plan
+from app.experiments.report_page import write_report
+from app.experiments.runner import RunOptions, run_experiment
+from app.experiments.spec_loading import parse
 from app.phases.generations import Interrupted
 from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.fracnetics_arm import StepCounter, documented
@@ -108,3 +116,50 @@ def test_a_resumed_run_records_the_same_env_steps_and_an_old_one_none(tmp_path: 
             assert run.env_steps is None
         else:
             np.testing.assert_array_equal(run.env_steps, whole.env_steps)
+
+
+def test_a_task_experiment_harvests_reports_and_claims_training_env_steps(tmp_path: Path) -> None:
+    data = _spec()
+    data["comparisons"].append(
+        {
+            "name": "cost",
+            "a": "RL",
+            "b": "fracnetics",
+            "metric": "training_env_steps",
+            "direction": "less",
+            "source": "DESIGN §4",
+            "family": "exploratory",
+        }
+    )
+    spec = parse(data, "tiny")
+    runs = tmp_path / "runs"
+    with in_process_client() as client:
+        results = run_experiment(spec, "smoke", runs, options=RunOptions(client=client, quiet=True))
+    for task in plan(spec, "smoke", runs):
+        total = read_peer(task.path).training_env_steps
+        row = results.seeds.index(task.seed)
+        assert total == results.scalar("training_env_steps", task.arm)[row] > 0
+    index = write_report(results, tmp_path / "report")
+    page = index.read_text()
+    assert "Arms: test return and env-steps" in page and "env-steps in training" in page
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    claim = next(c for c in report["comparisons"] if c["name"] == "cost")
+    assert claim["verdict"] == "exploratory" and claim["a"]["mean"] is not None
+    assert "training_env_steps" in (tmp_path / "report" / "values.csv").read_text()
+    # files before #45 (no env-steps) and no claim naming it: no column, no section
+    unclaimed = parse(_spec(), "tiny")
+    for task in plan(unclaimed, "smoke", runs):
+        with h5py.File(task.path, "r+") as handle:
+            del handle["history/env_steps"]
+    old = collect(unclaimed, "smoke", runs)
+    assert not any(key[0] == "training_env_steps" for key in old.scalars)
+    assert "env-steps" not in write_report(old, tmp_path / "old").read_text()
+
+
+def test_a_finished_runs_line_names_its_env_steps_when_it_has_them() -> None:
+    from app.experiments.progress import outcome_line
+
+    outcome = {"arm": "RL", "seed": 4, "final_best_fitness": 60.0, "test_return": 12.5}
+    assert outcome_line(outcome) == "RL seed 4: final best return 60.0; test return 12.5"
+    line = outcome_line({**outcome, "training_env_steps": 12345})
+    assert line.endswith("test return 12.5; 12,345 env-steps in training")
