@@ -233,7 +233,7 @@ def finished(study: optuna.Study) -> list[optuna.trial.FrozenTrial]:
 
 @dataclass
 class Spent:
-    """Env-steps a GNP trial's training has spent (fracnetics' are not counted)."""
+    """Env-steps a trial's training has spent (fracnetics': of the runs it finished)."""
 
     steps: int = 0
 
@@ -323,8 +323,11 @@ def fracnetics_settings(declared: Declared, values: dict[str, Any]) -> Fracnetic
     return arm_settings(declared.task, overlay)
 
 
-def fracnetics_trial(declared: Declared, values: dict[str, Any], report: Report) -> float:
-    """Train a trial's fracnetics runs and score their elites on the validation episodes."""
+def fracnetics_trial(
+    declared: Declared, values: dict[str, Any], report: Report, spent: Spent
+) -> float:
+    """Train a trial's fracnetics runs and score their elites on the validation episodes
+    (`spent` counts the training env-steps of each run it finishes)."""
     from app.tasks.fracnetics_arm import check_population, train_fracnetics
 
     settings = fracnetics_settings(declared, values)
@@ -341,6 +344,7 @@ def fracnetics_trial(declared: Declared, values: dict[str, Any], report: Report)
             validation_seeds(declared.validation), progress=each,
         )  # fmt: skip
         scores.append(float(np.mean(result.test_returns)))
+        spent.steps += int(np.sum(result.env_steps))
     return float(np.mean(scores))
 
 
@@ -437,7 +441,7 @@ def run_trials(
             if declared.brain == "gnp":
                 value = gnp_trial(declared, task, values, report, spent)
             else:
-                value = fracnetics_trial(declared, values, report)
+                value = fracnetics_trial(declared, values, report, spent)
         except optuna.TrialPruned:
             _spent(trial, spent)
             study.tell(trial, state=TrialState.PRUNED)

@@ -152,6 +152,8 @@ def test_fracnetics_is_tuned_by_the_same_command(tmp_path: Path) -> None:
     assert record.budget_env_steps == 20_000 and record.generations == 4
     assert set(layer) == {"fracnetics", "training"}
     assert layer["fracnetics"]["jnf"] == 4  # its documented bounds and functions stay
+    study = tuning.open_study(Path(record.storage), _fracnetics_declared())
+    assert all(0 < t.user_attrs["env_steps"] <= 20_000 for t in study.trials)
     preset = str(tmp_path / "tuning" / "CartPole-v1-fracnetics.toml")
     assert main(["train", "--task", "CartPole-v1", "--preset", preset]) == 1
 
@@ -165,6 +167,13 @@ def test_fracnetics_is_tuned_by_the_same_command(tmp_path: Path) -> None:
         parse(_fracnetics_spec({"nodes": 3}), "tuned")
     with pytest.raises(ExperimentError, match="need brain = 'fracnetics'"):
         parse(_fracnetics_spec({"jn": 2}, brain="gnp"), "tuned")
+
+
+def _fracnetics_declared() -> tuning.Declared:
+    return tuning.Declared(
+        task="CartPole-v1", brain="fracnetics", name="CartPole-v1-fracnetics", budget=20_000,
+        population=10, steps=500, seeds=1, validation=3, sampler_seed=0,
+    )  # fmt: skip
 
 
 def _fracnetics_spec(settings: dict[str, Any], brain: str = "fracnetics") -> dict[str, Any]:
