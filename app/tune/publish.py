@@ -24,8 +24,10 @@ if TYPE_CHECKING:
     from app.tasks.config import TaskSettings
 
 OBJECTIVE = {
-    "gnp": "mean return of the last generation's best individual over the validation "
-    "episodes, greedy (epsilon = 0, learning off), averaged over the run seeds",
+    "gnp": "mean return of each run's final elite (the task run's: the last generation's "
+    "best, or the one chosen on its own validation episodes) over the validation episodes, "
+    "under the test protocol of [task] (greedy: epsilon = 0, learning off), averaged over "
+    "the run seeds",
     "fracnetics": "mean return of fracnetics' final elite over the validation episodes "
     "(deterministic, as it tests), averaged over the run seeds",
 }

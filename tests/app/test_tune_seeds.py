@@ -106,3 +106,22 @@ def test_the_space_is_its_table_less_what_the_study_fixes() -> None:
         "training.epsilon_max": 0.2,
         "training.epsilon_min": 0.1,
     }
+
+
+def test_the_shipped_tuned_presets_are_presets_of_tuning_seeds() -> None:
+    """The presets task experiments copy their tuned arms from (app/experiments/shipped/tuned/):
+    each a valid preset, tuned on tuning seeds, a GNP one a valid task run for its task."""
+    from app.settings.loading import build_config
+    from app.tune.preset import read_preset, train_layer, train_task_table
+
+    presets = sorted((ROOT / "app" / "experiments" / "shipped" / "tuned").glob("*.toml"))
+    for path in presets:
+        _, record = read_preset(path)
+        assert record is not None, path
+        assert all(seed in TUNING_SEEDS for seed in record.run_seeds), path
+        first = record.validation_first_seed
+        assert range(first, first + record.validation_episodes)[-1] in TUNING_SEEDS, path
+        if record.brain == "gnp":
+            config = build_config(train_layer(str(path), record.task))
+            assert config.training.generations == record.generations, path
+            train_task_table(str(path))
