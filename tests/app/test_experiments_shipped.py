@@ -45,7 +45,11 @@ BEYOND = ("beyond-neuroevolution",)
 #: Beyond the thesis, on Gymnasium tasks: GNP beside fracnetics (issue #34 item 3).
 TASKS = ("gnp-vs-fracnetics-acrobot", "gnp-vs-fracnetics-cartpole", "gnp-vs-fracnetics-mountaincar")
 #: ... met again, every arm tuned (issue #45 item 4).
-TASKS += ("gnp-vs-fracnetics-tuned-cartpole", "gnp-vs-fracnetics-tuned-mountaincar")
+TASKS += (
+    "gnp-vs-fracnetics-tuned-acrobot",
+    "gnp-vs-fracnetics-tuned-cartpole",
+    "gnp-vs-fracnetics-tuned-mountaincar",
+)
 SHIPPED = tuple(sorted(THESIS_SHIPPED + BEYOND + TASKS))
 # "Fig. 3.6 (Simulation 1)" and "§2.5, Table 2.5 (its text)" cite Fig. 3.6 and Table 2.5
 SOURCE = re.compile(r"(Table|Fig\.) \d\.\d+")
