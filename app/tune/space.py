@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 Brain = Literal["gnp", "fracnetics"]
-BRAINS: tuple[Brain, ...] = ("gnp", "fracnetics")
+BRAINS: tuple[Brain, ...] = get_args(Brain)
 
 
 class TuneError(ValueError):
