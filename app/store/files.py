@@ -23,6 +23,7 @@ from typing import IO
 import h5py
 
 from app.settings.user_files import check_regular
+from app.system.signals import process_alive
 
 # The HDF5 1.10 file format: the oldest with SWMR, and what h5dump of Debian 12 (1.10.8) reads.
 LIBVER = ("v110", "v110")
@@ -139,22 +140,12 @@ def remove_temporaries(path: Path, keep_pid: int | None = None) -> list[Path]:
         pid_text = tmp.name[len(path.name) + 2 : -len(".tmp")]
         if not pid_text.isdigit() or int(pid_text) == keep_pid:
             continue
-        if keep_pid is None and _alive(int(pid_text)):
+        if keep_pid is None and process_alive(int(pid_text)):
             continue
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
             removed.append(tmp)
     return removed
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process
-        return True
-    return True
 
 
 def open_for_read(path: Path) -> h5py.File:

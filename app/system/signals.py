@@ -11,6 +11,7 @@ follows one is raised as the stop it is, and the swallowed one is not printed.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -78,3 +79,14 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
         raise KeyboardInterrupt from error
     finally:
         sys.unraisablehook = previous_hook
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` runs (signal 0: no signal sent, only the check)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True

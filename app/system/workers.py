@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from app.system.signals import process_alive
+
 Count = Callable[[int], None]
 #: What a worker's `setup` returns: answers one job, reporting work done with `count`.
 Handler = Callable[[Any, Count], Any]
@@ -313,21 +315,11 @@ def sweep_shared() -> list[str]:
     with contextlib.suppress(OSError):
         for path in SHARED_FOLDER.glob(f"{SHARED_PREFIX}*"):
             pid = path.name[len(SHARED_PREFIX) :].partition("_")[0]
-            if pid.isdigit() and not _alive(int(pid)):
+            if pid.isdigit() and not process_alive(int(pid)):
                 with contextlib.suppress(OSError):
                     path.unlink()
                     swept.append(path.name)
     return swept
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process
-        return True
-    return True
 
 
 class SharedArrays:
