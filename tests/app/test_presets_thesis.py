@@ -30,6 +30,7 @@ COMMON: list[tuple[str, Any, str]] = [
     ("controller.n_judgment", 40, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
     ("controller.n_processing", 20, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
     ("controller.fuzzy", True, "Fuzzy GNP-RL/-TSRL throughout (§2.5.3, §3.5.1, §4.5.1, §5.5.1)"),
+    ("controller.skip_reward", "zero", "Eq. 5.3: a credit skip earns no reward"),
     # "P_c = 0.1, P_m = 0.01, tournament sizes = 7"
     ("evolution.p_crossover", 0.1, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
     ("evolution.p_mutation", 0.01, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
@@ -155,6 +156,13 @@ NOT_FROM_THE_THESIS = {
     "implementation.generation",  # "the best individual in the last generation" (l. 994): unset
     "implementation.seed",
     "reward.c_from",  # which readings C of Eq. 2.7 reads: not said (docs/decisions.md)
+    # GNP's task settings (#45): the thesis's robot at their defaults, which its text implies but
+    # does not state (docs/decisions.md, "GNP on tasks"): Q from 0, random ties, judgments drawn
+    # uniformly, a processing node's parameter read as the command.
+    "controller.q0",
+    "controller.tie_break",
+    "controller.threshold_init",
+    "controller.processing_output",
     # Schedule fields that only matter for `schedule = "changing"` (ch. 4 checks them).
     "training.epsilon",
     "training.alpha",
