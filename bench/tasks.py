@@ -7,7 +7,7 @@ evolution), the Gymnasium path against the lab's compiled path, and fracnetics o
 
 For each task and population, both paths train the same run (GNP-RL, crisp, ε = 0.01, lives
 capped at the episode's own limit) for the task's generations from the same seed, so they
-live the same episodes (tests/app/test_task_fast.py): the Gymnasium path
+live the same episodes (tests/app/tasks/test_task_fast.py): the Gymnasium path
 (`app.tasks.dynamics.FAST_TASKS` emptied: CartPole's numpy vector env, `SyncVectorEnv` for the
 others) and the compiled path (the default). fracnetics (issue #34's peer: GNP in C++ calling
 Gymnasium's Python CartPole) runs its documented CartPole loop at population 100 for the same

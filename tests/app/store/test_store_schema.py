@@ -27,7 +27,7 @@ from app.store.schema import (
 )
 from sim import TERM_NAMES
 
-DEMO = Path(__file__).parents[2] / "saved_runs" / "demo.h5"
+DEMO = Path(__file__).parents[3] / "saved_runs" / "demo.h5"
 
 
 def _datasets(group: h5py.Group) -> dict[str, h5py.Dataset]:

@@ -15,7 +15,7 @@ from app.experiments.results import Comparison
 from app.experiments.sequential import ClaimVerdict, Interval
 from app.experiments.spec_loading import shipped_names
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 SPEC = """
 name = "toy"

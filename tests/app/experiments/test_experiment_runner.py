@@ -33,7 +33,7 @@ from app.experiments.spec_loading import load_file
 from app.experiments.summary import FORMAT, read_summary, write_summary
 from app.store import RunReader
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 WORKER = ("--nworkers", "2", "--nthreads", "1")
 SCALE = "small"  # of the tiny experiment: 14 generations of 12 × 1000 steps
 

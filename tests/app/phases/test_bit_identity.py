@@ -25,8 +25,8 @@ from app.brains.registry import family_of
 from app.phases.implementation import run_implementation
 from app.store import RunReader
 
-DEMO = Path(__file__).parents[2] / "saved_runs" / "demo.h5"
-FINGERPRINTS = json.loads((Path(__file__).parent / "fingerprints.json").read_text())
+DEMO = Path(__file__).parents[3] / "saved_runs" / "demo.h5"
+FINGERPRINTS = json.loads((Path(__file__).parents[1] / "fingerprints.json").read_text())
 STEPS = 700  # past the demo's fault step (500), noise and faults both replayed
 
 

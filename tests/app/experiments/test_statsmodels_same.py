@@ -24,7 +24,7 @@ from app.experiments.sequential import POWER, seeds_for_power
 from app.experiments.stats import holm
 
 REPORTS = sorted(
-    (Path(__file__).resolve().parents[2] / "docs" / "experiments").glob("*/report.json")
+    (Path(__file__).resolve().parents[3] / "docs" / "experiments").glob("*/report.json")
 )
 
 

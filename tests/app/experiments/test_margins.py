@@ -13,7 +13,7 @@ from app.experiments.spec import ExperimentError
 from app.experiments.spec_loading import load_shipped, parse
 
 REWARD = METRICS["mean_reward"]
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
+DOCS = Path(__file__).resolve().parents[3] / "docs" / "experiments"
 
 
 def _claim(direction: str = "greater", margin: float | None = None, form: str = "absolute"):

@@ -24,7 +24,7 @@ from app.store.controller_file import ControllerFileError, load_controller
 from app.system.memory import available_memory
 
 TIMEOUT = 120
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 DEEP = "[" * 100_000 + "]" * 100_000
 
 

@@ -22,7 +22,7 @@ from app.tune.space import (
     validation_seeds,
 )
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 MAX_GENERATIONS = 1_000_000  # TaskTraining.generations' bound
 
 

@@ -39,7 +39,7 @@ RHO = 0.5  # correlation of one run's values on different metrics and conditions
 SD = 0.1  # sd of a run's value (decisive designs)
 BASE = 0.5  # every value's mean: Δ = 0 for every claim
 CHUNK = 2000  # experiments drawn at once
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
+DOCS = Path(__file__).resolve().parents[3] / "docs" / "experiments"
 DECISIVE = ("ch3-bs-rl-decisive", "ch5-cs-bs-rl-decisive")
 REPORTS = tuple(sorted(p.parent.name for p in DOCS.glob("*/report.json")))
 

@@ -192,7 +192,7 @@ def test_a_decisive_experiment_is_pre_registered_on_fresh_seeds(name: str) -> No
     assert spec.design is not None and spec.design.looks == (25, 50, 75, 100)
     # Fresh seeds: none that another committed report (or the other decisive experiment) used.
     used: set[int] = set()
-    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+    for values in Path(__file__).parents[3].glob("docs/experiments/*/values.csv"):
         if values.parent.name.startswith(f"{name}-"):
             continue  # its own runs, committed look by look
         with values.open() as handle:
@@ -226,7 +226,7 @@ def test_the_noise_stream_equivalence_is_pre_registered_on_fresh_seeds() -> None
     assert spec.design is not None
     used: set[int] = set()
     elsewhere = tuple(f"{o}-" for o in shipped_names() if o == spec.name or _task_id(o))
-    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+    for values in Path(__file__).parents[3].glob("docs/experiments/*/values.csv"):
         if values.parent.name.startswith(elsewhere):
             continue  # its own runs, once committed, and runs of a Gymnasium task's world
         with values.open() as handle:
@@ -264,7 +264,7 @@ def test_a_task_experiment_gives_every_arm_one_budget_on_fresh_seeds(name: str) 
         assert len(budgets) == 1  # the same episodes for every arm
     used: set[int] = set()
     same_task = [o for o in shipped_names() if _task_id(o) == spec.task.id]
-    for values in Path(__file__).parents[2].glob("docs/experiments/*/values.csv"):
+    for values in Path(__file__).parents[3].glob("docs/experiments/*/values.csv"):
         others = [o for o in same_task if o != name and values.parent.name.startswith(f"{o}-")]
         if others:  # fresh within the task's own world (a robot's seed seeds another)
             with values.open() as handle:

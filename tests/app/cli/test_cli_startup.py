@@ -19,7 +19,7 @@ import pytest
 
 from app.cli.parser import COMMANDS, build_parser
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 ENTRY = "import sys; from app.cli import main; sys.exit(main())"  # the gnp-lab script
 

@@ -24,7 +24,7 @@ from app.experiments.reproduced import (
 from app.experiments.spec import ExperimentError
 from app.experiments.spec_loading import load_shipped, shipped_names
 
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "experiments"
+DOCS = Path(__file__).resolve().parents[3] / "docs" / "experiments"
 REPORT = DOCS / "ch3-bs-rl-small" / "report.json"
 
 

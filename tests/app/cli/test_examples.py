@@ -15,7 +15,7 @@ import pytest
 
 from app.store import RunReader
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
 def _run(script: str, *args: str) -> str:

@@ -11,7 +11,7 @@ import pytest
 
 from app.experiments.thesis_data import ThesisDataError, load_thesis_data
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 THESIS = ROOT.parent / "shared" / "seed" / "000_b597f14703cb5f83.txt"
 TABLES = ["Table 2.5", "Table 2.6", "Table 4.2", "Table 4.3", "Table 4.4"]
 FIGURES = [

@@ -13,7 +13,7 @@ import pytest
 
 from app.phases.warm import COMPILING
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 ENTRY = "import sys; from app.cli import main; sys.exit(main())"  # the gnp-lab script
 TINY = ["--preset", "quick", "--population", "4", "--generations", "1", "--steps", "5"]
 WARM_CHECK = (

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("sim", "gnp", "neuro", "app")
 CORE = "app"
 LAYER = {
@@ -188,7 +188,7 @@ def test_gymnasium_stays_in_the_envs_modules() -> None:
     """The task's Gymnasium face (`sim.gym_env`, `sim.gym_vector`) imports the world, and GNP
     on Gymnasium tasks (`app.tasks`, issue #34 item 2) imports Gymnasium's tasks; nothing else
     in the packages imports Gymnasium, so the world, the brains and the lab run without it
-    (`gnp-lab` loads `app.tasks` only for a task: tests/app/test_tasks.py)."""
+    (`gnp-lab` loads `app.tasks` only for a task: tests/app/tasks/test_tasks.py)."""
     users = set()
     for pkg in PACKAGES:
         for path in (ROOT / pkg).rglob("*.py"):
