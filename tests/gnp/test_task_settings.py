@@ -179,3 +179,45 @@ def test_emitting_the_function_sets_output_0_to_the_centre_of_the_functions_bin(
                 assert np.all(commands[i, :-1] == 0.0)  # the other outputs stay unset
                 seen.add(f)
     assert seen == set(range(k))
+
+
+def test_a_step_of_minus_one_falls_on_a_processing_node_that_runs_and_past_one_skipped() -> None:
+    """Why tuned CS tests at the floor on −1-a-step tasks (#45, docs/decisions.md): Sarsa
+    credits a step's reward to its last visit, so a processing node that runs (five time
+    units: the step's only visit) takes the step's −1, while one skipped through its credit
+    branch (one unit) passes it to the judgments after it. Start → P; P's normal branch and
+    its credit branch both lead to J; J judges and leads to itself. Controller 0 prefers running P
+    (Q_CS(P) = [0, −0.5]), controller 1 skipping it ([−0.5, 0]). γ = 0.9, α = 1, ε = 0,
+    `skip_reward = "step"`; hand-computed: after the first step pays −1, Q_CS(P, normal) of
+    controller 0 is −1 + 0.9·0 = −1, Q_CS(P, skip) of controller 1 stays 0 + 0.9·0 = 0, and
+    its −1 lands on J (then −0.9, −0.81, −0.729, −0.6561 over J's next four visits)."""
+    cfg = gnp.GnpConfig(
+        method="CS", fuzzy=False, n_judgment=1, n_processing=1, n_sub=1, gamma=0.9,
+        tie_break="first", skip_reward="step",
+    )  # fmt: skip
+    pop = gnp.init_population(cfg, 2, np.random.default_rng(0))
+    start, j, p = 0, 1, 2
+    pop.conn[:, start, 0, 0, 0] = p
+    pop.conn[:, j, 0, :, 0] = j
+    pop.conn[:, p, 0, 0, 0] = j
+    pop.credit[:, j, 0] = j
+    pop.credit[:, p, 0] = j
+    pop.speed[:, p, 0] = 7
+    pop.q_cs[0, p, 0] = [0.0, -0.5]
+    pop.q_cs[1, p, 0] = [-0.5, 0.0]
+    pop.q_cs[:, j, 0, 1] = -100.0  # J always runs (judges)
+    state = gnp.init_state(cfg, 2, [1, 2])
+    obs = np.full((2, cfg.n_inputs), 500.0)
+    wheels, trace = gnp.step(cfg, pop, state, obs, np.zeros(2), 0.0, 1.0, trace=True)
+    assert trace is not None
+    assert trace.node[0, : trace.count[0]].tolist() == [start, p]  # P runs: the step is spent
+    assert trace.node[1, : trace.count[1]].tolist() == [start, p, j, j, j, j]
+    assert trace.skipped[1, 1] == 1
+    assert np.any(wheels[0] == 7.0) and np.all(wheels[1] == 0.0)  # only controller 0 acted
+    gnp.step(cfg, pop, state, obs, np.full(2, -1.0), 0.0, 1.0)
+    np.testing.assert_array_equal(pop.q_cs[0, p, 0], np.float32([-1.0, -0.5]))
+    np.testing.assert_array_equal(pop.q_cs[1, p, 0], np.float32([-0.5, 0.0]))
+    assert pop.q_cs[0, j, 0, 0] == 0.0
+    assert pop.q_cs[1, j, 0, 0] == pytest.approx(-0.6561, abs=1e-6)
+    # greedy (ties to the first), controller 0 now prefers the skip at P (−0.5 > −1)
+    assert int(np.argmax(pop.q_cs[0, p, 0])) == 1
