@@ -149,7 +149,7 @@ def parse_faults(spec: object, where: str, robots_allowed: bool) -> list[Fault]:
     return faults
 
 
-def check_options(options: Mapping[str, Any] | None) -> dict:
+def check_options(options: Mapping[str, Any] | None) -> dict[str, Any]:
     """The reset options as a dict, an unknown key refused."""
     if options is None:
         return {}
@@ -192,7 +192,9 @@ class TopDown:
         self.x = self.origin[0] + centres[None, :]
         self.y = self.origin[1] + centres[::-1, None]  # row 0 at the top: +y up
 
-    def _line(self, frame: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple) -> None:
+    def _line(
+        self, frame: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int]
+    ) -> None:
         count = int(np.ceil(np.hypot(*(b - a)) * self.scale * 2)) + 2
         points = a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
         col, row = ((points - self.origin) * self.scale).astype(int).T
