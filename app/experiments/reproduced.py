@@ -266,7 +266,7 @@ def _against_control(c: dict[str, Any], report: dict[str, Any]) -> bool:
     )
 
 
-def _every(c: dict[str, Any], report: dict[str, Any]) -> bool:
+def _every(_c: dict[str, Any], _report: dict[str, Any]) -> bool:
     return True
 
 
@@ -292,7 +292,7 @@ READING = (
 def _kind(kind: str) -> Callable[[Reports, Path], str]:
     """The section of every thesis experiment's claims of one kind, with their tally."""
 
-    def write(reports: Reports, folder: Path) -> str:
+    def write(reports: Reports, _folder: Path) -> str:
         claims = [
             c
             for (name, scale), report in reports.items()
@@ -319,7 +319,7 @@ SECTIONS: dict[str, Section] = {
     "questions": _kind("question"),
     "beyond": lambda r, _: claims_tables(r, _every, "beyond"),
     "spent": spent_table,
-    "costs": lambda r, _: cost_table(),
+    "costs": lambda _r, _: cost_table(),
 }
 
 

@@ -228,7 +228,7 @@ def run_implementation(
         life, f"recording {recorded} trials of {settings.steps} steps", ImplementationError
     )
     parts = trial_worlds(trials, recorded)
-    report = progress or (lambda done, total: None)
+    report = progress or (lambda _done, _total: None)
     total = parts[-1].stop * settings.steps
     calls = [
         (family, individual, settings, seed, control_period, physics, noise_stream, c_from, part,
