@@ -50,6 +50,7 @@ from sim.khepera import (
     MAX_COMMAND,
     N_SENSORS,
 )
+from sim.kinds import DEFAULT_PHYSICS
 from sim.reward import C_FROM, TERM_NAMES, CFrom, reward_table
 from sim.world import PHYSICS, Physics, World
 
@@ -234,7 +235,7 @@ class WallFollowEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         arena: ArenaArg = "training",
         noise: float = 0.0,
-        physics: Physics = "pymunk",
+        physics: Physics = DEFAULT_PHYSICS,
         c_from: CFrom = "true",
         fault: object = None,
         start: int | None = None,
