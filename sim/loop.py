@@ -16,7 +16,7 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-from sim import analytic, drive, khepera, noise, rays, reward, sensors
+from sim import analytic, drive, faults, khepera, noise, rays, reward, sensors
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
 
@@ -160,9 +160,11 @@ def judge(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
     reward.reward_kernel(readings, commands, out)
 
 
-#: What this module's cached kernels were compiled against: sim/khepera.py's constants and
-#: the modules whose kernels it calls (sim.kernel_cache).
-COMPILED_AGAINST = source_fingerprint(analytic, drive, khepera, noise, rays, reward, sensors)
+#: What this module's cached kernels were compiled against: sim/khepera.py's constants,
+#: sim/faults.py's fault codes and the modules whose kernels it calls (sim.kernel_cache).
+COMPILED_AGAINST = source_fingerprint(
+    analytic, drive, faults, khepera, noise, rays, reward, sensors
+)
 
 
 @nb.njit(cache=True)
