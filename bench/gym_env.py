@@ -65,7 +65,7 @@ def main() -> None:
     parser.add_argument("--robots", type=int, default=300)
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--physics", choices=sim.PHYSICS, default="pymunk")
+    parser.add_argument("--physics", choices=sim.PHYSICS, default=sim.DEFAULT_PHYSICS)
     parser.add_argument("--noise", type=float, default=50.0)
     args = parser.parse_args()
     commands = held_commands(args.steps, args.robots)

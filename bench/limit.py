@@ -167,7 +167,7 @@ def sensing_every_wall(life: Life) -> Timed:
     return run
 
 
-def noise(life: Life, stream: sim.NoiseStream = "box-muller-v1") -> Timed:
+def noise(life: Life, stream: sim.NoiseStream = sim.DEFAULT_NOISE_STREAM) -> Timed:
     world = life.world()
     mode = np.zeros(life.readings.shape[1:], np.int8)
     stuck = np.zeros(life.readings.shape[1:])

@@ -59,11 +59,11 @@ def generation(population: int, steps: int, stream: str) -> float:
     sys.path.insert(0, HERE)
     import versus  # bench/versus.py: the same config and timing
 
-    config = versus._config(population, steps)
-    training = config.training.model_copy(update={"noise_stream": stream})
     original = versus._config
 
     def with_stream(population: int, steps: int) -> Any:
+        config = original(population, steps)
+        training = config.training.model_copy(update={"noise_stream": stream})
         return config.model_copy(update={"training": training})
 
     versus._config = with_stream

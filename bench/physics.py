@@ -92,7 +92,7 @@ def training_loop(physics: sim.Physics, population: int, steps: int, generations
     )
     marks: list[float] = []
 
-    def progress(summary: GenerationSummary) -> None:
+    def progress(_summary: GenerationSummary) -> None:
         marks.append(time.process_time())
 
     with tempfile.TemporaryDirectory() as folder:

@@ -94,7 +94,7 @@ class Watch:
         self.in_jobs += step
         return out
 
-    def generation(self, summary: GenerationSummary) -> None:
+    def generation(self, _summary: GenerationSummary) -> None:
         wall, cpu = time.perf_counter(), time.process_time()
         kids = children_ns()
         children = sum(ns - self.kids.get(pid, ns) for pid, ns in kids.items()) / 1e9

@@ -12,6 +12,7 @@ and once with the named sensors breaking halfway, so the fault's cost is the dif
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -32,7 +33,7 @@ def braitenberg(observation: np.ndarray) -> np.ndarray:
     return np.array([8.0 - turn, 8.0 + turn])
 
 
-def episode(env: gymnasium.Env, seed: int, fault: dict | None) -> list[float]:
+def episode(env: gymnasium.Env, seed: int, fault: dict[str, Any] | None) -> list[float]:
     """The rewards of one episode from `seed`, with `fault` as the reset option."""
     observation, _ = env.reset(seed=seed, options={"fault": fault} if fault else None)
     rewards = []

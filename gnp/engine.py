@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import NoReturn, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from gnp.config import GnpConfig, GnpError
 from gnp.kernel import record_layout, step_kernel
@@ -318,9 +319,27 @@ def step(
     return state.wheels.copy(), None
 
 
+KernelArguments: TypeAlias = tuple[
+    int,
+    bool,
+    float,
+    int,
+    int,
+    int,
+    int,
+    npt.NDArray[np.uint8],
+    tuple[int, ...],
+    npt.NDArray[np.int32],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.uint64],
+]
+"""`kernel_arguments`' tuple: method code, fuzzy, γ, the four sizes, the record bytes, the record
+layout, and the state's walk, wheels and rng."""
+
+
 def kernel_arguments(
     method_code: int, cfg: GnpConfig, pop: Population, state: EngineState
-) -> tuple:
+) -> KernelArguments:
     """`step_kernel`'s leading arguments, those that stay the same from step to step: the
     method, the config's sizes, the population's records and the engine state (arrays are the
     population's and the state's own, so a compiled loop that calls `step_kernel` with them

@@ -208,7 +208,7 @@ class NeatSearch:
                 f"fitness must be ({len(genomes)},) finite values, got {fitness.shape}"
             )
 
-        def assign(pairs: list[tuple[int, Any]], config: Any) -> None:
+        def assign(pairs: list[tuple[int, Any]], _config: Any) -> None:
             for (_, genome), value in zip(pairs, fitness.tolist(), strict=True):
                 genome.fitness = value
 

@@ -8,7 +8,9 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-#: Inputs (IR sensors) and outputs (wheels: left, right) of every net.
+#: Inputs (IR sensors) and outputs (wheels: left, right) of every net: the robot's
+#: (`sim.N_SENSORS`, two wheels). neuro does not import sim, so it keeps its own copy;
+#: tests/app/test_sim_gnp_boundary.py ties the two.
 N_INPUTS = 8
 N_OUTPUTS = 2
 

@@ -9,11 +9,17 @@ so a controller's outputs depend on its own weights and inputs only, never on it
 
 from __future__ import annotations
 
+from typing import TypeAlias
+
 import numba
 import numpy as np
+import numpy.typing as npt
 
 from neuro.net_configs import N_INPUTS, N_OUTPUTS, ElmanConfig, NetConfig, NeuroError
 from neuro.net_configs import RecurrentConfig as RecurrentConfig  # still importable from here
+
+Floats: TypeAlias = npt.NDArray[np.float64]
+"""The nets' float64 arrays, as the kernels read them."""
 
 #: NEAT's tanh: tanh(clamp(2.5 z, −60, 60)) (neat-python's `tanh_activation`).
 NEAT_GAIN = 2.5
@@ -112,7 +118,17 @@ def step(
 
 
 @numba.njit(cache=True)
-def _elman(w_in, w_rec, b_h, w_out, b_out, hidden, x, new_hidden, out):
+def _elman(
+    w_in: Floats,
+    w_rec: Floats,
+    b_h: Floats,
+    w_out: Floats,
+    b_out: Floats,
+    hidden: Floats,
+    x: Floats,
+    new_hidden: Floats,
+    out: Floats,
+) -> None:
     n, h = hidden.shape
     for i in range(n):
         for j in range(h):
@@ -130,7 +146,15 @@ def _elman(w_in, w_rec, b_h, w_out, b_out, hidden, x, new_hidden, out):
 
 
 @numba.njit(cache=True)
-def _recurrent(weights, bias, response, active, values, x, new_values):
+def _recurrent(
+    weights: Floats,
+    bias: Floats,
+    response: Floats,
+    active: npt.NDArray[np.int8],
+    values: Floats,
+    x: Floats,
+    new_values: Floats,
+) -> None:
     n, m = values.shape
     n_in = x.shape[1]
     for i in range(n):

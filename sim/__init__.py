@@ -27,7 +27,15 @@ if TYPE_CHECKING:
         MAX_COMMAND,
         N_SENSORS,
     )
-    from sim.kinds import NOISE_STREAMS, PHYSICS, TERM_NAMES, NoiseStream, Physics
+    from sim.kinds import (
+        DEFAULT_NOISE_STREAM,
+        DEFAULT_PHYSICS,
+        NOISE_STREAMS,
+        PHYSICS,
+        TERM_NAMES,
+        NoiseStream,
+        Physics,
+    )
     from sim.reward import reward_table, reward_terms
     from sim.sensors import WallGrid, ir_readings, sensor_rays
     from sim.world import World
@@ -36,6 +44,8 @@ __all__ = [
     "ARENA_NAMES",
     "BODY_RADIUS_MM",
     "CONTROL_PERIOD_S",
+    "DEFAULT_NOISE_STREAM",
+    "DEFAULT_PHYSICS",
     "FAULT_MODES",
     "IR_MAX",
     "IR_RANGE_MM",
@@ -76,7 +86,15 @@ _HOMES = {
         "MAX_COMMAND",
         "N_SENSORS",
     ),
-    "kinds": ("NOISE_STREAMS", "PHYSICS", "TERM_NAMES", "NoiseStream", "Physics"),
+    "kinds": (
+        "DEFAULT_NOISE_STREAM",
+        "DEFAULT_PHYSICS",
+        "NOISE_STREAMS",
+        "PHYSICS",
+        "TERM_NAMES",
+        "NoiseStream",
+        "Physics",
+    ),
     "reward": ("reward_table", "reward_terms"),
     "sensors": ("WallGrid", "ir_readings", "sensor_rays"),
     "world": ("World",),

@@ -4,6 +4,7 @@ import numpy as np
 
 from sim.arena import Arena
 from sim.khepera import BODY_RADIUS_MM, IR_MAX, MAX_COMMAND
+from sim.kinds import DEFAULT_PHYSICS
 from sim.world import Physics, World
 
 MAX_PENETRATION_MM = 2.0
@@ -16,7 +17,7 @@ def check_world(
     steps: int = 300,
     seed: int = 0,
     noise_sigma: float = 50.0,
-    physics: Physics = "pymunk",
+    physics: Physics = DEFAULT_PHYSICS,
 ) -> None:
     """Assert the world's contract on an arena.
 

@@ -15,6 +15,17 @@ FaultMode = Literal["dead", "saturated", "stuck", "random"]
 FAULT_MODES: tuple[FaultMode, ...] = get_args(FaultMode)
 """Fault modes; their codes in ``World.fault_modes`` are 1..4 in this order (0 = healthy)."""
 
+FAULT_CODES: dict[FaultMode, int] = {mode: code for code, mode in enumerate(FAULT_MODES, 1)}
+"""Each fault mode's code in ``World.fault_modes``: 1 + its index in ``FAULT_MODES``. The noise
+kernels compare against the codes below, which numba freezes into its cache (``sim.noise``
+checks them at import, see ``sim.kernel_cache``)."""
+HEALTHY_CODE = 0
+"""The code of a sensor that works."""
+DEAD_CODE = FAULT_CODES["dead"]
+SATURATED_CODE = FAULT_CODES["saturated"]
+STUCK_CODE = FAULT_CODES["stuck"]
+RANDOM_CODE = FAULT_CODES["random"]
+
 
 class WorldError(ValueError):
     """Bad input to a ``World`` (shapes, ranges, sensor or robot indices, fault modes)."""
@@ -61,6 +72,6 @@ def check_sensors(sensors: int | Iterable[int]) -> np.ndarray:
 
 def mode_code(mode: str) -> int:
     """A fault mode's code in ``World.fault_modes`` (1..4); a ``WorldError`` for an unknown one."""
-    if mode not in FAULT_MODES:
+    if mode not in FAULT_CODES:
         raise WorldError(f"unknown fault mode {mode!r}: expected one of {', '.join(FAULT_MODES)}")
-    return FAULT_MODES.index(cast(FaultMode, mode)) + 1
+    return FAULT_CODES[cast(FaultMode, mode)]

@@ -50,6 +50,7 @@ from sim.khepera import (
     MAX_COMMAND,
     N_SENSORS,
 )
+from sim.kinds import DEFAULT_PHYSICS
 from sim.reward import C_FROM, TERM_NAMES, CFrom, reward_table
 from sim.world import PHYSICS, Physics, World
 
@@ -149,7 +150,7 @@ def parse_faults(spec: object, where: str, robots_allowed: bool) -> list[Fault]:
     return faults
 
 
-def check_options(options: Mapping[str, Any] | None) -> dict:
+def check_options(options: Mapping[str, Any] | None) -> dict[str, Any]:
     """The reset options as a dict, an unknown key refused."""
     if options is None:
         return {}
@@ -192,7 +193,9 @@ class TopDown:
         self.x = self.origin[0] + centres[None, :]
         self.y = self.origin[1] + centres[::-1, None]  # row 0 at the top: +y up
 
-    def _line(self, frame: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple) -> None:
+    def _line(
+        self, frame: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int]
+    ) -> None:
         count = int(np.ceil(np.hypot(*(b - a)) * self.scale * 2)) + 2
         points = a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
         col, row = ((points - self.origin) * self.scale).astype(int).T
@@ -232,7 +235,7 @@ class WallFollowEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         arena: ArenaArg = "training",
         noise: float = 0.0,
-        physics: Physics = "pymunk",
+        physics: Physics = DEFAULT_PHYSICS,
         c_from: CFrom = "true",
         fault: object = None,
         start: int | None = None,

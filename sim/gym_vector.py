@@ -40,6 +40,7 @@ from sim.gym_env import (
     start_index,
 )
 from sim.khepera import LIFE_STEPS
+from sim.kinds import DEFAULT_PHYSICS
 from sim.reward import TERM_NAMES, CFrom
 from sim.world import Physics
 
@@ -61,7 +62,7 @@ class WallFollowVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         num_envs: int = 1,
         arena: ArenaArg = "training",
         noise: float = 0.0,
-        physics: Physics = "pymunk",
+        physics: Physics = DEFAULT_PHYSICS,
         c_from: CFrom = "true",
         fault: object = None,
         start: int | None = None,

@@ -5,8 +5,8 @@ numba freezes module globals (the Khepera constants) into its cached machine cod
 invalidates the cache when the kernel's own file changes, not sim/khepera.py, nor the modules
 whose kernels it calls (a kernel moved to another module leaves a cache that names the old one
 and fails to load). So each kernel module caches a copy of what it depends on beside its
-kernels, ``KHEPERA_CONSTANTS`` (``sim.rays``, ``sim.drive``, ``sim.noise``) or the
-``source_fingerprint`` of the modules it calls (``sim.analytic``, ``sim.loop``,
+kernels, ``KHEPERA_CONSTANTS`` (``sim.rays``, ``sim.drive``; ``sim.noise`` adds the fault codes)
+or the ``source_fingerprint`` of the modules it calls (``sim.analytic``, ``sim.loop``,
 ``app.loop.fused``), and at import hands it to ``drop_stale_cache`` (docs/decisions.md, "numba
 caching").
 """

@@ -15,11 +15,15 @@ ziggurat draw per sensor (Doornik's ZIGNOR, 128 layers), from its own 64-bit has
 draws up to float64, from the same (key, step) counters, so a robot's noise still depends on
 nothing but its key and clock; they give different numbers. A new way of drawing is a new
 name, never a change to an old one (docs/decisions.md: A faster noise stream)."""
+DEFAULT_NOISE_STREAM: NoiseStream = "box-muller-v1"
+"""The noise stream of a world or a run that names none (every run before the setting)."""
 
 Physics = Literal["pymunk", "analytic"]
 PHYSICS: tuple[Physics, ...] = get_args(Physics)
 """The world's physics: pymunk (the reference) or analytic (numba, for sweeps; see
 ``sim.analytic``)."""
+DEFAULT_PHYSICS: Physics = "pymunk"
+"""The physics of a world or a run that names none: the reference."""
 
 CFrom = Literal["true", "observed"]
 """What C of Eq. 2.7 is judged from: the true readings, or what the controller sees."""

@@ -14,8 +14,9 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
+import numpy.typing as npt
 
-from sim import analytic, drive, khepera, noise, rays, reward, sensors
+from sim import analytic, drive, faults, khepera, noise, rays, reward, sensors
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
 
@@ -114,7 +115,12 @@ def observe(world: WorldArrays, t: int) -> None:
 
 
 @nb.njit(cache=True, inline="always")
-def read_lazily(observed: np.ndarray, source: tuple, i: int, j: int) -> float:
+def read_lazily(
+    observed: npt.NDArray[np.float64],
+    source: tuple[WorldArrays, int, npt.NDArray[np.bool_]],
+    i: int,
+    j: int,
+) -> float:
     """What robot i sees of sensor j at the step `source` = (world, t, drawn) names, drawn
     the first time a sensor of its pair is read in the step (`drawn`: (N, 4) bool, cleared each
     step): the value `observe` gives, computed only for the sensors a controller reads (a
@@ -154,9 +160,11 @@ def judge(readings: np.ndarray, commands: np.ndarray, out: np.ndarray) -> None:
     reward.reward_kernel(readings, commands, out)
 
 
-#: What this module's cached kernels were compiled against: sim/khepera.py's constants and
-#: the modules whose kernels it calls (sim.kernel_cache).
-COMPILED_AGAINST = source_fingerprint(analytic, drive, khepera, noise, rays, reward, sensors)
+#: What this module's cached kernels were compiled against: sim/khepera.py's constants,
+#: sim/faults.py's fault codes and the modules whose kernels it calls (sim.kernel_cache).
+COMPILED_AGAINST = source_fingerprint(
+    analytic, drive, faults, khepera, noise, rays, reward, sensors
+)
 
 
 @nb.njit(cache=True)

@@ -10,6 +10,7 @@ import math
 import numba as nb
 import numpy as np
 
+from sim.faults import DEAD_CODE, RANDOM_CODE, SATURATED_CODE, STUCK_CODE
 from sim.kernel_cache import KHEPERA_CONSTANTS, drop_stale_cache
 from sim.khepera import IR_MAX, N_SENSORS
 from sim.kinds import NOISE_STREAMS
@@ -225,7 +226,7 @@ def observe_pair(
     if sigma > 0.0:
         noise_0, noise_1 = _normal_pair(key, step, sigma, stream, b)
     uniform_0 = uniform_1 = 0.0
-    if mode[i, 2 * b] == 4 or mode[i, 2 * b + 1] == 4:
+    if mode[i, 2 * b] == RANDOM_CODE or mode[i, 2 * b + 1] == RANDOM_CODE:
         uniform_0, uniform_1 = _halves(_hash(key, step, _BLOCK_UNIFORM + b))
     out[i, 2 * b] = _seen(
         true[i, 2 * b], sigma, noise_0, mode[i, 2 * b], stuck[i, 2 * b], uniform_0
@@ -240,21 +241,28 @@ def _seen(x: float, sigma: float, noise: float, f: int, stuck: float, uniform: f
     """One sensor as the controller sees it: the true reading x, noise, then its fault."""
     if sigma > 0.0:
         x = min(IR_MAX, max(0.0, x + noise))
-    if f == 1:  # dead
+    if f == DEAD_CODE:
         x = 0.0
-    elif f == 2:  # saturated
+    elif f == SATURATED_CODE:
         x = IR_MAX
-    elif f == 3:  # stuck
+    elif f == STUCK_CODE:
         x = stuck
-    elif f == 4:  # random
+    elif f == RANDOM_CODE:
         x = IR_MAX * uniform
     return x
 
 
+COMPILED_AGAINST = np.concatenate(
+    [KHEPERA_CONSTANTS, np.array([DEAD_CODE, SATURATED_CODE, STUCK_CODE, RANDOM_CODE], np.float64)]
+)
+"""What this module's kernels freeze from other files: the robot's constants and the fault
+codes (``sim.faults``)."""
+
+
 @nb.njit(cache=True)
 def _frozen_constants() -> np.ndarray:
-    """``KHEPERA_CONSTANTS`` as numba froze them into this module's cache."""
-    return KHEPERA_CONSTANTS.copy()
+    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
+    return COMPILED_AGAINST.copy()
 
 
-drop_stale_cache(globals(), _frozen_constants)
+drop_stale_cache(globals(), _frozen_constants, COMPILED_AGAINST)

@@ -11,9 +11,16 @@ import pymunk
 from sim import drive, noise, rays
 from sim.analytic import AnalyticBodies
 from sim.arena import Arena
-from sim.faults import FAULT_MODES, Fault, FaultMode, WorldError, check_sensors, mode_code
+from sim.faults import (
+    STUCK_CODE,
+    Fault,
+    FaultMode,
+    WorldError,
+    check_sensors,
+    mode_code,
+)
 from sim.khepera import BODY_RADIUS_MM, CONTROL_PERIOD_S, N_SENSORS
-from sim.kinds import PHYSICS, NoiseStream, Physics
+from sim.kinds import DEFAULT_NOISE_STREAM, DEFAULT_PHYSICS, PHYSICS, NoiseStream, Physics
 from sim.loop import WorldArrays
 from sim.spaces import SOLVER_ITERATIONS, Chunk, copy_layout
 
@@ -57,8 +64,8 @@ class World:
         noise_sigma: float = 0.0,
         control_period: float = CONTROL_PERIOD_S,
         substeps: int = DEFAULT_SUBSTEPS,
-        physics: Physics = "pymunk",
-        noise_stream: NoiseStream = "box-muller-v1",
+        physics: Physics = DEFAULT_PHYSICS,
+        noise_stream: NoiseStream = DEFAULT_NOISE_STREAM,
     ) -> None:
         if not isinstance(arena, Arena):
             raise WorldError(f"arena must be a sim.Arena (see sim.load_arena), got {arena!r}")
@@ -373,7 +380,7 @@ class World:
         which = check_sensors(sensors)
         code = mode_code(mode)
         index = self._robot_index(robots)
-        if code == FAULT_MODES.index("stuck") + 1:
+        if code == STUCK_CODE:
             seen = self.observe()
             rows = np.ix_(index, which)
             self._stuck[rows] = seen[rows]

@@ -51,7 +51,7 @@ def cmd_implement(args: argparse.Namespace) -> int:
     trial_steps = sim.N_START_POSES * settings.repeats * settings.steps
     bar = Bar(trial_steps, 0, "implement", "trial-step", args.quiet)
 
-    def progress(done: int, total: int) -> None:
+    def progress(done: int, _total: int) -> None:
         bar.update(done)
 
     try:

@@ -114,7 +114,7 @@ def thesis_cell(claim: Claim) -> str:
     return "thesis: " + ", ".join(shown)
 
 
-def claim_row(report: CommittedReport, claim: Claim) -> list[str]:
+def claim_row(claim: Claim) -> list[str]:
     """One claim's cells: name (sentence in its tooltip) over Δ [interval] and the thesis's
     value; look and runs; verdict with its labels."""
     iv = claim.interval
@@ -154,7 +154,7 @@ def claims_tables(report: CommittedReport) -> str:
     for title, chosen in groups:
         if chosen:
             rows = [f"| {CLAIM_HEADER} | look, runs | verdict |", "|---|---|---|"]
-            rows += ["| " + " | ".join(claim_row(report, c)) + " |" for c in chosen]
+            rows += ["| " + " | ".join(claim_row(c)) + " |" for c in chosen]
             parts.append(f"**{title}** ({len(chosen)})\n\n" + "\n".join(rows))
     parts.append(
         f"<small>Verdicts: {_cell(tally(report.raw.get('comparisons', [])))}. Δ = a − b with its "

@@ -174,7 +174,7 @@ def _spec(args: argparse.Namespace) -> ExperimentSpec:
 def main(args: argparse.Namespace) -> int:
     """Run `gnp-lab experiment VERB`."""
     if args.verb == "list":
-        return cmd_list(args)
+        return cmd_list()
     if args.verb == "reproduced":
         from app.experiments.reproduced import write_page
 
@@ -468,7 +468,7 @@ def _core_time(seconds: float) -> str:
     return f"{float(f'{seconds:.2g}'):g} core-seconds"
 
 
-def cmd_list(args: argparse.Namespace) -> int:
+def cmd_list() -> int:
     from app.experiments import planning
     from app.experiments.reproduced import short_count
 

@@ -25,7 +25,7 @@ def _emitter(task: Task) -> Callable[[dict[str, Any]], None]:
 
         worker = get_worker()
     except (ImportError, ValueError):
-        return lambda msg: None
+        return lambda _msg: None
     return lambda msg: worker.log_event(TOPIC, {"task": task.key, **msg})
 
 

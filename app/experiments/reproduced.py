@@ -266,7 +266,7 @@ def _against_control(c: dict[str, Any], report: dict[str, Any]) -> bool:
     )
 
 
-def _every(c: dict[str, Any], report: dict[str, Any]) -> bool:
+def _every(_c: dict[str, Any], _report: dict[str, Any]) -> bool:
     return True
 
 
@@ -280,7 +280,8 @@ READING = (
     "`ruled out`: it excludes the effect the claim names: where the thesis prints both sides' "
     "values, its own Δ under both readings, absolute and relative to its baseline (a reading no "
     "run could reach is dropped; values pointing against the claim leave nothing to rule out); "
-    "elsewhere a smallest effect of interest, 0.02 unless the file says otherwise; "
+    "elsewhere the smallest effect of interest the file declares (none declared: nothing is "
+    "ruled out); "
     "`undecided`: none of these, with the seeds per arm that 80% power would need at that "
     "effect (the label says which). `post hoc`: the claim or its margin was declared after "
     "data of both its sides had been committed; such verdicts are counted apart. "
@@ -292,7 +293,7 @@ READING = (
 def _kind(kind: str) -> Callable[[Reports, Path], str]:
     """The section of every thesis experiment's claims of one kind, with their tally."""
 
-    def write(reports: Reports, folder: Path) -> str:
+    def write(reports: Reports, _folder: Path) -> str:
         claims = [
             c
             for (name, scale), report in reports.items()
@@ -319,7 +320,7 @@ SECTIONS: dict[str, Section] = {
     "questions": _kind("question"),
     "beyond": lambda r, _: claims_tables(r, _every, "beyond"),
     "spent": spent_table,
-    "costs": lambda r, _: cost_table(),
+    "costs": lambda _r, _: cost_table(),
 }
 
 

@@ -14,6 +14,7 @@ import json
 from typing import Any
 
 from distributed import WorkerPlugin
+from typing_extensions import override  # typing.override from Python 3.12 on
 
 from app.brains.registry import family_of
 from app.phases.warm import warm_up
@@ -44,5 +45,6 @@ class WarmWorkers(WorkerPlugin):
         ]
         self.name = f"gnp-lab-warm-{digest}"  # one registration per set of controllers
 
+    @override
     def setup(self, worker: Any) -> None:
         warm_up(self.configs)

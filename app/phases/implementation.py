@@ -208,8 +208,8 @@ def run_implementation(
     workers: int = 1,
     progress: StepProgress | None = None,
     c_from: CFrom = "true",
-    physics: sim.Physics = "pymunk",
-    noise_stream: sim.NoiseStream = "box-muller-v1",
+    physics: sim.Physics = sim.DEFAULT_PHYSICS,
+    noise_stream: sim.NoiseStream = sim.DEFAULT_NOISE_STREAM,
 ) -> Implementation:
     """Implement one individual of `family` (with a leading axis of 1); returns the results
     (nothing is written).
@@ -228,7 +228,7 @@ def run_implementation(
         life, f"recording {recorded} trials of {settings.steps} steps", ImplementationError
     )
     parts = trial_worlds(trials, recorded)
-    report = progress or (lambda done, total: None)
+    report = progress or (lambda _done, _total: None)
     total = parts[-1].stop * settings.steps
     calls = [
         (family, individual, settings, seed, control_period, physics, noise_stream, c_from, part,

@@ -35,7 +35,6 @@ class Lives:
 
 
 def _live(
-    world: sim.World,
     batch: Batch,
     recorded: Any,
     seeds: LifeSeeds,
@@ -90,7 +89,7 @@ def live(
     if not learn:  # nothing reads ε and α then; the file records them as NaN
         epsilon = alpha = 0.0
     recorded = family.trace_layout
-    return _live(world, batch, recorded, seeds, steps, redraw_every, epsilon, alpha, learn, record)
+    return _live(batch, recorded, seeds, steps, redraw_every, epsilon, alpha, learn, record)
 
 
 def make_world(config: RunConfig, n: int) -> sim.World:

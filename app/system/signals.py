@@ -43,7 +43,7 @@ _signals_heard = 0
 """How many stop signals `raise_interrupt` has turned into KeyboardInterrupt in this process."""
 
 
-def raise_interrupt(signum: int, frame: object) -> None:
+def raise_interrupt(_signum: int, _frame: object) -> None:
     """A signal handler: SIGTERM (or any) ends the main thread's work as Ctrl-C does, so every
     `with` and `finally` under way (a pool's close, a temporary file's removal) runs."""
     global _signals_heard

@@ -390,7 +390,7 @@ def share_out(
     function: Callable[..., Any],
     calls: Sequence[tuple[Any, ...]],
     workers: int,
-    report: Count = lambda done: None,
+    report: Count = lambda _done: None,
     method: str | None = None,
 ) -> list[Any]:
     """`[function(*call, count) for call in calls]`, on this process and `workers` − 1 children.

@@ -25,9 +25,10 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 from pydantic import BaseModel, ConfigDict, Field
+from typing_extensions import override
 
 import sim
-from app.brains import PLUGINS_VARIABLE, BrainFamily, family_of, register
+from app.brains import PLUGINS_VARIABLE, BrainFamily, Evolution, family_of, register
 from app.settings.config import RunConfig
 from app.settings.loading import build_config
 from app.store import RunReader, RunTemplate
@@ -65,16 +66,19 @@ class Vehicles:
     def size(self) -> int:
         return len(self.gains)
 
+    # The loop's `Controllers.act` (a protocol, named by the lab's loop alone: importing it here
+    # would load the loop's kernels in every process that finds the family): a vehicle neither
+    # learns nor explores, so it reads no reward, ε, α or learning switches.
     def act(
         self,
         observations: np.ndarray,
-        reward: np.ndarray,
-        epsilon: float,
-        alpha: float,
+        reward: np.ndarray,  # noqa: ARG002
+        epsilon: float,  # noqa: ARG002
+        alpha: float,  # noqa: ARG002
         *,
-        learn: bool,
+        learn: bool,  # noqa: ARG002
         trace: bool,
-        second_stage: bool,
+        second_stage: bool,  # noqa: ARG002
     ) -> tuple[np.ndarray, Drive | None]:
         drive = self.bias + np.einsum("nws,ns->nw", self.gains, observations / sim.IR_MAX)
         return np.clip(drive, -1.0, 1.0) * sim.MAX_COMMAND, Drive(drive) if trace else None
@@ -83,12 +87,13 @@ class Vehicles:
         pass  # no memory
 
 
-class VehicleEvolution:
+class VehicleEvolution(Evolution):
     """Truncation selection: the best `parents` live on, the rest are their mutated copies."""
 
     def __init__(self, family: Braitenberg, arrays: dict[str, np.ndarray]) -> None:
         self._family, self._arrays = family, arrays
 
+    @override
     def epsilon_alpha(self, generation: int) -> tuple[float, float]:
         return float("nan"), float("nan")
 
@@ -138,6 +143,7 @@ class Braitenberg(BrainFamily):
         }
         return VehicleEvolution(self, arrays)
 
+    @override
     def rebuild(
         self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
     ) -> VehicleEvolution:
@@ -154,6 +160,7 @@ class Braitenberg(BrainFamily):
     def from_arrays(self, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {"gains": np.asarray(arrays["gains"], float), "bias": np.asarray(arrays["bias"])}
 
+    @override
     def controllers(self, individuals: dict[str, np.ndarray], engine_seeds: np.ndarray) -> Vehicles:
         return Vehicles(individuals)
 

@@ -212,7 +212,7 @@ def test_a_live_adaptive_view_shows_the_looks_made_so_far(job: Any, spec: Experi
     assert "when the experiment finishes" in stale.verdicts and stale.stages == ""
 
 
-def test_a_run_that_is_not_adaptive_has_one_look(job: Any, spec: ExperimentSpec) -> None:
+def test_a_run_that_is_not_adaptive_has_one_look(job: Any) -> None:
     results = read_summary(layout.summary_path(job.runs_dir, "twins", SCALE))
     one_look = type(results)(**{**results.__dict__, "looks": ()})
     _, stages = ev.verdicts_and_stages(one_look)

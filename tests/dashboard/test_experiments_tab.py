@@ -66,7 +66,7 @@ def runs(finished: Path, tmp_path: Path) -> Path:
     return tmp_path / "runs"
 
 
-def save_other(runs: Path, spec: ExperimentSpec, name: str = "mine") -> None:
+def save_other(runs: Path, name: str = "mine") -> None:
     """A saved experiment the dashboard has no file of: ch3's summary under another name,
     with BS seed 1's runs unfinished."""
     results = read_summary(layout.summary_path(runs, NAME, SCALE))
@@ -76,10 +76,8 @@ def save_other(runs: Path, spec: ExperimentSpec, name: str = "mine") -> None:
     write_summary(other, layout.summary_path(runs, name, SCALE))
 
 
-def test_the_catalogue_lists_shipped_and_saved_experiments_with_runs_done(
-    runs: Path, spec: ExperimentSpec
-) -> None:
-    save_other(runs, spec)
+def test_the_catalogue_lists_shipped_and_saved_experiments_with_runs_done(runs: Path) -> None:
+    save_other(runs)
     (runs / "experiments" / ".hidden").mkdir()  # not an experiment name: not offered
     (runs / "experiments" / "notes.txt").write_text("not a folder")
     rows = ev.catalogue(runs, ev.shipped_specs())
@@ -110,9 +108,7 @@ def test_a_saved_experiment_that_keeps_its_file_is_offered_with_it(
     assert broken.spec is None and "not valid TOML" in broken.problem
 
 
-def test_a_foreign_run_file_is_reported_not_raised(
-    runs: Path, spec: ExperimentSpec, tmp_path: Path
-) -> None:
+def test_a_foreign_run_file_is_reported_not_raised(runs: Path, spec: ExperimentSpec) -> None:
     folder = runs / "experiments" / NAME / SCALE
     shutil.copyfile(folder / "RL-seed0.h5", folder / "BS-seed0.h5")  # another arm's config
     entry = ev.Entry(NAME, spec)
@@ -181,8 +177,8 @@ def test_a_live_view_reads_the_run_files_and_waits_for_the_verdicts(
     assert rl.label == "RL (n = 1)" and np.isnan(rl.half_width).all()  # one run: no band
 
 
-def test_a_saved_experiment_is_shown_from_its_summary(runs: Path, spec: ExperimentSpec) -> None:
-    save_other(runs, spec)
+def test_a_saved_experiment_is_shown_from_its_summary(runs: Path) -> None:
+    save_other(runs)
     view = ev.build_view(ev.Entry("mine", None), SCALE, runs)
     assert view.count == ev.ScaleCount(3, 4)
     assert "saved" in view.about and VERDICT.search(view.verdicts)
@@ -236,8 +232,8 @@ def test_run_paths_cannot_escape_the_runs_dir(
 
 
 @pytest.fixture
-def dashboard(runs: Path, spec: ExperimentSpec) -> Iterator[Any]:
-    save_other(runs, spec)
+def dashboard(runs: Path) -> Iterator[Any]:
+    save_other(runs)
     (runs / "experiments" / "broken").mkdir()  # keeps a file that is not an experiment
     (runs / "experiments" / "broken" / layout.DEFINITION).write_text("name = ")
     with dashboard_in_process(runs) as board:

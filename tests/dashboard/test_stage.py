@@ -70,7 +70,7 @@ def test_the_best_of_a_run_is_its_last_generations_best(runs_dir: Path) -> None:
 def test_restage_moves_the_robots_or_restarts_them(cs: RobotSpec) -> None:
     stage = Stage()
     staged: list[tuple[str, int]] = []
-    stage.on_staged(lambda show, session: staged.append((show.arena, show.start)))
+    stage.on_staged(lambda show, _session: staged.append((show.arena, show.start)))
     stage.present(show_of(cs))
     live(stage).step(30)
 

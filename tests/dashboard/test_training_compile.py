@@ -20,7 +20,7 @@ def test_a_cold_cache_is_compiled_aside_and_said(
 ) -> None:
     # The child compiles into an empty cache of its own (this process's numba keeps its own).
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(training_job, "kernels_warm", lambda configs: False)
+    monkeypatch.setattr(training_job, "kernels_warm", lambda _configs: False)
     job = TrainingJob(tiny_run_config("CS"), tmp_path / "run.h5", workers=1)
     said: list[str] = []
     while job.active:

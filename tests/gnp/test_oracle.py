@@ -74,7 +74,7 @@ def test_engine_matches_reference(method: str, fuzzy: bool, task_settings: dict)
 
 
 SECOND_STAGE_PATTERNS = {
-    "off": lambda t: False,
+    "off": lambda _t: False,
     "toggled": lambda t: (t // 23) % 2 == 1,  # off and on in turns, mid-episode
 }
 

@@ -28,9 +28,7 @@ def runs_dir(tmp_path: Path, finished_run: Path) -> Path:
     return runs
 
 
-def test_train_implement_and_inspect(
-    tmp_path: Path, runs_dir: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_train_implement_and_inspect(runs_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = runs_dir / "new.h5"
     argv = ["train", "--population", "8", "--generations", "2", "--steps", "30", "--seed", "3"]
     argv += ["--method", "BS", "--crisp", "--noise", "20", "--out", str(out), "--workers", "1"]

@@ -8,7 +8,11 @@ name of another package) fails here.
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterator
 from pathlib import Path
+
+import sim
+from sim import faults
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -184,3 +188,80 @@ def test_the_training_life_is_the_envs_episode() -> None:
 
     spec = gymnasium.spec("GnpLab/WallFollow-v0")
     assert TrainingSettings().steps == LIFE_STEPS == spec.max_episode_steps == 1000
+
+
+# --- the world's defaults and fault codes (#46 item 4) -----------------------------------------
+
+FACT_SOURCES = ("sim", "gnp", "neuro", "app", "bench", "examples")
+HOME = "sim/kinds.py"
+FACTS = {sim.DEFAULT_PHYSICS: "DEFAULT_PHYSICS", sim.DEFAULT_NOISE_STREAM: "DEFAULT_NOISE_STREAM"}
+PENDING = {
+    # #46: modules another branch edits; they still spell both defaults.
+    "app/settings/config.py": {"pymunk", "box-muller-v1"},
+    "app/settings/arenas.py": {"pymunk", "box-muller-v1"},
+}
+
+
+def _strings(node: ast.expr | None) -> Iterator[str]:
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        yield node.value
+
+
+def written_defaults(tree: ast.AST) -> Iterator[str]:
+    """Every string given as a default: a parameter's default, a `default=` argument (argparse,
+    pydantic's `Field`), or a name's or a field's value (`X = "..."`, `x: T = "..."`)."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda):
+            for default in [*node.args.defaults, *node.args.kw_defaults]:
+                yield from _strings(default)
+        elif isinstance(node, ast.Call):
+            for keyword in node.keywords:
+                if keyword.arg == "default":
+                    yield from _strings(keyword.value)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            yield from _strings(node.value)
+
+
+def modules_writing(fact: str) -> set[str]:
+    found = set()
+    for package in FACT_SOURCES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if fact in written_defaults(ast.parse(path.read_text(encoding="utf-8"))):
+                found.add(path.relative_to(ROOT).as_posix())
+    return found
+
+
+def test_the_default_physics_and_noise_stream_are_written_in_one_module() -> None:
+    assert sim.DEFAULT_PHYSICS in sim.PHYSICS
+    assert sim.DEFAULT_NOISE_STREAM in sim.NOISE_STREAMS
+    for fact, name in FACTS.items():
+        pending = {module for module, facts in PENDING.items() if fact in facts}
+        assert modules_writing(fact) == {HOME, *pending}, (
+            f"{fact!r} is a default in one module, {HOME}: elsewhere write sim.{name}"
+        )
+
+
+def test_the_noise_kernel_names_the_fault_codes() -> None:
+    """The codes are 1 + each mode's index in `FAULT_MODES`, and the kernels compare a sensor's
+    mode with those names, never with a bare number."""
+    codes = dict(faults.FAULT_CODES)
+    assert codes == {m: i + 1 for i, m in enumerate(sim.FAULT_MODES)}
+    assert faults.HEALTHY_CODE == 0 not in codes.values()
+    tree = ast.parse((ROOT / "sim" / "noise.py").read_text(encoding="utf-8"))
+    kernels = {
+        node.name: node
+        for node in ast.walk(tree)
+        if isinstance(node, ast.FunctionDef) and node.name in ("_seen", "observe_pair")
+    }
+    assert set(kernels) == {"_seen", "observe_pair"}
+    for name, kernel in kernels.items():
+        compared = [
+            side
+            for node in ast.walk(kernel)
+            if isinstance(node, ast.Compare)
+            for side in (node.left, *node.comparators)
+        ]
+        numbers = [s.value for s in compared if isinstance(s, ast.Constant)]
+        assert not [n for n in numbers if isinstance(n, int)], f"{name} compares with {numbers}"
+        named = {s.id for s in compared if isinstance(s, ast.Name)}
+        assert named & {"DEAD_CODE", "SATURATED_CODE", "STUCK_CODE", "RANDOM_CODE"}, name

@@ -1,11 +1,12 @@
-"""The facts `sim` and `gnp` must agree on, tied here: neither package imports the other, so each
-keeps its own constant and this test (which may import both) fails when one of them moves."""
+"""The facts `sim`, `gnp` and `neuro` must agree on, tied here: none of them imports another, so
+each keeps its own constant and this test (which may import them all) fails when one moves."""
 
 from __future__ import annotations
 
 import numpy as np
 
 import gnp
+import neuro
 import sim
 from gnp import config as brain
 from sim import khepera
@@ -18,6 +19,9 @@ def test_constants_on_both_sides_of_the_boundary_agree() -> None:
     # ...and what a processing node sets is a wheel command the world takes.
     assert brain.SPEED_MAX == sim.MAX_COMMAND
     assert brain.N_WHEELS == 2  # the world steps (N, 2) commands: (left, right)
+    # A net's inputs are the same readings, its outputs the same two wheels.
+    assert neuro.N_INPUTS == sim.N_SENSORS
+    assert neuro.N_OUTPUTS == brain.N_WHEELS
 
 
 def test_a_right_wheel_node_turns_the_robot_left() -> None:

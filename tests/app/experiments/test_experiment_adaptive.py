@@ -111,7 +111,10 @@ def adapt(
 
 @pytest.fixture(scope="module")
 def adaptive_run(
-    plant: None, spec_file: Path, client: Any, tmp_path_factory: pytest.TempPathFactory
+    plant: None,  # noqa: ARG001 (requested for its patch: a fixture takes no usefixtures mark)
+    spec_file: Path,
+    client: Any,
+    tmp_path_factory: pytest.TempPathFactory,
 ) -> tuple[ExperimentSpec, Path, ExperimentResults, tuple[Stage, ...], list[str]]:
     spec = load_file(spec_file)
     runs = tmp_path_factory.mktemp("runs")

@@ -48,9 +48,8 @@ def reference(spec: ExperimentSpec, tmp_path_factory: pytest.TempPathFactory) ->
     """The tiny experiment run on an in-process Dask cluster, never interrupted."""
     runs = tmp_path_factory.mktemp("reference")
     with in_process_client() as client:
-        run_experiment(
-            spec, SCALE, runs, options=RunOptions(client=client, quiet=True, echo=lambda line: None)
-        )
+        options = RunOptions(client=client, quiet=True, echo=lambda _line: None)
+        run_experiment(spec, SCALE, runs, options=options)
     return runs
 
 

@@ -81,7 +81,7 @@ def test_a_failed_replay_export_leaves_no_folder(
     from app.export import replay
     from app.store import RunFileError
 
-    def half_written(reader: object, folder: Path) -> None:
+    def half_written(_reader: object, folder: Path) -> None:
         (folder / "index.html").write_text("<html>")  # something written before the failure
         raise RunFileError("corrupt run file tiny.h5: elite/poses unreadable")
 

@@ -96,9 +96,10 @@ def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return calls
 
 
+@pytest.mark.usefixtures("block")
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
 def test_each_compiled_step_is_the_staged_step_to_the_bit(
-    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, compiled_calls: list[int]
 ) -> None:
     staged, stepped, rolled = (_batch(method, fuzzy, c_from) for _ in range(3))
     for _ in range(20):
@@ -116,11 +117,12 @@ def test_each_compiled_step_is_the_staged_step_to_the_bit(
     assert len(compiled_calls) == 2 * (20 - len({f.step for f in FAULTS}))  # fault steps: staged
 
 
+@pytest.mark.usefixtures("block")
 @pytest.mark.parametrize(
     ("method", "fuzzy", "c_from"), [("BS", True, "true"), ("CS", False, "observed")]
 )
 def test_the_ziggurat_stream_is_drawn_alike_compiled_and_staged(
-    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, compiled_calls: list[int]
 ) -> None:
     """The compiled loop (lazy draws when C is true, all four pairs when observed) draws the
     ziggurat-v1 stream the staged path draws, a step per call and 30 steps in one call."""
@@ -146,9 +148,10 @@ def test_the_ziggurat_stream_is_drawn_alike_compiled_and_staged(
     assert not np.array_equal(default.world.observe(), first.world.observe())
 
 
+@pytest.mark.usefixtures("block")
 @pytest.mark.parametrize(("method", "fuzzy", "c_from"), CONTROLLERS)
 def test_a_compiled_rollout_is_the_per_step_rollout_to_the_bit(
-    method: gnp.Method, fuzzy: bool, c_from: CFrom, block: int, compiled_calls: list[int]
+    method: gnp.Method, fuzzy: bool, c_from: CFrom, compiled_calls: list[int]
 ) -> None:
     """Many steps per call, through faults and new episodes, with ε and α changing per step."""
     steps, redraw = 60, 25

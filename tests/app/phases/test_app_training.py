@@ -114,9 +114,7 @@ def test_same_seed_same_file_for_any_worker_count(tmp_path: Path) -> None:
     )
 
 
-def test_a_run_that_cannot_start_on_workers_fails_with_its_file_error(
-    tmp_path: Path, finished_run: Path
-) -> None:
+def test_a_run_that_cannot_start_on_workers_fails_with_its_file_error(finished_run: Path) -> None:
     # The pool starts before the file is checked; its never-used workers are dropped at once.
     before = file_digest(finished_run)
     with pytest.raises(RunFileError, match="already exists; choose another --out"):
@@ -292,7 +290,7 @@ def test_a_stop_request_whose_interrupt_was_swallowed_still_stops(tmp_path: Path
 
     control = training.Control()
 
-    def swallowed_sigterm(summary: training.GenerationSummary) -> None:
+    def swallowed_sigterm(_summary: training.GenerationSummary) -> None:
         control.stopping.set()  # what the handler does before its lost raise
 
     with pytest.raises(training.Interrupted) as stop:

@@ -342,9 +342,7 @@ def test_a_corrupt_file_ends_in_one_line(
     _one_error_line(capsys.readouterr().err, needle)
 
 
-def test_a_corrupt_summary_ends_in_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_a_corrupt_summary_ends_in_one_line(tmp_path: Path) -> None:
     from app.experiments.summary import read_summary
 
     path = tmp_path / "summary-smoke.h5"

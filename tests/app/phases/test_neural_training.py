@@ -94,7 +94,7 @@ def test_a_resume_whose_replay_differs_is_refused(tmp_path: Path) -> None:
 
     control = training.Control()
 
-    def stop(summary: training.GenerationSummary) -> None:
+    def stop(_summary: training.GenerationSummary) -> None:
         control.stop()
 
     with pytest.raises(training.Interrupted):

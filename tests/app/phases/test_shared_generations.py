@@ -142,7 +142,7 @@ def test_a_run_cut_between_checkpoints_resumes_to_the_uncut_run(
 def test_no_shared_block_outlives_a_failed_or_stopped_run(tmp_path: Path) -> None:
     config = tiny_config(population=10, generations=5, steps=40)
 
-    def fail(summary: GenerationSummary) -> None:
+    def fail(_summary: GenerationSummary) -> None:
         assert own_blocks(), "the run works through a shared block"
         raise RuntimeError("the display broke")
 
@@ -150,7 +150,7 @@ def test_no_shared_block_outlives_a_failed_or_stopped_run(tmp_path: Path) -> Non
         train(config, tmp_path / "failed.h5", workers=2, progress=fail)
     assert own_blocks() == []
 
-    def interrupt(summary: GenerationSummary) -> None:
+    def interrupt(_summary: GenerationSummary) -> None:
         raise KeyboardInterrupt  # as Ctrl-C raises it, wherever the loop is
 
     with pytest.raises(Interrupted):

@@ -95,7 +95,7 @@ def test_a_resume_that_fails_half_way_leaves_the_run_intact(
         run.write_checkpoint(1, gnp.population_to_arrays(initial_population(config)))
     before = file_digest(path)
 
-    def crash(source: h5py.File, target: h5py.File) -> None:
+    def crash(_source: h5py.File, target: h5py.File) -> None:
         target["generations/fitness"][0] = np.arange(12)  # some of the copy, then the crash
         raise Crash
 
@@ -115,7 +115,7 @@ def test_a_create_that_fails_half_way_leaves_no_file(
 ) -> None:
     path = tmp_path / "run.h5"
 
-    def crash(handle: h5py.File, template: object) -> None:
+    def crash(handle: h5py.File, _template: object) -> None:
         handle.create_group("progress")
         raise Crash
 

@@ -166,7 +166,7 @@ def test_a_read_that_never_clears_is_a_run_file_error(
     writer, path = _live_file(tmp_path)
     monkeypatch.setattr(reader_module, "_PAUSES", (0.0,) * 6)
 
-    def always_torn(self: RunReader) -> NoReturn:
+    def always_torn(_self: RunReader) -> NoReturn:
         raise OSError("Can't read data (invalid dataset size, likely file corruption)")
 
     monkeypatch.setattr(RunReader, "_history", always_torn)

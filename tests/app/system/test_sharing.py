@@ -20,7 +20,7 @@ def square(x: int, count: object) -> int:
     return x * x
 
 
-def fail_at_three(x: int, count: object) -> int:
+def fail_at_three(x: int, _count: object) -> int:
     if x == 3:
         raise ValueError(f"no {x}")
     return x
@@ -29,7 +29,7 @@ def fail_at_three(x: int, count: object) -> int:
 REPORTS: list[int] = []  # what share_out reported, as this process saw it
 
 
-def wait_for_the_child(x: int, count: Count) -> bool:
+def wait_for_the_child(_x: int, count: Count) -> bool:
     """A child counts 100 at once; this process's call counts nothing (0) until it sees that
     count reported (True), giving up after a few seconds (False)."""
     if os.getpid() != PARENT:
@@ -43,7 +43,7 @@ def wait_for_the_child(x: int, count: Count) -> bool:
     return False
 
 
-def die_in_a_child(x: int, count: object) -> int:
+def die_in_a_child(x: int, _count: object) -> int:
     time.sleep(0.2)
     if os.getpid() != PARENT:
         os._exit(3)
@@ -95,7 +95,7 @@ def raising_worker() -> Handler:
 def counting_worker() -> Handler:
     """A pool worker whose job counts every 10 ms for up to 30 s, then answers."""
 
-    def handle(job: object, count: Count) -> str:
+    def handle(_job: object, count: Count) -> str:
         for _ in range(3000):
             count(1)
             time.sleep(0.01)

@@ -99,7 +99,7 @@ def test_a_resumed_run_records_the_same_env_steps_and_an_old_one_none(tmp_path: 
     )
     whole = read_task_run(train_task(config, tmp_path / "whole.h5"))
 
-    def stop_after_one(summary: object) -> None:
+    def stop_after_one(_summary: object) -> None:
         raise KeyboardInterrupt
 
     for name, old in (("cut.h5", False), ("old.h5", True)):

@@ -255,7 +255,7 @@ def test_same_config_and_seed_give_the_same_run_and_a_resumed_run_matches(
         assert handle.attrs["task"] == "CartPole-v1"
         assert handle.attrs["format"] == "gnp-lab-task-run"
 
-    def stop_after_one(summary: object) -> None:
+    def stop_after_one(_summary: object) -> None:
         raise KeyboardInterrupt
 
     cut = tmp_path / "cut.h5"
@@ -287,7 +287,7 @@ def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) ->
 # --- command line -----------------------------------------------------------------------------
 
 
-def _stop(summary: object) -> None:
+def _stop(_summary: object) -> None:
     raise KeyboardInterrupt
 
 
@@ -322,7 +322,7 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     assert "drop --task" in capsys.readouterr().err
     cut = tmp_path / "cut.h5"
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("app.tasks.cli._progress", lambda quiet: _stop)
+        patch.setattr("app.tasks.cli._progress", lambda _quiet: _stop)
         assert main([*argv, "--seed", "3", "--out", str(cut), "--quiet"]) == 130
     assert f"continue with: gnp-lab train --resume {cut}" in capsys.readouterr().err
     assert read_task_run(cut).generation_done == 1
