@@ -15,14 +15,14 @@ import numpy as np
 
 import gnp
 from app.brains.contract import BrainFamily
-from app.loop.recording import TraceLayout, gnp_trace
+from app.loop.recording import TraceLayout
 from app.loop.seeds import evolution_rng, init_rng
 from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig, TrainingSettings
 from app.store import RunTemplate
 from app.store.controller_file import GnpController, controller_document
 
 if TYPE_CHECKING:
-    from app.loop.rollout import GnpControllers
+    from app.brains.gnp_controllers import GnpControllers
 
 
 def initial_population(config: RunConfig) -> gnp.Population:
@@ -224,12 +224,14 @@ class GnpFamily(BrainFamily):
         return gnp.population_from_arrays(self.cfg, arrays)
 
     def controllers(self, individuals: gnp.Population, engine_seeds: np.ndarray) -> GnpControllers:
-        from app.loop.rollout import GnpControllers  # numba's: run lists describe a run without it
+        from app.brains.gnp_controllers import GnpControllers  # the loop: not for a run list
 
         return GnpControllers(self.cfg, individuals, engine_seeds)
 
     @property
     def trace_layout(self) -> TraceLayout:
+        from app.brains.gnp_controllers import gnp_trace
+
         return gnp_trace(self.cfg)
 
     def tracer(self) -> GraphTracer:
