@@ -1,5 +1,5 @@
-"""The compiled loop (app.loop.fused) steps a batch exactly as its stages one at a time do, bit
-for bit.
+"""The compiled loop (GNP's, app.brains.gnp_fused, as app.loop.fused takes it) steps a batch
+exactly as its stages one at a time do, bit for bit.
 
 Copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing during
 the steps, episodes redrawn): one stepped by `Batch.staged_step` (the stages called one by one
