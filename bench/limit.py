@@ -14,10 +14,9 @@ training arena; then each stage replays its share of that life alone, on the rec
 - reward: Eq. 2.7 (`sim.reward_table`) on the recorded readings and commands;
 - loop: the lab's loop itself (`app.loop.rollout.Batch.step`: all of the above, in turn), step by
   step: in a pymunk world the stages one call at a time, in an analytic world ("loop analytic")
-  one compiled call a step (`app.brains.gnp_fused`, watched as the dashboard and the recorder
-  watch it);
+  one compiled call a step (`app.loop.fused`, watched as the dashboard and the recorder watch it);
 - rollout analytic: `app.loop.rollout.rollout`, as training and implementation run the loop: k steps
-  in one compiled call, robots in blocks (`app.brains.gnp_fused`); "rollout zig." the same with
+  in one compiled call, robots in blocks (`app.loop.fused`); "rollout zig." the same with
   ziggurat-v1 noise (other draws, so another life than the one recorded: the same work per step).
 Each repeat of a loop starts from the life's start (world reset, fresh controllers): it lives the
 recorded life. A loop's limit is what its stages add up to (1 / Σ 1/rate); loop / limit below 1
@@ -235,7 +234,7 @@ def loop(life: Life, **options: Any) -> Timed:
 
 def rollout_life(life: Life, **options: Any) -> Timed:
     """`app.loop.rollout.rollout`: the loop as training and implementation run it (compiled, for
-    GNP controllers in an analytic world: `app.brains.gnp_fused`)."""
+    GNP controllers in an analytic world: `app.loop.fused`)."""
     eps, alpha = life.config.training.epsilon, life.config.training.alpha
     world = life.world(**options)
 

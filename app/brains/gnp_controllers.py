@@ -1,7 +1,7 @@
 """GNP's controllers in the lab's loop: a population and its engine state, stepped staged or fused.
 
 `GnpControllers` satisfies `app.loop.rollout.Controllers` and offers the loop its compiled
-steps (`fused`, `app.brains.gnp_fused`: numba's, imported when a batch first steps compiled).
+steps (`fused`, `app.brains.gnp_fused`). Numba's: the family imports this module for lives only.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import numpy as np
 
 import gnp
 import sim
+from app.brains import gnp_fused
 from app.loop.fused import FusedSteps, Watched
 from app.loop.recording import TraceLayout
 from app.loop.rollout import Batch
@@ -83,8 +84,6 @@ class GnpControllers:
         term_sums: np.ndarray,
         watch: bool,
     ) -> tuple[np.ndarray, np.ndarray, Watched | None]:
-        from app.brains import gnp_fused  # numba's: a run list never needs it
-
         return gnp_fused.steps(
             world,
             self.cfg,

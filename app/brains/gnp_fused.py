@@ -1,10 +1,8 @@
-"""GNP's compiled loop: k steps of a batch of GNP controllers in an analytic world, one call.
+"""GNP's half of the compiled loop: k steps of GNP controllers in an analytic world, one call.
 
-With GNP controllers and analytic physics, every stage of `app.loop.rollout.Batch.step` is a numba
-function (`sim.loop` for the world, `gnp.kernel.walk_kernel` for the controllers); `steps` runs k
-of them in one compiled call on the world's and the controllers' own arrays, in `Batch.step`'s
-order: the same kernels on the same arrays, so the same bits. What the loop asks of it, and
-when, is `app.loop.fused`'s (`GnpControllers.fused` offers it).
+`steps` runs `app.loop.fused.world_steps` (the world's half) around GNP's walk
+(`gnp.kernel.walk_kernel`) on the world's, the population's and the engine state's own arrays:
+the same kernels as `Batch.step` staged, so the same bits. `GnpControllers.fused` offers it.
 """
 
 from __future__ import annotations
@@ -14,20 +12,13 @@ from numba import njit
 
 import gnp
 import sim
-from app.loop.fused import Watched, watch_buffers, watched
+from app.loop import fused
+from app.loop.fused import Watched, watch_buffers, watched, world_steps
 from gnp import engine, kernel
 from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
 from gnp.kernel import records_part, walk_kernel
 from sim import analytic, drive, khepera, loop, noise, rays, reward, sensors
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
-from sim.khepera import N_SENSORS
-
-ROBOTS_PER_BLOCK = 64
-"""Robots that live the k steps together before the next ones start. Robots share no data, so
-any split gives the same bits. Measured (thesis-ch3, σ = 50, 300 and 500 robots): 64 is as fast
-as the whole batch at 300 robots and 8% faster at 500; blocks of 16 or fewer lose up to 30%
-(every stage's call and scratch arrays, and the engine's two lanes have fewer controllers to
-overlap)."""
 
 
 def steps(
@@ -77,7 +68,7 @@ def steps(
     count = np.zeros((max(kept, 1), n if watch else 0), TRACE_DTYPE)
     brain = kernel_arguments(method_code(cfg), cfg, population, state)
     _run(world.arrays(), brain, epsilon, alpha, learn, judge_observed, world.t, last, each,
-         term_sums, np.empty((n, len(sim.TERM_NAMES))), ROBOTS_PER_BLOCK, buffers.poses,
+         term_sums, np.empty((n, len(sim.TERM_NAMES))), fused.ROBOTS_PER_BLOCK, buffers.poses,
          buffers.observations, buffers.commands, buffers.readings, buffers.term_tables,
          visits, count)  # fmt: skip
     world.stepped(k)
@@ -91,59 +82,39 @@ def _run(
     world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block,
     poses_out, seen_out, commands_out, readings_out, table_out, visits_out, count_out,
 ):  # fmt: skip  # pragma: no cover - compiled
-    """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge;
-    block by block of robots; each step's arrays kept in the `_out` arrays when they have k
-    rows (the trace when `visits_out` has robots)."""
+    """`app.loop.fused.world_steps` with GNP's controllers (`brain`: `kernel_arguments`), the
+    trace kept in `visits_out`, `count_out` when they have robots."""
+    world_steps(
+        world, brain, _part, _act_part, epsilon, alpha, learn, judge_observed, t0, reward, each,
+        term_sums, table, block, poses_out, seen_out, commands_out, readings_out, table_out,
+        (visits_out, count_out),
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _part(brain, lo, hi):  # pragma: no cover - compiled
+    """Controllers lo..hi − 1 of `brain` (views) and their wheels."""
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
         brain
     )
-    rates = np.empty((1, 2))  # one (ε, α) for every controller, as `gnp.step` passes them
-    n = reward.shape[0]
-    watch = seen_out.shape[0] > 0
-    # Unwatched and judged from the true readings, a step's observations are only what its
-    # judgment nodes read: each pair of sensors is drawn when first read (`loop.read_lazily`).
-    lazy = not watch and not judge_observed
-    drawn = np.zeros((n, N_SENSORS // 2), np.bool_)
-    for lo in range(0, n, block):
-        hi = min(n, lo + block)
-        part = loop.part(world, lo, hi)
-        part_records = records_part(records, n_nodes, layout, lo, hi)
-        part_walk, part_wheels, part_rng = walk[lo:hi], wheels[lo:hi], rng[lo:hi]
-        part_reward, part_table, part_drawn = reward[lo:hi], table[lo:hi], drawn[lo:hi]
-        for s in range(epsilon.shape[0]):
-            if lazy:
-                part_drawn[:] = False
-            else:
-                if s == 0 or not judge_observed:  # else the last step's judge observed step s
-                    loop.observe(part, t0 + s)
-                part_drawn[:] = True
-            rates[0, 0] = epsilon[s]
-            rates[0, 1] = alpha[s]
-            row = s if watch else 0
-            _act(
-                method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, part_records, layout,
-                part_walk, part_wheels, part_rng, part.observed, part_reward, rates, learn,
-                visits_out[row][:, lo:hi], count_out[row][lo:hi], (part, t0 + s, part_drawn),
-            )  # fmt: skip
-            if watch:
-                seen_out[s, lo:hi] = part.observed
-                commands_out[s, lo:hi] = part_wheels
-            loop.step(part, part_wheels)
-            loop.sense(part)
-            if judge_observed:
-                loop.observe(part, t0 + s + 1)
-                loop.judge(part.observed, part_wheels, part_table)
-            else:
-                loop.judge(part.readings, part_wheels, part_table)
-            if watch:
-                poses_out[s, lo:hi] = part.poses
-                readings_out[s, lo:hi] = part.readings
-                table_out[s, lo:hi] = part_table
-            for i in range(hi - lo):
-                part_reward[i] = part_table[i, 0]
-                each[s, lo + i] = part_table[i, 0]
-                for j in range(part_table.shape[1]):
-                    term_sums[lo + i, j] += part_table[i, j]
+    part_wheels = wheels[lo:hi]
+    part = (method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn,
+            records_part(records, n_nodes, layout, lo, hi), layout, walk[lo:hi], part_wheels,
+            rng[lo:hi])  # fmt: skip
+    return part, part_wheels
+
+
+@njit(inline="always")
+def _act_part(part, obs, reward, rates, learn, trace_out, row, lo, hi, source):  # pragma: no cover
+    """One step of `_part`'s controllers, their trace in row `row` of `trace_out`."""
+    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
+        part
+    )
+    visits_out, count_out = trace_out
+    _act(
+        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
+        rng, obs, reward, rates, learn, visits_out[row][:, lo:hi], count_out[row][lo:hi], source,
+    )  # fmt: skip
 
 
 @njit(cache=True, _nrt=False)  # type: ignore[call-overload]
@@ -160,9 +131,9 @@ def _act(
 
 
 #: What this module's cached kernels were compiled against: the world's and the brain's kernel
-#: modules it calls (sim.kernel_cache).
+#: modules it calls, the loop's world half inlined among them (sim.kernel_cache).
 COMPILED_AGAINST = source_fingerprint(
-    loop, analytic, drive, khepera, noise, rays, reward, sensors, kernel, engine
+    fused, loop, analytic, drive, khepera, noise, rays, reward, sensors, kernel, engine
 )
 
 

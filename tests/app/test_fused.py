@@ -1,5 +1,5 @@
-"""The compiled loop (GNP's, app.brains.gnp_fused, as app.loop.fused takes it) steps a batch
-exactly as its stages one at a time do, bit for bit.
+"""The compiled loop (app.loop.fused's world half, app.brains.gnp_fused's GNP half) steps a
+batch exactly as its stages one at a time do, bit for bit.
 
 Copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing during
 the steps, episodes redrawn): one stepped by `Batch.staged_step` (the stages called one by one
@@ -19,8 +19,9 @@ import pytest
 
 import gnp
 import sim
-from app.brains import gnp_fused as fused
+from app.brains import gnp_fused
 from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
+from app.loop import fused
 from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
 from app.settings.config import CFrom
@@ -85,13 +86,13 @@ def block(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> in
 def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """How many steps each call of the compiled loop took."""
     calls: list[int] = []
-    original = fused.steps
+    original = gnp_fused.steps
 
     def counted(*args: Any, **kwargs: Any) -> Any:
         calls.append(len(args[5]))
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(fused, "steps", counted)
+    monkeypatch.setattr(gnp_fused, "steps", counted)
     return calls
 
 

@@ -7,8 +7,7 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
    above.
 1. `app.settings` (the run configuration, its fields, presets, arenas, CLI options) and
    `app.system` (worker processes, safe names, exit codes); `app` itself (its `__init__`).
-2. `app.loop`: the one loop (`rollout`), what it asks of a compiled path, recording, random
-   streams.
+2. `app.loop`: the one loop (`rollout`), its compiled world half, recording, random streams.
 3. `app.store`: run files and controller files' envelope.
 
 4. `app.brains`: the brain contract, its registry and the families behind it.
