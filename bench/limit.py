@@ -61,6 +61,7 @@ import numpy as np
 import gnp
 import sim
 from app.brains.gnp_brain import initial_population
+from app.brains.gnp_controllers import gnp_batch
 from app.loop.rollout import Batch, rollout
 from app.loop.seeds import life_seeds
 from app.settings.arenas import arena_of
@@ -107,7 +108,7 @@ class Life:
         """The lab's loop in `world` (at the life's start), with fresh copies of the
         controllers."""
         copy = gnp.take(self.population, np.arange(self.population.size))
-        return Batch(world, self.config.controller.gnp_config(), copy, self.engine_seeds)
+        return gnp_batch(world, self.config.controller.gnp_config(), copy, self.engine_seeds)
 
 
 def record(config: RunConfig, robots: int, steps: int) -> Life:
@@ -129,7 +130,7 @@ def record(config: RunConfig, robots: int, steps: int) -> Life:
         rewards=np.zeros((steps, robots)),
         commands=np.zeros((steps, robots, 2)),
     )
-    batch = Batch(life.world(), grown.controller.gnp_config(), population, seeds.engine)
+    batch = gnp_batch(life.world(), grown.controller.gnp_config(), population, seeds.engine)
     eps, alpha = grown.training.epsilon, grown.training.alpha
     for t in range(steps):
         life.rewards[t] = batch.reward

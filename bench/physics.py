@@ -25,7 +25,7 @@ import numpy as np
 
 import sim
 from app.brains.gnp_brain import initial_population
-from app.loop.rollout import Batch
+from app.brains.gnp_controllers import gnp_batch
 from app.loop.seeds import life_seeds
 from app.phases.training import GenerationSummary, train
 from app.settings.loading import build_config, load_preset
@@ -54,7 +54,9 @@ def loop_commands(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     world = sim.World(arena, n=300, seed=config.seed, noise_sigma=config.training.noise_sigma)
     poses = arena.start_poses[seeds.starts[:, 0]]
     world.reset(poses, seeds=seeds.world)
-    batch = Batch(world, config.controller.gnp_config(), initial_population(config), seeds.engine)
+    batch = gnp_batch(
+        world, config.controller.gnp_config(), initial_population(config), seeds.engine
+    )
     commands = np.array([batch.step(0.1, 0.1).commands for _ in range(steps)])
     return poses, seeds.world, commands
 

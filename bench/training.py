@@ -31,8 +31,8 @@ import numpy as np
 
 import sim
 from app.brains.gnp_brain import initial_population
+from app.brains.gnp_controllers import gnp_batch
 from app.brains.registry import family_of
-from app.loop.rollout import Batch
 from app.loop.seeds import life_seeds
 from app.phases.implementation import run_implementation
 from app.phases.training import GenerationSummary, train
@@ -63,7 +63,7 @@ def loop_commands(steps: int) -> tuple[sim.World, np.ndarray, np.ndarray, np.nda
     world = sim.World(arena, n=300, seed=config.seed, noise_sigma=config.training.noise_sigma)
     poses = arena.start_poses[seeds.starts[:, 0]]
     world.reset(poses, seeds=seeds.world)
-    batch = Batch(world, cfg, initial_population(config), seeds.engine)
+    batch = gnp_batch(world, cfg, initial_population(config), seeds.engine)
     commands = np.array([batch.step(0.1, 0.1).commands for _ in range(steps)])
     return world, poses, seeds.world, commands
 

@@ -13,8 +13,10 @@ from app.brains.registry import (
     PLUGINS_VARIABLE,
     family_class,
     family_of,
+    load_controller,
     names,
     register,
+    register_controller_format,
     run_kind,
 )
 
@@ -27,7 +29,9 @@ __all__ = [
     "Tracer",
     "family_class",
     "family_of",
+    "load_controller",
     "names",
     "register",
+    "register_controller_format",
     "run_kind",
 ]

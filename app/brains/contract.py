@@ -29,7 +29,7 @@ from app.settings.loading import describe_problems
 from app.store import RunReader, RunTemplate
 
 if TYPE_CHECKING:
-    from app.loop.rollout import Controllers  # the fused loop's numba: imported by a family's lives
+    from app.loop.rollout import Controllers  # the loop: imported by a family's lives
 
 
 class Evolution(Protocol):

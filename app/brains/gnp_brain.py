@@ -15,14 +15,14 @@ import numpy as np
 
 import gnp
 from app.brains.contract import BrainFamily
-from app.loop.recording import TraceLayout, gnp_trace
+from app.brains.gnp_file import GnpController
+from app.loop.recording import TraceLayout
 from app.loop.seeds import evolution_rng, init_rng
 from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig, TrainingSettings
-from app.store import RunTemplate
-from app.store.controller_file import GnpController, controller_document
+from app.store import RunFileError, RunReader, RunTemplate
 
 if TYPE_CHECKING:
-    from app.loop.rollout import GnpControllers
+    from app.brains.gnp_controllers import GnpControllers
 
 
 def initial_population(config: RunConfig) -> gnp.Population:
@@ -223,13 +223,21 @@ class GnpFamily(BrainFamily):
     def from_arrays(self, arrays: dict[str, np.ndarray]) -> gnp.Population:
         return gnp.population_from_arrays(self.cfg, arrays)
 
+    def best(self, run: RunReader, generation: int = -1) -> gnp.Population:
+        try:
+            return self.from_arrays(run.best_genome_arrays(generation))
+        except gnp.GnpError as error:
+            raise RunFileError(f"{run.path.name}: an invalid genome: {error}") from None
+
     def controllers(self, individuals: gnp.Population, engine_seeds: np.ndarray) -> GnpControllers:
-        from app.loop.rollout import GnpControllers  # numba's: run lists describe a run without it
+        from app.brains.gnp_controllers import GnpControllers  # the loop: not for a run list
 
         return GnpControllers(self.cfg, individuals, engine_seeds)
 
     @property
     def trace_layout(self) -> TraceLayout:
+        from app.brains.gnp_controllers import gnp_trace
+
         return gnp_trace(self.cfg)
 
     def tracer(self) -> GraphTracer:
@@ -241,4 +249,4 @@ class GnpFamily(BrainFamily):
     def controller_document(
         self, individual: gnp.Population, settings: dict[str, Any]
     ) -> dict[str, Any]:
-        return controller_document(GnpController(self.cfg, individual, settings))
+        return GnpController(self.cfg, individual, settings).document()

@@ -23,11 +23,11 @@ import numpy as np
 import neuro
 import sim
 from app.brains.contract import BrainFamily
+from app.brains.net_file import NetController
 from app.loop.recording import TraceLayout
 from app.loop.seeds import optimiser_seed
 from app.settings.config import NeuroSettings, RunConfig
 from app.store import RunFileError, RunTemplate
-from app.store.controller_file import NetController, controller_document
 from neuro.neat_params import NeatParams
 
 
@@ -247,7 +247,7 @@ class NetFamily(BrainFamily):
     def controller_document(
         self, individual: dict[str, np.ndarray], settings: dict[str, Any]
     ) -> dict[str, Any]:
-        return controller_document(NetController(self.net, individual, settings))
+        return NetController(self.net, individual, settings).document()
 
 
 class CmaesFamily(NetFamily):

@@ -1,4 +1,5 @@
-"""The registry of brain families: `register(name, entry_point)` and `family_of(config)`.
+"""The registry of brain families: `register(name, entry_point)` and `family_of(config)`; and of
+their controller files' formats (`register_controller_format`, `load_controller`).
 
 As Gymnasium's `register(id, entry_point)` and `make`: a family is registered under its name,
 by its class or by a `"module:Class"` string imported on first use (so a run of GNP never imports
@@ -12,10 +13,12 @@ from __future__ import annotations
 
 import importlib
 import os
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from app.settings.config import DEFAULT_BRAIN, ConfigError, RunConfig
 from app.store import RunSummary
+from app.store.controller_file import Controller, ControllerFormat, read_controller
 
 if TYPE_CHECKING:
     from app.brains.contract import BrainFamily
@@ -74,8 +77,7 @@ def family_class(name: str) -> type[BrainFamily]:
             f"(a family of your own: register it in a module named in {PLUGINS_VARIABLE})"
         )
     if isinstance(entry, str):
-        module, _, attribute = entry.partition(":")
-        entry = getattr(importlib.import_module(module), attribute)
+        entry = _resolved(entry)
         assert not isinstance(entry, str)
         _registry[name] = entry
     return entry
@@ -101,3 +103,40 @@ def run_kind(summary: RunSummary) -> str:
         return family_of(summary.config).description
     except ConfigError:
         return f"{summary.config.brain} (not registered)"
+
+
+_formats: dict[str, ControllerFormat | str] = {
+    "gnp-lab-controller": "app.brains.gnp_file:GNP_FILE",
+    "gnp-lab-neural-controller": "app.brains.net_file:NET_FILE",
+}
+
+
+def register_controller_format(form: ControllerFormat) -> None:
+    """Register a family's controller file format under its name (a document's `format`)."""
+    _formats[form.name] = form
+
+
+def controller_formats() -> dict[str, ControllerFormat]:
+    """Every registered controller file format, by name: the lab's own first."""
+    _load_plugins()
+    for name, entry in _formats.items():
+        if isinstance(entry, str):
+            _formats[name] = _resolved(entry)
+    return {name: form for name, form in _formats.items() if not isinstance(form, str)}
+
+
+def _resolved(entry: str) -> Any:
+    """What a `"module:attribute"` entry names, its module imported."""
+    module, _, attribute = entry.partition(":")
+    return getattr(importlib.import_module(module), attribute)
+
+
+def load_controller(path: str | Path) -> Controller:
+    """Read a controller file of any registered family, checked (a `GnpController`, a
+    `NetController`, …; see `app.store.controller_file.read_controller`).
+
+    Raises:
+        app.store.controller_file.ControllerFileError: the file is not a controller of a
+            registered format, or an invalid one (one line naming the problem).
+    """
+    return read_controller(path, controller_formats())

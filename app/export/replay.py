@@ -19,6 +19,7 @@ import viser
 
 import gnp
 import sim
+from app.brains.registry import family_of
 from app.loop.recording import Trajectory
 from app.phases.implementation import fault_text, faults
 from app.phases.live import RobotSnapshot
@@ -148,6 +149,15 @@ class ReplayScene:
         return len(frames)
 
 
+def _best(reader: RunReader, generation: int) -> tuple[gnp.GnpConfig, gnp.Population]:
+    """The GNP config and a generation's best of a run with a node graph (`export_replay`
+    refuses the others)."""
+    family = family_of(reader.config)
+    cfg = family.graph_config
+    assert cfg is not None, f"{reader.path.name}: no node graph to replay"
+    return cfg, family.best(reader, generation)
+
+
 def _implementation_life(reader: RunReader, result: Implementation) -> Life:
     """Recorded trial 0 of an implementation phase, with its fault."""
     settings = result.settings
@@ -156,7 +166,7 @@ def _implementation_life(reader: RunReader, result: Implementation) -> Life:
     scheduled = [
         f for f in faults(settings, seed, np.array([trial])) if f.robots is None or 0 in f.robots
     ]
-    cfg, individual = reader.best_genome(result.generation)
+    cfg, individual = _best(reader, result.generation)
     return Life(
         caption=f"implementation {result.name}, trial {trial} (start pose "
         f"{int(result.start_index[trial])})",
@@ -177,7 +187,7 @@ def replay_lives(reader: RunReader) -> list[Life]:
     if elite is None:
         raise ValueError(f"{reader.path.name} has no recorded elite life")
     training = reader.config.training
-    cfg, individual = reader.best_genome(-1)
+    cfg, individual = _best(reader, -1)
     lives = [
         Life(
             caption=f"run {reader.path.stem}: final elite (generation "

@@ -1,36 +1,35 @@
-"""The lab's loop compiled: k steps of a batch of GNP controllers in an analytic world, one call.
+"""The loop compiled: k steps of a batch in an analytic world, one call, the world's half here.
 
-When the controllers are GNP and the physics analytic, every stage of `app.loop.rollout.Batch.step`
-is a numba function (`sim.loop` for the world, `gnp.kernel.step_kernel` for the controllers),
-and `steps` here runs k steps of them in one compiled call, on the world's and the controllers'
-own arrays, in `Batch.step`'s order: the same kernels on the same arrays, so the same bits
-(tests/app/test_fused.py compares them step by step). Watched steps (the trajectory recorder,
-the dashboard: `watch`) also keep what each step saw, commanded, read and earned, and the
-controllers' trace. A step in which a scheduled fault fires goes through the stages one call
-at a time (`Batch.step`'s other path): both paths share all state, so they interleave freely.
+A family whose controllers are numba functions may offer them fused with the world
+(`Controllers`' optional `fused`, a `FusedSteps`): k steps of the batch in one compiled call,
+every stage of `app.loop.rollout.Batch.step` (`sim.loop` for the world, the family's kernel for
+the controllers) on the world's and the controllers' own arrays in `Batch.step`'s order, so the
+same bits (GNP's: `app.brains.gnp_fused`; tests/app/test_fused.py compares them step by step).
+`world_steps` is the world's half, inlined into the family's compiled call. Watched steps (the
+trajectory recorder, the dashboard) also keep what each step saw, commanded, read and earned,
+and the controllers' trace. A step in which a scheduled fault fires goes through the stages one
+call at a time (`Batch.step`'s other path): both paths share all state, so they interleave
+freely.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 from numba import njit
 
-import gnp
 import sim
-from gnp import engine, kernel
-from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
-from gnp.kernel import records_part, walk_kernel
-from sim import analytic, drive, khepera, loop, noise, rays, reward, sensors
-from sim.kernel_cache import drop_stale_cache, source_fingerprint
+from sim import loop
 from sim.khepera import N_SENSORS
 
 ROBOTS_PER_BLOCK = 64
 """Robots that live the k steps together before the next ones start. Robots share no data, so
-any split gives the same bits. Measured (thesis-ch3, σ = 50, 300 and 500 robots): 64 is as fast
-as the whole batch at 300 robots and 8% faster at 500; blocks of 16 or fewer lose up to 30%
-(every stage's call and scratch arrays, and the engine's two lanes have fewer controllers to
+any split gives the same bits. Measured (thesis-ch3, GNP, σ = 50, 300 and 500 robots): 64 is as
+fast as the whole batch at 300 robots and 8% faster at 500; blocks of 16 or fewer lose up to 30%
+(every stage's call and scratch arrays, and GNP's two lanes have fewer controllers to
 overlap)."""
 
 
@@ -43,87 +42,82 @@ class Watched:
     commands: np.ndarray  # (k, N, 2)
     readings: np.ndarray  # (k, N, 8) true readings after each step
     term_tables: np.ndarray  # (k, N, len(sim.TERM_NAMES))
-    visits: np.ndarray  # (k, len(gnp.VISIT_FIELDS), N, max visits), −1 past each count
-    count: np.ndarray  # (k, N)
+    traces: Callable[[int], Any]  # step s -> the controllers' trace of it (their family's)
 
-    def trace(self, s: int) -> gnp.StepTrace:
+    def trace(self, s: int) -> Any:
         """The controllers' trace of step s (views)."""
-        return gnp.engine.step_trace(self.visits[s], self.count[s])
+        return self.traces(s)
 
 
-def steps(
-    world: sim.World,
-    cfg: gnp.GnpConfig,
-    population: gnp.Population,
-    state: gnp.EngineState,
-    reward: np.ndarray,
-    epsilon: np.ndarray,
-    alpha: np.ndarray,
-    *,
-    learn: bool,
-    judge_observed: bool,
-    term_sums: np.ndarray,
-    watch: bool = False,
-) -> tuple[np.ndarray, np.ndarray, Watched | None]:
-    """Advance the batch by len(epsilon) steps in one compiled call (see `Batch.step`).
-
-    Args:
-        world: an analytic world no fault fires in during these steps.
-        cfg, population, state: the GNP controllers, updated in place.
-        reward: (N,) reward of the step before, fed to the first step's controllers.
-        epsilon, alpha: (k,) ε and α of each step, in [0, 1].
-        learn: online Sarsa on.
-        judge_observed: C of the reward judged from what the controllers see after the step
-            (`c_from` "observed"), else from the true readings.
-        term_sums: (N, len(sim.TERM_NAMES)) each reward term summed, added to in place.
-        watch: also return what each step did (`Watched`).
-
-    Returns:
-        The last step's reward (N,), each step's reward (k, N), and with `watch` what each
-        step did, else None.
-    """
-    epsilon = np.ascontiguousarray(epsilon, dtype=np.float64)
-    alpha = np.ascontiguousarray(alpha, dtype=np.float64)
-    for name, values in (("epsilon", epsilon), ("alpha", alpha)):
-        if values.size and not (values.min() >= 0.0 and values.max() <= 1.0):
-            raise gnp.GnpError(f"{name} must lie in [0, 1]")
-    check_population(cfg, population, state)
-    k, n = len(epsilon), world.n
-    last = np.array(reward, dtype=np.float64)  # contiguous, and the caller's stays unchanged
-    each = np.empty((k, n))
-    kept = k if watch else 0
-    watched = Watched(
-        poses=np.empty((kept, n, 3)),
-        observations=np.empty((kept, n, sim.N_SENSORS)),
-        commands=np.empty((kept, n, 2)),
-        readings=np.empty((kept, n, sim.N_SENSORS)),
-        term_tables=np.empty((kept, n, len(sim.TERM_NAMES))),
-        visits=np.full((max(kept, 1), len(VISIT_FIELDS), n if watch else 0,
-                        cfg.max_visits_per_step if watch else 0), -1, TRACE_DTYPE),
-        count=np.zeros((max(kept, 1), n if watch else 0), TRACE_DTYPE),
-    )  # fmt: skip
-    brain = kernel_arguments(method_code(cfg), cfg, population, state)
-    _run(world.arrays(), brain, epsilon, alpha, learn, judge_observed, world.t, last, each,
-         term_sums, np.empty((n, len(sim.TERM_NAMES))), ROBOTS_PER_BLOCK, watched.poses,
-         watched.observations, watched.commands, watched.readings, watched.term_tables,
-         watched.visits, watched.count)  # fmt: skip
-    world.stepped(k)
-    if not watch:
-        return last, each, None
-    return last, each, Watched(**{**watched.__dict__, "poses": sim.world.wrapped(watched.poses)})
+def watch_buffers(k: int, n: int) -> Watched:
+    """Empty arrays for k watched steps of n robots, for a compiled call to fill (no trace yet)."""
+    return Watched(
+        poses=np.empty((k, n, 3)),
+        observations=np.empty((k, n, sim.N_SENSORS)),
+        commands=np.empty((k, n, 2)),
+        readings=np.empty((k, n, sim.N_SENSORS)),
+        term_tables=np.empty((k, n, len(sim.TERM_NAMES))),
+        traces=lambda s: None,
+    )
 
 
-@njit(cache=True)
-def _run(
-    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block,
-    poses_out, seen_out, commands_out, readings_out, table_out, visits_out, count_out,
+def watched(filled: Watched, traces: Callable[[int], Any]) -> Watched:
+    """`filled` after its compiled call: headings wrapped, with the controllers' traces."""
+    f = filled
+    return Watched(sim.world.wrapped(f.poses), f.observations, f.commands, f.readings,
+                   f.term_tables, traces)  # fmt: skip
+
+
+class FusedSteps(Protocol):
+    """Controllers' compiled steps with an analytic world (see the module's docstring)."""
+
+    def fits(self, second_stage: bool) -> bool:
+        """Whether the compiled steps are the staged ones with `second_stage` as asked."""
+        ...
+
+    def steps(
+        self,
+        world: sim.World,
+        reward: np.ndarray,
+        epsilon: np.ndarray,
+        alpha: np.ndarray,
+        *,
+        learn: bool,
+        judge_observed: bool,
+        term_sums: np.ndarray,
+        watch: bool,
+    ) -> tuple[np.ndarray, np.ndarray, Watched | None]:
+        """Advance the batch by len(epsilon) steps in one compiled call, no fault firing in
+        them: the last step's reward (N,), each step's (k, N), and with `watch` what each step
+        did. `reward` (N,) is the step before's; `term_sums` (N, len(sim.TERM_NAMES)) is added
+        to in place; `judge_observed`: C judged from what the controllers see after a step."""
+        ...
+
+
+def fused_steps(controllers: object) -> FusedSteps | None:
+    """The controllers' compiled steps, if their family offers them."""
+    fused: FusedSteps | None = getattr(controllers, "fused", None)
+    return fused
+
+
+@njit(inline="always")
+def world_steps(
+    world, brain, part_of, act, epsilon, alpha, learn, judge_observed, t0, reward, each,
+    term_sums, table, block, poses_out, seen_out, commands_out, readings_out, table_out,
+    trace_out,
 ):  # fmt: skip  # pragma: no cover - compiled
     """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge;
     block by block of robots; each step's arrays kept in the `_out` arrays when they have k
-    rows (the trace when `visits_out` has robots)."""
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
-        brain
-    )
+    rows. Inlined into a family's compiled call, which passes its own functions by name (the
+    calls stay static, the caller cacheable):
+
+    - `part_of(brain, lo, hi)`: (the controllers lo..hi − 1, their (hi − lo, 2) wheel commands),
+      views of `brain`'s arrays;
+    - `act(part, observations, reward, rates, learn, trace_out, row, lo, hi, source)`: one step
+      of those controllers, (ε, α) in `rates` (1, 2), the commands in their wheels, the trace
+      in row `row` of `trace_out` (when watched); judgment nodes read sensor j of controller i
+      through `sim.loop.read_lazily(observations, source, i, j)`.
+    """
     rates = np.empty((1, 2))  # one (ε, α) for every controller, as `gnp.step` passes them
     n = reward.shape[0]
     watch = seen_out.shape[0] > 0
@@ -134,8 +128,7 @@ def _run(
     for lo in range(0, n, block):
         hi = min(n, lo + block)
         part = loop.part(world, lo, hi)
-        part_records = records_part(records, n_nodes, layout, lo, hi)
-        part_walk, part_wheels, part_rng = walk[lo:hi], wheels[lo:hi], rng[lo:hi]
+        minds, part_wheels = part_of(brain, lo, hi)
         part_reward, part_table, part_drawn = reward[lo:hi], table[lo:hi], drawn[lo:hi]
         for s in range(epsilon.shape[0]):
             if lazy:
@@ -147,11 +140,8 @@ def _run(
             rates[0, 0] = epsilon[s]
             rates[0, 1] = alpha[s]
             row = s if watch else 0
-            _act(
-                method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, part_records, layout,
-                part_walk, part_wheels, part_rng, part.observed, part_reward, rates, learn,
-                visits_out[row][:, lo:hi], count_out[row][lo:hi], (part, t0 + s, part_drawn),
-            )  # fmt: skip
+            act(minds, part.observed, part_reward, rates, learn, trace_out, row, lo, hi,
+                (part, t0 + s, part_drawn))  # fmt: skip
             if watch:
                 seen_out[s, lo:hi] = part.observed
                 commands_out[s, lo:hi] = part_wheels
@@ -171,32 +161,3 @@ def _run(
                 each[s, lo + i] = part_table[i, 0]
                 for j in range(part_table.shape[1]):
                     term_sums[lo + i, j] += part_table[i, j]
-
-
-@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
-def _act(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count, source,
-):  # fmt: skip  # pragma: no cover - compiled
-    """`gnp.kernel.step_kernel` whose judgment nodes read through `sim.loop.read_lazily`
-    (compiled without numba's reference counting, as `step_kernel` is)."""
-    walk_kernel(
-        method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
-        rng, obs, reward, rates, learn, visits, count, loop.read_lazily, source,
-    )  # fmt: skip
-
-
-#: What this module's cached kernels were compiled against: the world's and the brain's kernel
-#: modules it calls (sim.kernel_cache).
-COMPILED_AGAINST = source_fingerprint(
-    loop, analytic, drive, khepera, noise, rays, reward, sensors, kernel, engine
-)
-
-
-@njit(cache=True)
-def _frozen_sources() -> np.ndarray:
-    """``COMPILED_AGAINST`` as numba froze it into this module's cache."""
-    return COMPILED_AGAINST.copy()
-
-
-drop_stale_cache(globals(), _frozen_sources, COMPILED_AGAINST)

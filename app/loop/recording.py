@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-import gnp
 import sim
 
 
@@ -24,7 +23,7 @@ class Trajectory:
     observations: np.ndarray  # (k, T, 8) what the controller saw before each step
     commands: np.ndarray  # (k, T, 2) left, right
     terms: dict[str, np.ndarray]  # term name -> (k, T)
-    trace: dict[str, np.ndarray]  # gnp.StepTrace field (or a net's activations) -> (k, T, ...)
+    trace: dict[str, np.ndarray]  # trace field (its family's) -> (k, T, ...)
     start_index: np.ndarray  # (k,) start pose of each trial (first segment in training)
 
     @property
@@ -35,11 +34,6 @@ class Trajectory:
 
 #: What a step's trace holds: field -> (shape per controller, dtype).
 TraceLayout = Mapping[str, tuple[tuple[int, ...], Any]]
-
-
-def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
-    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
-    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
 
 
 LIFE_COLUMNS = {

@@ -2,9 +2,8 @@
 
 Every phase steps robots through this one loop: training lives, the implementation phase, the
 dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
-with N controllers (`Controllers`: a `gnp.Population` and its engine state, or neural nets, see
-`app.brains`); `rollout` advances it T steps with ε/α given per step, optionally recording
-the first robots' lives.
+with N controllers (`Controllers`, a brain family's, see `app.brains`); `rollout` advances it T
+steps with ε/α given per step, optionally recording the first robots' lives.
 """
 
 from __future__ import annotations
@@ -14,7 +13,6 @@ from typing import Any, Protocol, get_args
 
 import numpy as np
 
-import gnp
 import sim
 from app.loop import fused
 from app.loop.recording import TrajectoryRecorder
@@ -43,7 +41,12 @@ class StepRecord:
 
 
 class Controllers(Protocol):
-    """N controllers, one per robot of a batch: the one place a brain family plugs in."""
+    """N controllers, one per robot of a batch: the one place a brain family plugs in.
+
+    Optional: a `fused` attribute (`app.loop.fused.FusedSteps`, or None), the controllers'
+    steps compiled with the analytic world's; the loop takes them wherever it may (see
+    `Batch.compiled`), else it calls `act` between the world's stages.
+    """
 
     @property
     def size(self) -> int: ...
@@ -68,48 +71,6 @@ class Controllers(Protocol):
         ...
 
 
-class GnpControllers:
-    """A `gnp.Population` and its engine state: online Sarsa, ε-greedy."""
-
-    def __init__(
-        self, cfg: gnp.GnpConfig, population: gnp.Population, engine_seeds: np.ndarray
-    ) -> None:
-        self.cfg = cfg
-        self.population = population
-        self.state = gnp.init_state(cfg, population.size, engine_seeds)
-
-    @property
-    def size(self) -> int:
-        return self.population.size
-
-    def act(
-        self,
-        observations: np.ndarray,
-        reward: np.ndarray,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool,
-        trace: bool,
-        second_stage: bool,
-    ) -> tuple[np.ndarray, gnp.StepTrace | None]:
-        return gnp.step(
-            self.cfg,
-            self.population,
-            self.state,
-            observations,
-            reward,
-            epsilon,
-            alpha,
-            learn,
-            trace=trace,
-            second_stage=second_stage,
-        )
-
-    def reset_episode(self) -> None:
-        gnp.reset_episode(self.state)
-
-
 class Batch:
     """N robots in one world, each driven by its own controller (row i of the controllers).
 
@@ -117,29 +78,10 @@ class Batch:
     resets it, with the controllers' walks, and keeps Q tables and random streams. Its C
     (Eq. 2.7) is judged from the readings after the step: the true ones (`c_from` "true"), or
     what the controllers see there ("observed": noise, then faults; the same draws they see at
-    the next step). `Batch.driven_by` drives the robots with any other `Controllers`.
+    the next step).
     """
 
-    def __init__(
-        self,
-        world: sim.World,
-        cfg: gnp.GnpConfig,
-        population: gnp.Population,
-        engine_seeds: np.ndarray,
-        c_from: CFrom = "true",
-    ) -> None:
-        if population.size != world.n:
-            raise ValueError(f"{population.size} controllers for {world.n} robots")
-        self._drive(world, GnpControllers(cfg, population, engine_seeds), c_from)
-
-    @classmethod
-    def driven_by(cls, world: sim.World, controllers: Controllers, c_from: CFrom = "true") -> Batch:
-        """A batch whose robots `controllers` drive (one controller per robot)."""
-        batch = cls.__new__(cls)
-        batch._drive(world, controllers, c_from)
-        return batch
-
-    def _drive(self, world: sim.World, controllers: Controllers, c_from: CFrom) -> None:
+    def __init__(self, world: sim.World, controllers: Controllers, c_from: CFrom = "true") -> None:
         if controllers.size != world.n:
             raise ValueError(f"{controllers.size} controllers for {world.n} robots")
         if c_from not in get_args(CFrom):
@@ -153,14 +95,6 @@ class Batch:
     def size(self) -> int:
         return self.world.n
 
-    @property
-    def gnp_controllers(self) -> GnpControllers:
-        """The GNP controllers (their config, population and engine state: the ones `step`
-        runs, not copies); a TypeError for other controllers."""
-        if not isinstance(self.controllers, GnpControllers):
-            raise TypeError(f"the batch is driven by {type(self.controllers).__name__}, not GNP")
-        return self.controllers
-
     def new_episode(self, poses: np.ndarray) -> None:
         """Move every robot to `poses` (N, 3) and restart its controller at the start node."""
         self.world.place(poses)
@@ -169,13 +103,10 @@ class Batch:
 
     def compiled(self, second_stage: bool = True) -> bool:
         """Whether `step` and `rollout` may run this batch in compiled calls (`app.loop.fused`):
-        GNP controllers, analytic physics, the method's second stage on (or none)."""
-        controllers = self.controllers
-        return (
-            self.world.physics == "analytic"
-            and isinstance(controllers, GnpControllers)
-            and (second_stage or not controllers.cfg.traits.two_stage)
-        )
+        analytic physics, controllers that offer them fitting `second_stage` (GNP's: the
+        method's second stage on, or none)."""
+        steps = fused.fused_steps(self.controllers)
+        return self.world.physics == "analytic" and steps is not None and steps.fits(second_stage)
 
     def step(
         self,
@@ -234,15 +165,13 @@ class Batch:
         """len(epsilon) steps in one compiled call (see `compiled`; no fault may fire in
         them): each step's reward (k, N), and what each step did unless `term_sums` (N, 4) is
         given to add the reward terms to."""
-        g = self.gnp_controllers
+        steps = fused.fused_steps(self.controllers)
+        assert steps is not None, "compiled steps of controllers that offer none"
         watch = term_sums is None
         if term_sums is None:
             term_sums = np.zeros((self.size, len(sim.TERM_NAMES)))
-        self.reward, each, watched = fused.steps(
+        self.reward, each, watched = steps.steps(
             self.world,
-            g.cfg,
-            g.population,
-            g.state,
             self.reward,
             epsilon,
             alpha,

@@ -175,7 +175,7 @@ def _live_trials(
     world.reset(arena.start_poses[start_index], seeds=world_seeds)
     world.schedule_faults(faults(settings, seed, trials))
     controllers = family.controllers(family.copies(individual, len(trials)), engine_seeds)
-    batch = Batch.driven_by(world, controllers, c_from)
+    batch = Batch(world, controllers, c_from)
     steps = settings.steps
     recorder = TrajectoryRecorder(len(trials), steps, family.trace_layout) if record else None
     epsilon, alpha = epsilon_alpha_per_step(settings)

@@ -135,7 +135,7 @@ class LiveRobot:
         self._rewards = Ring(self.history_capacity)
         self._broken_counts = Ring(self.history_capacity, (), np.int64)
         controllers = self.family.controllers(self.population, np.array([self.seed]))
-        self._batch = Batch.driven_by(self.world, controllers)
+        self._batch = Batch(self.world, controllers)
         self._tracer = self.family.tracer()
         self._commands = np.zeros(2)
         self._seen = self.world.sense().copy()

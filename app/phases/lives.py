@@ -84,7 +84,7 @@ def live(
     reward's C is judged from (see `Batch`).
     """
     world.reset(world.arena.start_poses[seeds.starts[:, 0]], seeds=seeds.world)
-    batch = Batch.driven_by(world, family.controllers(individuals, seeds.engine), c_from)
+    batch = Batch(world, family.controllers(individuals, seeds.engine), c_from)
     learn = family.learns_online
     if not learn:  # nothing reads ε and α then; the file records them as NaN
         epsilon = alpha = 0.0

@@ -1,28 +1,26 @@
-"""Controller files: one trained GNP individual or neural net as a JSON document, read and written.
+"""Controller files: one trained controller as a JSON document, its envelope written and read.
 
-A document is an envelope, written and read here for both brain families, around a body that
-`gnp` or `neuro` converts (they import neither each other nor `app`):
+A document is an envelope, written and read here for every brain family, around a body its
+family writes and reads (`app.brains`: GNP's `app.brains.gnp_file`, the nets'
+`app.brains.net_file`, found by the document's format in `app.brains.registry`):
 
     {"format": "gnp-lab-controller", "version": 1, "gnp": {...}, "settings": {...}, "nodes": [...]}
     {"format": "gnp-lab-neural-controller", "version": 1, "net": {...}, "settings": {...},
      "arrays": {...}}
 
 The schema is in docs/controller-format.md. `settings` says what the lab ran the controller with
-(free form). Floats are written as Python's shortest round-trip repr, so `load_controller` gives
-back a controller that steps bit-identically to the saved one.
+(free form). Floats are written as Python's shortest round-trip repr, so a loaded controller
+steps bit-identically to the saved one.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
-import numpy as np
-
-import gnp
-import neuro
 from app.settings.user_files import loads_json, read_text
 
 
@@ -30,64 +28,42 @@ class ControllerFileError(ValueError):
     """A controller file that cannot be written or read (the message names the problem)."""
 
 
-@dataclass(frozen=True)
-class GnpController:
-    """One GNP individual (a 1-individual population, Q tables included) and its settings."""
+class Controller(Protocol):
+    """One trained controller of some family, with what the lab ran it with."""
 
-    cfg: gnp.GnpConfig
-    individual: gnp.Population
-    settings: dict[str, Any] = field(default_factory=dict)
+    @property
+    def settings(self) -> dict[str, Any]: ...
 
+    def document(self) -> dict[str, Any]:
+        """The controller as its JSON document (its format's envelope around its body).
 
-@dataclass(frozen=True)
-class NetController:
-    """One neural net (arrays with a leading axis of 1) and its settings."""
-
-    net: neuro.NetConfig
-    arrays: dict[str, np.ndarray]
-    settings: dict[str, Any] = field(default_factory=dict)
-
-
-Controller = GnpController | NetController
+        Raises:
+            ControllerFileError: it is not one controller (named).
+        """
+        ...
 
 
 @dataclass(frozen=True)
-class _Format:
-    """One family's envelope: its format name and version, the keys of its config and body."""
+class ControllerFormat:
+    """One family's envelope: its format name and version, the keys of its config and body,
+    and how the family reads them back (`read(config, body, settings)`, raising
+    `ControllerFileError` or any structural error of the JSON when they are not a controller)."""
 
     name: str
     version: int
     config_key: str
     body_key: str
+    read: Callable[[Any, Any, dict[str, Any]], Controller]
 
-
-_GNP = _Format("gnp-lab-controller", 1, "gnp", "nodes")
-_NET = _Format("gnp-lab-neural-controller", 1, "net", "arrays")
-FORMATS = {form.name: form for form in (_GNP, _NET)}
-
-
-def controller_document(controller: Controller) -> dict[str, Any]:
-    """`controller` as its JSON document (the envelope around its family's body).
-
-    Raises:
-        ControllerFileError: the controller is not one individual or net (named).
-    """
-    config: dict[str, Any]
-    body: Any
-    try:
-        if isinstance(controller, GnpController):
-            form, (config, body) = _GNP, gnp.controller_body(controller.cfg, controller.individual)
-        else:
-            form, (config, body) = _NET, neuro.net_body(controller.net, controller.arrays)
-    except (gnp.GnpError, neuro.NeuroError) as error:
-        raise ControllerFileError(str(error)) from None
-    return {
-        "format": form.name,
-        "version": form.version,
-        form.config_key: config,
-        "settings": controller.settings,
-        form.body_key: body,
-    }
+    def document(self, config: Any, settings: dict[str, Any], body: Any) -> dict[str, Any]:
+        """The envelope around a family's config and body."""
+        return {
+            "format": self.name,
+            "version": self.version,
+            self.config_key: config,
+            "settings": settings,
+            self.body_key: body,
+        }
 
 
 def save_document(path: str | Path, document: dict[str, Any]) -> Path:
@@ -103,11 +79,11 @@ def save_controller(path: str | Path, controller: Controller) -> Path:
     Raises:
         ControllerFileError: the controller is not one individual or net (named).
     """
-    return save_document(path, controller_document(controller))
+    return save_document(path, controller.document())
 
 
-def load_controller(path: str | Path) -> Controller:
-    """Read a controller file of either family, checked: a `GnpController` or a `NetController`.
+def read_controller(path: str | Path, formats: Mapping[str, ControllerFormat]) -> Controller:
+    """Read a controller file of one of `formats` (by name), checked.
 
     Raises:
         ControllerFileError: the file is missing, not a regular file, too large or deep (see
@@ -119,10 +95,10 @@ def load_controller(path: str | Path) -> Controller:
     text = read_text(path, ControllerFileError, what)
     document = loads_json(text, ControllerFileError, f"{what} {path}")
     name = document.get("format") if isinstance(document, dict) else None
-    form = FORMATS.get(name) if isinstance(name, str) else None
+    form = formats.get(name) if isinstance(name, str) else None
     if form is None:
         raise ControllerFileError(
-            f"{path} is not a gnp-lab controller (no format {' or '.join(map(repr, FORMATS))})"
+            f"{path} is not a gnp-lab controller (no format {' or '.join(map(repr, formats))})"
         )
     if document.get("version") != form.version:
         raise ControllerFileError(
@@ -133,11 +109,8 @@ def load_controller(path: str | Path) -> Controller:
     if not isinstance(settings, dict):
         raise ControllerFileError(f"{path}: settings must be a JSON object")
     try:
-        config, body = document[form.config_key], document[form.body_key]
-        if form is _GNP:
-            return GnpController(*gnp.controller_from_body(config, body), settings)
-        return NetController(*neuro.net_from_body(config, body), settings)
-    except (gnp.GnpError, neuro.NeuroError) as error:
+        return form.read(document[form.config_key], document[form.body_key], settings)
+    except ControllerFileError as error:
         raise ControllerFileError(f"{path}: {error}") from None
     # Any structural error of the JSON (a list where a mapping belongs, a row too short...)
     # ends in one line, whichever lookup met it first.

@@ -13,7 +13,6 @@ import h5py
 import numpy as np
 from pydantic import ValidationError
 
-import gnp
 from app.loop.recording import Trajectory
 from app.settings.config import ImplementationSettings
 from app.settings.loading import describe_problems, stored_config
@@ -205,10 +204,6 @@ class RunReader:
             )
         )
 
-    @property
-    def gnp_config(self) -> gnp.GnpConfig:
-        return self.config.controller.gnp_config()
-
     def history(self) -> History:
         """Per-generation results of the completed generations."""
         return self._steady(self._history)
@@ -256,14 +251,6 @@ class RunReader:
             name: np.asarray(self._dataset(f"genomes/best/{name}")[generation])[None]
             for name in self._file["genomes/best"]
         }
-
-    def best_genome(self, generation: int = -1) -> tuple[gnp.GnpConfig, gnp.Population]:
-        """(config, a 1-individual population) of a generation's best."""
-        cfg = self.gnp_config
-        try:
-            return cfg, gnp.population_from_arrays(cfg, self.best_genome_arrays(generation))
-        except gnp.GnpError as error:
-            raise RunFileError(f"{self.path.name}: an invalid genome: {error}") from None
 
     def checkpoint(self) -> tuple[int, dict[str, np.ndarray]] | None:
         """(next generation to evaluate, full population arrays) of the last checkpoint."""

@@ -10,9 +10,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from app.brains.gnp_file import GnpController
 from app.settings.config import ConfigError, RunConfig
 from app.store import RunFileError, resolve_run
-from app.store.controller_file import GnpController, save_controller
+from app.store.controller_file import save_controller
 from app.system.exit_codes import EXIT_INTERRUPTED
 from app.tasks.common import EpisodeProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings

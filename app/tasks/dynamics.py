@@ -14,7 +14,7 @@ steps (Gymnasium's `TimeLimit`: truncated).
 
 `FAST_TASKS` is the registry `app.tasks.lives` reads: a task id there lives its batch in
 `lives_kernel`, every individual's whole episode in one compiled call with GNP's own kernel
-(`gnp.kernel.walk_kernel`), as `app.loop.fused` does for the robot.
+(`gnp.kernel.walk_kernel`), as `app.brains.gnp_fused` does for the robot.
 """
 
 from __future__ import annotations

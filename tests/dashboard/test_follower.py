@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from app import store
+from app.brains.registry import family_of
 from app.dashboard.follower import FINISHED_RETRIES, TrainingFollower
 from app.phases.training import GenerationSummary, train
 from app.settings.config import RunConfig
@@ -81,7 +82,7 @@ def test_each_generation_is_reported_once_and_its_best_put_on_show(
         assert progress.best is not None and progress.best.generation == generation
         assert (progress.best.life, progress.best.robot.label) == (40, "run")
         with store.RunReader(out) as reader:
-            _, population = reader.best_genome(generation)
+            population = family_of(reader.config).best(reader, generation)
             history = reader.history()
         np.testing.assert_array_equal(progress.best.robot.population.conn, population.conn)
         assert progress.history is not None

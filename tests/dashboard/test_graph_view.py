@@ -198,7 +198,8 @@ def test_second_stage_off_a_bs_robot_takes_the_greedy_branch(dashboard: object) 
 @pytest.mark.parametrize("method", ["BS", "CS"])
 def test_rollout_carries_the_second_stage_switch(method: str) -> None:
     """`rollout(..., second_stage=False)` steps the batch as `gnp.step` does with it off."""
-    from app.loop.rollout import Batch, rollout
+    from app.brains.gnp_controllers import gnp_batch
+    from app.loop.rollout import rollout
 
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
     arena = sim.load_arena("training")
@@ -207,7 +208,7 @@ def test_rollout_carries_the_second_stage_switch(method: str) -> None:
         population = gnp.init_population(cfg, 3, np.random.default_rng(2))
         world = sim.World(arena, n=3, seed=5)
         world.reset(arena.start_poses[:3])
-        batch = Batch(world, cfg, population, np.arange(3))
+        batch = gnp_batch(world, cfg, population, np.arange(3))
         if off_in_rollout:
             rollout(batch, 60, 0.2, 0.1, second_stage=False)
         else:  # the same, step by step through gnp.step

@@ -10,6 +10,7 @@ import pytest
 
 import sim
 from app import store
+from app.brains.registry import family_of
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.stage import Show, Stage, random_show, run_robot
 from app.phases.live import LearningSettings, LiveError, LiveSession, RobotSpec
@@ -61,7 +62,7 @@ def test_a_runs_best_starts_at_the_arenas_start_pose(
 def test_the_best_of_a_run_is_its_last_generations_best(runs_dir: Path) -> None:
     with store.RunReader(runs_dir / "bs.h5") as reader:
         last, first = run_robot(reader), run_robot(reader, 0)
-        _, stored = reader.best_genome(1)
+        stored = family_of(reader.config).best(reader, 1)
     assert (last.label, last.family.label) == ("bs", "BS")
     np.testing.assert_array_equal(last.population.conn, stored.conn)
     assert not np.array_equal(first.population.q_ss, last.population.q_ss)

@@ -40,7 +40,7 @@ def _lives(arrays: dict[str, np.ndarray], starts: np.ndarray, steps: int) -> tup
     arena = sim.load_arena("training")
     world = sim.World(arena, n=len(starts), seed=3, noise_sigma=50.0)
     world.reset(arena.start_poses[starts], seeds=100 + starts.astype(np.uint64))
-    batch = Batch.driven_by(world, NeuralControllers(NET, arrays))
+    batch = Batch(world, NeuralControllers(NET, arrays))
     recorder = TrajectoryRecorder(len(starts), steps, trace_layout(NET))
     out = rollout(batch, steps, 0.0, 0.0, learn=False, recorder=recorder)
     return out, recorder.trajectory(starts)

@@ -27,7 +27,8 @@ HEAVY = ("numba", "sim", "gnp", "neuro", "dask", "viser", "gymnasium", "app.dash
 KERNELS = (
     *("numba", "llvmlite", "scipy", "pymunk", "cma", "neat", "dask", "viser", "gymnasium"),
     *("sim.rays", "sim.sensors", "sim.world", "gnp.engine", "gnp.kernel", "neuro.nets"),
-    *("app.loop.fused", "app.loop.rollout", "app.phases.warm", "app.dashboard"),
+    *("app.loop.fused", "app.loop.rollout", "app.brains.gnp_fused", "app.phases.warm"),
+    "app.dashboard",
 )
 """What reading run configs never needs: numba and what imports it, the optimisers' and the
 physics' libraries."""

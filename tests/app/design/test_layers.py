@@ -7,8 +7,9 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
    above.
 1. `app.settings` (the run configuration, its fields, presets, arenas, CLI options) and
    `app.system` (worker processes, safe names, exit codes); `app` itself (its `__init__`).
-2. `app.loop`: the one loop (`rollout`), its compiled form, recording, random streams.
-3. `app.store`: run files and controller files.
+2. `app.loop`: the one loop (`rollout`), its compiled world half, recording, random streams.
+3. `app.store`: run files and controller files' envelope.
+
 4. `app.brains`: the brain contract, its registry and the families behind it.
 5. `app.phases`: training, implementation and live robots, each a use of the loop through the
    contract.
@@ -21,6 +22,9 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
 
 A folder may import its own modules and any folder of a lower layer, never one of its own layer
 or above, so the folders cannot import each other in a loop.
+
+`app.loop` and `app.store` import neither `gnp` nor `neuro`: what they need of a family they ask
+through the contract (`FAMILY_FREE`).
 """
 
 from __future__ import annotations
@@ -34,6 +38,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("sim", "gnp", "neuro", "app")
 CORE = "app"
+FAMILY_FREE = ("app.loop", "app.store")
+"""Folders below the brain families that import no family's package (`gnp`, `neuro`): they ask
+`app.brains`' contract instead (issue #46)."""
 LAYER = {
     "sim": 0,
     "gnp": 0,
@@ -55,9 +62,9 @@ LAYER = {
 }
 
 
-def module_name(path: Path) -> str:
+def module_name(path: Path, root: Path = ROOT) -> str:
     """`app/views/scene.py` → `app.views.scene`; a package's `__init__.py` → the package."""
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    parts = list(path.relative_to(root).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)
@@ -68,7 +75,9 @@ def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
 
     `from a.b import c` counts as an import of `a.b.c` when that is a module, else of `a.b`.
     """
-    files = {module_name(p): p for pkg in PACKAGES for p in sorted((root / pkg).rglob("*.py"))}
+    files = {
+        module_name(p, root): p for pkg in PACKAGES for p in sorted((root / pkg).rglob("*.py"))
+    }
     graph: dict[str, set[str]] = {}
     for name, path in files.items():
         targets: set[str] = set()
@@ -104,6 +113,17 @@ def layer_violations(graph: Mapping[str, Iterable[str]]) -> list[str]:
             if a != b and LAYER[b] >= LAYER[a]:
                 bad.append(f"{source} (layer {LAYER[a]}) imports {target} (layer {LAYER[b]})")
     return sorted(bad)
+
+
+def family_imports(graph: Mapping[str, Iterable[str]]) -> list[str]:
+    """Imports of `gnp` or `neuro` (the package or any module of it) from `FAMILY_FREE`."""
+    return sorted(
+        f"{source} imports {target}"
+        for source, targets in graph.items()
+        if folder(source) in FAMILY_FREE
+        for target in targets
+        if folder(target) in ("gnp", "neuro")
+    )
 
 
 def cycles(graph: Mapping[str, Iterable[str]]) -> list[frozenset[str]]:
@@ -182,6 +202,34 @@ def test_the_checks_catch_what_they_are_for() -> None:
     assert folder("app.store.reader") == "app.store"
     assert folder("app") == CORE
     assert folder("app.views.graph_view") == "app.views"
+
+
+def test_the_loop_and_the_store_import_no_brain_package(graph: dict[str, set[str]]) -> None:
+    assert family_imports(graph) == []
+
+
+def test_the_family_check_catches_an_added_import(tmp_path: Path) -> None:
+    """A tree whose loop imports `gnp` inside a function, and whose store imports a module of
+    `neuro` for its types only: both are reported."""
+    for package in PACKAGES:
+        (tmp_path / package).mkdir()
+        (tmp_path / package / "__init__.py").write_text("")
+    (tmp_path / "gnp" / "engine.py").write_text("")
+    (tmp_path / "neuro" / "nets.py").write_text("")
+    for sub, code in (
+        ("loop", "def f():\n    import gnp\n"),
+        (
+            "store",
+            "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from neuro import nets\n",
+        ),
+    ):
+        (tmp_path / "app" / sub).mkdir()
+        (tmp_path / "app" / sub / "__init__.py").write_text("")
+        (tmp_path / "app" / sub / "x.py").write_text(code)
+    assert family_imports(import_graph(tmp_path)) == [
+        "app.loop.x imports gnp",
+        "app.store.x imports neuro.nets",
+    ]
 
 
 def test_gymnasium_stays_in_the_envs_modules() -> None:

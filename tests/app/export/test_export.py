@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 import gnp
+from app.brains.gnp_file import GnpController
+from app.brains.registry import family_of, load_controller
 from app.cli import main
 from app.export import ExportError, export_run
 from app.export.graph import graph_dot, transition_counts, visit_sequence
@@ -21,7 +23,6 @@ from app.export.replay import CLIENT_BUILD, PLAY_RECORDING
 from app.phases.implementation import implement
 from app.settings.config import ImplementationSettings
 from app.store import RunReader
-from app.store.controller_file import GnpController, load_controller
 
 EDGE = re.compile(r"^\s*n(\d+) -> n(\d+) \[(.*)\];$")
 NODE = re.compile(r'^\s*n(\d+) \[label="([^"]*)"')
@@ -78,6 +79,10 @@ def _weight(attrs: str) -> int:
     return int(match[1])
 
 
+def _best(reader: RunReader, generation: int) -> gnp.Population:
+    return family_of(reader.config).best(reader, generation)
+
+
 def _commands(cfg: gnp.GnpConfig, pop: gnp.Population) -> np.ndarray:
     state = gnp.init_state(cfg, 1, [4])
     rng = np.random.default_rng(11)
@@ -107,7 +112,7 @@ def test_export_writes_every_file_and_the_controller_steps_as_the_run(
     assert isinstance(controller, GnpController)
     cfg, loaded, settings = controller.cfg, controller.individual, controller.settings
     with RunReader(runs_dir / "tiny.h5") as reader:
-        run_cfg, best = reader.best_genome(2)
+        run_cfg, best = reader.config.controller.gnp_config(), _best(reader, 2)
         control_period = reader.config.training.control_period
     assert cfg == run_cfg
     assert settings["generation"] == 2 and settings["run"] == "tiny"
@@ -122,7 +127,7 @@ def test_an_earlier_generation_exports_its_best_with_zero_weights(
     document = json.loads((out / "controller.json").read_text())
     assert document["settings"]["generation"] == 0
     with RunReader(runs_dir / "tiny.h5") as reader:
-        cfg, best = reader.best_genome(0)
+        cfg, best = reader.config.controller.gnp_config(), _best(reader, 0)
     controller = load_controller(out / "controller.json")
     assert isinstance(controller, GnpController)
     loaded = controller.individual
@@ -140,7 +145,7 @@ def test_the_graph_of_the_final_elite_counts_its_recorded_transitions(
     out = export_run(runs_dir / "tiny.h5", tmp_path / "final")
     nodes, edges = _parse((out / "graph.dot").read_text())
     with RunReader(runs_dir / "tiny.h5") as reader:
-        cfg, _ = reader.best_genome(-1)
+        cfg = reader.config.controller.gnp_config()
         elite = reader.elite()
     assert elite is not None
     assert sorted(nodes) == list(range(cfg.n_nodes))

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from app.brains.registry import load_controller
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.status import set_value
 from app.export import ExportError
-from app.store.controller_file import load_controller
 
 
 def test_the_runs_tab_exports_the_loaded_run(finished_run: Path, tmp_path: Path) -> None:

@@ -1,5 +1,5 @@
-"""The compiled loop (app.loop.fused) steps a batch exactly as its stages one at a time do, bit
-for bit.
+"""The compiled loop (app.loop.fused's world half, app.brains.gnp_fused's GNP half) steps a
+batch exactly as its stages one at a time do, bit for bit.
 
 Copies of one batch (GNP controllers, analytic world, noise, faults of every mode firing during
 the steps, episodes redrawn): one stepped by `Batch.staged_step` (the stages called one by one
@@ -19,8 +19,10 @@ import pytest
 
 import gnp
 import sim
+from app.brains import gnp_fused
+from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
 from app.loop import fused
-from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
 from app.settings.config import CFrom
 
@@ -55,7 +57,7 @@ def _batch(
     world.reset(arena.start_poses[robots % len(arena.start_poses)], seeds=1000 + robots)
     world.schedule_faults(FAULTS)
     population = gnp.init_population(cfg, N, np.random.default_rng(3))
-    return Batch(world, cfg, population, 2000 + robots, c_from)
+    return gnp_batch(world, cfg, population, 2000 + robots, c_from)
 
 
 def _assert_same(a: Batch, b: Batch) -> None:
@@ -65,13 +67,11 @@ def _assert_same(a: Batch, b: Batch) -> None:
     assert np.array_equal(a.world.observe(), b.world.observe())
     assert np.array_equal(a.world.fault_modes, b.world.fault_modes)
     assert np.array_equal(
-        a.gnp_controllers.population.records, b.gnp_controllers.population.records
+        gnp_of(a).population.records, gnp_of(b).population.records
     )  # Q tables included
-    assert np.array_equal(a.gnp_controllers.state.walk, b.gnp_controllers.state.walk)
-    assert np.array_equal(
-        a.gnp_controllers.state.wheels, b.gnp_controllers.state.wheels
-    )  # the step's commands
-    assert np.array_equal(a.gnp_controllers.state.rng, b.gnp_controllers.state.rng)
+    assert np.array_equal(gnp_of(a).state.walk, gnp_of(b).state.walk)
+    assert np.array_equal(gnp_of(a).state.wheels, gnp_of(b).state.wheels)  # the step's commands
+    assert np.array_equal(gnp_of(a).state.rng, gnp_of(b).state.rng)
     assert np.array_equal(a.reward, b.reward)
 
 
@@ -86,13 +86,13 @@ def block(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> in
 def compiled_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """How many steps each call of the compiled loop took."""
     calls: list[int] = []
-    original = fused.steps
+    original = gnp_fused.steps
 
     def counted(*args: Any, **kwargs: Any) -> Any:
         calls.append(len(args[5]))
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(fused, "steps", counted)
+    monkeypatch.setattr(gnp_fused, "steps", counted)
     return calls
 
 
@@ -159,8 +159,8 @@ def test_a_compiled_rollout_is_the_per_step_rollout_to_the_bit(
     alpha = np.linspace(0.0, 0.2, steps)
     starts = np.random.default_rng(5).integers(0, 10, (N, 3))
     each, compiled, recorded = (_batch(method, fuzzy, c_from) for _ in range(3))
-    recorder = TrajectoryRecorder(N, steps, gnp_trace(each.gnp_controllers.cfg))
-    expected = TrajectoryRecorder(N, steps, gnp_trace(each.gnp_controllers.cfg))
+    recorder = TrajectoryRecorder(N, steps, gnp_trace(gnp_of(each).cfg))
+    expected = TrajectoryRecorder(N, steps, gnp_trace(gnp_of(each).cfg))
     sums = np.zeros((N, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
     poses = each.world.arena.start_poses

@@ -13,9 +13,10 @@ from lab_fixtures import assert_same_data, tiny_config
 
 import gnp
 import sim
+from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
 from app.cli.parser import build_parser
 from app.cli.train import config_from_args
-from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
 from app.phases.implementation import implement
 from app.phases.training import train
@@ -70,7 +71,7 @@ def _batch(noise: float, c_from: CFrom, faults: Sequence[sim.Fault] = (), n: int
     world = sim.World(arena, n=n, seed=0, noise_sigma=noise)
     world.reset(arena.start_poses[np.arange(n) % 10], seeds=1000 + np.arange(n))
     world.schedule_faults(faults)
-    return Batch(world, CFG, pop, 2000 + np.arange(n), c_from)
+    return gnp_batch(world, CFG, pop, 2000 + np.arange(n), c_from)
 
 
 def _live(batch: Batch, steps: int = T) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -126,7 +127,7 @@ def test_same_seed_same_lives() -> None:
     a, b = _batch(50.0, "observed"), _batch(50.0, "observed")
     first, second = rollout(a, T, 0.1, 0.1), rollout(b, T, 0.1, 0.1)
     assert np.array_equal(first.term_sums, second.term_sums)
-    assert np.array_equal(a.gnp_controllers.population.q_ss, b.gnp_controllers.population.q_ss)
+    assert np.array_equal(gnp_of(a).population.q_ss, gnp_of(b).population.q_ss)
     assert np.array_equal(a.world.poses, b.world.poses)
 
 

@@ -7,7 +7,8 @@ import pytest
 
 import gnp
 import sim
-from app.loop.recording import TrajectoryRecorder, gnp_trace
+from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
+from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
 
 CFG = gnp.GnpConfig(method="BS", n_sub=2, n_branch=2)
@@ -21,7 +22,7 @@ def _batch(n: int, robots: np.ndarray | None = None, noise: float = 50.0) -> Bat
     everyone = gnp.init_population(CFG, 8, np.random.default_rng(3))
     world = sim.World(arena, n=len(robots), seed=0, noise_sigma=noise)
     world.reset(arena.start_poses[robots % 10], seeds=1000 + robots)
-    return Batch(world, CFG, gnp.take(everyone, robots), 2000 + robots)
+    return gnp_batch(world, CFG, gnp.take(everyone, robots), 2000 + robots)
 
 
 def test_a_robot_lives_the_same_life_in_any_batch() -> None:
@@ -31,9 +32,7 @@ def test_a_robot_lives_the_same_life_in_any_batch() -> None:
     b = rollout(alone, 40, 0.1, 0.1)
     assert np.array_equal(a.term_sums[[5, 2]], b.term_sums)
     assert np.array_equal(whole.world.poses[[5, 2]], alone.world.poses)
-    assert np.array_equal(
-        whole.gnp_controllers.population.q_ss[[5, 2]], alone.gnp_controllers.population.q_ss
-    )
+    assert np.array_equal(gnp_of(whole).population.q_ss[[5, 2]], gnp_of(alone).population.q_ss)
 
 
 def test_blocks_of_steps_continue_one_life() -> None:
@@ -41,9 +40,7 @@ def test_blocks_of_steps_continue_one_life() -> None:
     whole = rollout(once, 30, 0.1, 0.2)
     parts = [rollout(blocks, n, 0.1, 0.2) for n in (10, 5, 15)]
     assert np.array_equal(once.world.poses, blocks.world.poses)
-    assert np.array_equal(
-        once.gnp_controllers.population.q_bs, blocks.gnp_controllers.population.q_bs
-    )
+    assert np.array_equal(gnp_of(once).population.q_bs, gnp_of(blocks).population.q_bs)
     assert np.array_equal(
         whole.step_reward_sums, np.concatenate([p.step_reward_sums for p in parts])
     )
@@ -65,22 +62,22 @@ def test_the_returned_sums_are_the_recorded_rewards() -> None:
 
 def test_epsilon_alpha_are_taken_per_step() -> None:
     batch = _batch(3)
-    q_before = batch.gnp_controllers.population.q_ss.copy()
+    q_before = gnp_of(batch).population.q_ss.copy()
     alpha = np.zeros(40)
     rollout(batch, 40, 0.1, alpha)  # α = 0: Sarsa moves nothing
-    assert np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
+    assert np.array_equal(gnp_of(batch).population.q_ss, q_before)
     alpha[30:] = 0.5
     rollout(batch, 40, 0.1, alpha)
-    assert not np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
+    assert not np.array_equal(gnp_of(batch).population.q_ss, q_before)
     with pytest.raises(ValueError):
         rollout(batch, 40, 0.1, np.zeros(39))
 
 
 def test_offline_steps_leave_q_tables_alone() -> None:
     batch = _batch(3)
-    q_before = batch.gnp_controllers.population.q_ss.copy()
+    q_before = gnp_of(batch).population.q_ss.copy()
     rollout(batch, 30, 0.1, 0.5, learn=False)
-    assert np.array_equal(batch.gnp_controllers.population.q_ss, q_before)
+    assert np.array_equal(gnp_of(batch).population.q_ss, q_before)
 
 
 def test_episodes_move_robots_to_their_next_start_pose() -> None:
@@ -100,4 +97,4 @@ def test_a_batch_needs_one_controller_per_robot() -> None:
     arena = sim.load_arena("training")
     pop = gnp.init_population(CFG, 3, np.random.default_rng(0))
     with pytest.raises(ValueError, match="3 controllers for 2 robots"):
-        Batch(sim.World(arena, n=2), CFG, pop, np.arange(2))
+        gnp_batch(sim.World(arena, n=2), CFG, pop, np.arange(2))

@@ -18,7 +18,8 @@ from lab_fixtures import assert_same_data, datasets, tiny_config
 
 import app.phases.training as training
 import sim
-from app.brains.registry import family_of
+from app.brains.net_file import NetController
+from app.brains.registry import family_of, load_controller
 from app.export import ExportError, export_replay, export_run
 from app.loop.seeds import life_seeds
 from app.phases.implementation import implement
@@ -28,7 +29,6 @@ from app.settings.arenas import arena_of
 from app.settings.config import ImplementationSettings, RunConfig
 from app.settings.loading import build_config, to_toml
 from app.store import RunFileError, RunReader, list_runs
-from app.store.controller_file import NetController, load_controller
 
 OPTIMISERS = ("cmaes", "neat")
 

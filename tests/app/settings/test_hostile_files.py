@@ -19,8 +19,9 @@ import h5py
 import numpy as np
 import pytest
 
+from app.brains.registry import load_controller
 from app.settings.user_files import JSON_MAX_DEPTH
-from app.store.controller_file import ControllerFileError, load_controller
+from app.store.controller_file import ControllerFileError
 from app.system.memory import available_memory
 
 TIMEOUT = 120

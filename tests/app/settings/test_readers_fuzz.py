@@ -21,6 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from app.brains.registry import family_of, load_controller
 from app.experiments.spec import ExperimentError
 from app.experiments.spec_loading import load_file
 from app.settings.arenas import read_arena_file
@@ -28,7 +29,7 @@ from app.settings.config import ConfigError, RunConfig
 from app.settings.loading import build_config, read_toml, stored_config, to_toml
 from app.settings.user_files import JSON_MAX_DEPTH
 from app.store import RunFileError, RunReader, list_runs
-from app.store.controller_file import Controller, ControllerFileError, load_controller
+from app.store.controller_file import Controller, ControllerFileError
 from sim import ArenaError
 
 FUZZ = settings(
@@ -113,7 +114,7 @@ def test_run_reader_gives_a_run_or_its_error(finished_run: Path, data: st.DataOb
         try:
             with RunReader(path) as run:
                 run.history()
-                run.best_genome()
+                family_of(run.config).best(run)
                 run.checkpoint()
                 run.elite()
         except RunFileError:
@@ -180,7 +181,8 @@ def test_arena_files_give_an_arena_or_arena_error(tmp_path: Path, data: st.DataO
 @pytest.fixture(scope="module")
 def good_controller(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     import gnp
-    from app.store.controller_file import GnpController, save_controller
+    from app.brains.gnp_file import GnpController
+    from app.store.controller_file import save_controller
 
     cfg = gnp.GnpConfig(method="CS", n_judgment=4, n_processing=2)
     individual = gnp.init_population(cfg, 1, np.random.default_rng(1))

@@ -53,13 +53,14 @@ def test_finished_run_is_self_describing(finished_run: Path) -> None:
         assert np.array_equal(history.best_index, history.fitness.argmax(axis=1))
         assert np.array_equal(history.best_terms["reward"], history.best_fitness)
         assert set(history.mean_terms) == set(TERM_NAMES)
-        cfg, best = run.best_genome(1)
+        family = family_of(run.config)
+        cfg, best = family.graph_config, family.best(run, 1)
         assert cfg == config.controller.gnp_config()
         assert best.size == 1
         gnp.check_population(cfg, best)
         assert np.array_equal(run.best_genome_arrays(-1)["q_ss"], run.best_genome_arrays(2)["q_ss"])
         with pytest.raises(RunFileError, match="generation 3 is not complete"):
-            run.best_genome(3)
+            family.best(run, 3)
 
 
 def test_half_written_checkpoint_is_never_used(tmp_path: Path) -> None:

@@ -11,13 +11,10 @@ import pytest
 
 import gnp
 import neuro
-from app.store.controller_file import (
-    ControllerFileError,
-    GnpController,
-    NetController,
-    load_controller,
-    save_controller,
-)
+from app.brains.gnp_file import GnpController
+from app.brains.net_file import NetController
+from app.brains.registry import load_controller
+from app.store.controller_file import ControllerFileError, save_controller
 
 
 def _learned(method: str) -> tuple[gnp.GnpConfig, gnp.Population]:

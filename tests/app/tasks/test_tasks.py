@@ -311,7 +311,7 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     assert said.startswith(f"mean return {lives.returns.mean():.1f} ± ")
     assert "over 5 episodes, seeds 0..4" in said
     assert main(["export", "cp", "--runs-dir", str(tmp_path), "--out", str(tmp_path / "x")]) == 0
-    from app.store.controller_file import load_controller
+    from app.brains.registry import load_controller
 
     controller = load_controller(tmp_path / "x" / "controller.json")
     assert controller.settings["task"]["id"] == "CartPole-v1"

@@ -1,0 +1,120 @@
+"""GNP's controllers in the lab's loop: a population and its engine state, stepped staged or fused.
+
+`GnpControllers` satisfies `app.loop.rollout.Controllers` and offers the loop its compiled
+steps (`fused`, `app.brains.gnp_fused`). Numba's: the family imports this module for lives only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import gnp
+import sim
+from app.brains import gnp_fused
+from app.loop.fused import FusedSteps, Watched
+from app.loop.recording import TraceLayout
+from app.loop.rollout import Batch
+from app.settings.config import CFrom
+
+
+def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
+    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
+    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
+
+
+class GnpControllers:
+    """A `gnp.Population` and its engine state: online Sarsa, ε-greedy."""
+
+    def __init__(
+        self, cfg: gnp.GnpConfig, population: gnp.Population, engine_seeds: np.ndarray
+    ) -> None:
+        self.cfg = cfg
+        self.population = population
+        self.state = gnp.init_state(cfg, population.size, engine_seeds)
+
+    @property
+    def size(self) -> int:
+        return self.population.size
+
+    def act(
+        self,
+        observations: np.ndarray,
+        reward: np.ndarray,
+        epsilon: float,
+        alpha: float,
+        *,
+        learn: bool,
+        trace: bool,
+        second_stage: bool,
+    ) -> tuple[np.ndarray, gnp.StepTrace | None]:
+        return gnp.step(
+            self.cfg,
+            self.population,
+            self.state,
+            observations,
+            reward,
+            epsilon,
+            alpha,
+            learn,
+            trace=trace,
+            second_stage=second_stage,
+        )
+
+    def reset_episode(self) -> None:
+        gnp.reset_episode(self.state)
+
+    @property
+    def fused(self) -> FusedSteps:
+        """The compiled steps the loop may take: these controllers' own (`fits`, `steps`)."""
+        return self
+
+    def fits(self, second_stage: bool) -> bool:
+        """The compiled walk runs the method's second stage: on, or a method without one."""
+        return second_stage or not self.cfg.traits.two_stage
+
+    def steps(
+        self,
+        world: sim.World,
+        reward: np.ndarray,
+        epsilon: np.ndarray,
+        alpha: np.ndarray,
+        *,
+        learn: bool,
+        judge_observed: bool,
+        term_sums: np.ndarray,
+        watch: bool,
+    ) -> tuple[np.ndarray, np.ndarray, Watched | None]:
+        return gnp_fused.steps(
+            world,
+            self.cfg,
+            self.population,
+            self.state,
+            reward,
+            epsilon,
+            alpha,
+            learn=learn,
+            judge_observed=judge_observed,
+            term_sums=term_sums,
+            watch=watch,
+        )
+
+
+def gnp_batch(
+    world: sim.World,
+    cfg: gnp.GnpConfig,
+    population: gnp.Population,
+    engine_seeds: np.ndarray,
+    c_from: CFrom = "true",
+) -> Batch:
+    """A batch of `world`'s robots driven by `population` (one individual per robot)."""
+    if population.size != world.n:
+        raise ValueError(f"{population.size} controllers for {world.n} robots")
+    return Batch(world, GnpControllers(cfg, population, engine_seeds), c_from)
+
+
+def gnp_of(batch: Batch) -> GnpControllers:
+    """The GNP controllers driving `batch` (their config, population and engine state: the
+    ones it steps, not copies); a TypeError for other controllers."""
+    if not isinstance(batch.controllers, GnpControllers):
+        raise TypeError(f"the batch is driven by {type(batch.controllers).__name__}, not GNP")
+    return batch.controllers
