@@ -25,6 +25,7 @@ import numpy as np
 
 import sim
 from app.brains.gnp_brain import initial_population
+from app.brains.gnp_settings import gnp_settings
 from app.loop.rollout import Batch
 from app.loop.seeds import life_seeds
 from app.phases.training import GenerationSummary, train
@@ -54,7 +55,12 @@ def loop_commands(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     world = sim.World(arena, n=300, seed=config.seed, noise_sigma=config.training.noise_sigma)
     poses = arena.start_poses[seeds.starts[:, 0]]
     world.reset(poses, seeds=seeds.world)
-    batch = Batch(world, config.controller.gnp_config(), initial_population(config), seeds.engine)
+    batch = Batch(
+        world,
+        gnp_settings(config).controller.gnp_config(),
+        initial_population(config),
+        seeds.engine,
+    )
     commands = np.array([batch.step(0.1, 0.1).commands for _ in range(steps)])
     return poses, seeds.world, commands
 

@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -207,7 +207,8 @@ class RunReader:
 
     @property
     def gnp_config(self) -> gnp.GnpConfig:
-        return self.config.controller.gnp_config()
+        brain: Any = self.config.brain  # GNP's settings (app.brains.gnp_settings)
+        return brain.controller.gnp_config()
 
     def history(self) -> History:
         """Per-generation results of the completed generations."""
