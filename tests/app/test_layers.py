@@ -205,3 +205,21 @@ def test_gymnasium_stays_in_the_envs_modules() -> None:
     tasks = {"app.tasks.config", "app.tasks.faults", "app.tasks.lives", "app.tasks.spaces"}
     tasks.add("app.tasks.fracnetics_arm")  # fracnetics' own loop, on gymnasium.make(task)
     assert users == {"sim.gym_env", "sim.gym_vector", *tasks}
+
+
+BRAIN_FREE = ("app.settings",)
+"""Folders that import no brain package (`gnp`, `neuro`), lazily or not: the settings know a
+family only by its name and entry points (issue #46 item 1). #46's target adds `app.loop` and
+`app.store` here once their GNP parts live with the GNP family (app/brains)."""
+
+
+def test_the_brain_free_folders_import_no_brain(graph: dict[str, set[str]]) -> None:
+    found = sorted(
+        f"{source} imports {target}"
+        for source, targets in graph.items()
+        if folder(source) in BRAIN_FREE
+        for target in targets
+        if folder(target) in ("gnp", "neuro")
+    )
+    assert found == []
+    assert {folder(s) for s in graph} >= set(BRAIN_FREE)  # the folders are there to check
