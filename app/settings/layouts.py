@@ -45,11 +45,13 @@ def layout_2(data: Mapping[str, Any]) -> dict[str, Any]:
 
     A layout-1 `neuro` or `family` section names its family; GNP's sections beside it were
     unused by such a run and are dropped. `neuro = null, family = null` (how GNP was selected)
-    names GNP. A `brain` section given too wins over what is moved into it.
+    names GNP; a `neuro` or `family` that is neither is kept, for the model to refuse. A
+    `brain` section given too wins over what is moved into it.
     """
     if not any(key in data for key in LAYOUT_1):
         return dict(data)
-    moved = {key: value for key, value in data.items() if key not in LAYOUT_1}
+    odd = {k for k in ("neuro", "family") if not isinstance(data.get(k), Mapping | None)}
+    moved = {key: value for key, value in data.items() if key not in LAYOUT_1 or key in odd}
     brain: dict[str, Any] = {}
     other = [(data.get(k), n) for k, n in (("neuro", "optimiser"), ("family", "name"))]
     named = [(dict(section), key) for section, key in other if isinstance(section, Mapping)]
@@ -59,7 +61,7 @@ def layout_2(data: Mapping[str, Any]) -> dict[str, Any]:
         if brain["family"] is None:
             del brain["family"]
     else:
-        if any(k in data for k in ("neuro", "family")):  # both null: GNP selected
+        if any(k in data for k in ("neuro", "family")) and not odd:  # both null: GNP selected
             brain["family"] = DEFAULT_BRAIN
         brain |= {k: data[k] for k in GNP_SECTIONS if k in data}
     given = data.get("brain")

@@ -112,6 +112,7 @@ def test_a_layout_1_preset_under_a_layout_2_arm_merges_by_precedence() -> None:
         ({"brain": {"evolution": {"p_mutation": 2}}}, "brain.evolution.p_mutation: Input should"),
         ({"brain": {"family": "neat", "sigma0": 0}}, "brain.sigma0: Input should be greater"),
         ({"brain": 3}, "brain: a table of settings"),
+        ({"neuro": 3}, "neuro: unknown setting"),
     ],
 )
 def test_errors_name_the_brain_field(layer: dict[str, Any], problem: str) -> None:
