@@ -99,7 +99,10 @@ def test_the_train_tab_overrides_its_preset() -> None:
             {"training.noise_sigma": 2000.0},
             "training.noise_sigma: Input should be less than or equal to 1023",
         ),
-        ({"controller.method": "XX"}, "controller.method: Input should be 'RL', 'BS' or 'CS'"),
+        (
+            {"brain.controller.method": "XX"},
+            "brain.controller.method: Input should be 'RL', 'BS' or 'CS'",
+        ),
         ({"training.generations": 1.5}, "training.generations: Input should be a valid integer"),
         ({"seed": 2**63}, "seed: Input should be less than or equal to 9223372036854775807"),
         ({"training.epsilon_min": 0.5}, "epsilon_min (0.5) must not exceed epsilon_max"),

@@ -104,4 +104,4 @@ def test_the_checkout_keeps_a_bundled_run_of_every_method() -> None:
     for config in configs.values():  # only the method (and its sub nodes) differ
         other = config.model_dump()
         assert other["seed"] == first["seed"] and other["training"] == first["training"]
-        assert other["evolution"] == first["evolution"]
+        assert other["brain"]["evolution"] == first["brain"]["evolution"]
