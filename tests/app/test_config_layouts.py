@@ -153,3 +153,19 @@ def test_an_unknown_family_is_listed_and_refused_when_bound(tmp_path: Path) -> N
     (summary,) = list_runs(tmp_path)
     assert summary.error is None, summary.error
     assert summary.brain == "vehicle" and run_kind(summary) == "vehicle (not registered)"
+
+
+def test_the_cli_selects_a_family_beside_its_options() -> None:
+    from app.cli.parser import build_parser
+    from app.cli.train import config_from_args
+
+    def config(*argv: str) -> RunConfig:
+        return config_from_args(build_parser().parse_args(["train", *argv]))
+
+    assert config("--brain", "cmaes", "--set", "brain.hidden=3").brain == NetSettings(
+        family="cmaes", hidden=3
+    )
+    assert config("--preset", "thesis-ch3", "--brain", "neat").brain == NetSettings(family="neat")
+    assert config("--brain", "gnp", "--crisp").brain.controller.fuzzy is False  # type: ignore[attr-defined]
+    with pytest.raises(ConfigError, match=r"brain\.controller: unknown setting"):
+        config("--brain", "cmaes", "--method", "RL")  # GNP's option is not a net's
