@@ -27,9 +27,8 @@ import pytest
 from pydantic import Field
 
 import sim
-from app.brains import PLUGINS_VARIABLE, BrainFamily, family_of, register
+from app.brains import PLUGINS_VARIABLE, BrainFamily, BrainSettings, family_of, register
 from app.settings.config import RunConfig
-from app.settings.families import BrainSettings
 from app.settings.loading import build_config
 from app.store import RunReader, RunTemplate
 
