@@ -68,7 +68,7 @@ def enter(name: str, family: Any, settings: type[BrainSettings] | str | None = N
 
 
 def load_plugins() -> None:
-    """Import the modules `GNP_LAB_BRAINS` names (once each).
+    """Import the modules `GNP_LAB_BRAINS` names (each once it imports).
 
     Raises:
         ConfigError: a module cannot be imported.
@@ -76,13 +76,13 @@ def load_plugins() -> None:
     for module in os.environ.get(PLUGINS_VARIABLE, "").split(","):
         module = module.strip()
         if module and module not in _plugins_loaded:
-            _plugins_loaded.add(module)
             try:
                 importlib.import_module(module)
             except ImportError as error:
                 raise ConfigError(
                     f"{PLUGINS_VARIABLE} names {module!r}, which cannot be imported: {error}"
                 ) from None
+            _plugins_loaded.add(module)
 
 
 def names() -> tuple[str, ...]:
@@ -122,10 +122,14 @@ def family_class(name: str) -> Any:
 
 
 def settings_model(name: str) -> type[BrainSettings] | None:
-    """The settings model of family `name`; None for a family not registered here."""
-    try:
-        found = entry(name)
-    except ConfigError:
+    """The settings model of family `name`; None for a family not registered here.
+
+    Raises:
+        ConfigError: a plug-in module cannot be imported (see `load_plugins`).
+    """
+    load_plugins()
+    found = _table.get(name)
+    if found is None:
         return None
     if found.settings is None:
         declared = getattr(family_class(name), "settings_model", None)

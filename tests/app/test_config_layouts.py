@@ -169,3 +169,12 @@ def test_the_cli_selects_a_family_beside_its_options() -> None:
     assert config("--brain", "gnp", "--crisp").brain.controller.fuzzy is False  # type: ignore[attr-defined]
     with pytest.raises(ConfigError, match=r"brain\.controller: unknown setting"):
         config("--brain", "cmaes", "--method", "RL")  # GNP's option is not a net's
+
+
+def test_a_plugin_that_cannot_be_imported_is_named_whenever_a_config_is_read(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("GNP_LAB_BRAINS", "no_such_family_module")
+    for _ in range(2):  # not once only: every read says so
+        with pytest.raises(ConfigError, match="'no_such_family_module', which cannot be imported"):
+            build_config({})
