@@ -62,6 +62,7 @@ import gnp
 import sim
 from app.brains.gnp_brain import initial_population
 from app.brains.gnp_controllers import gnp_batch
+from app.brains.gnp_settings import gnp_settings
 from app.loop.rollout import Batch, rollout
 from app.loop.seeds import life_seeds
 from app.settings.arenas import arena_of
@@ -108,7 +109,9 @@ class Life:
         """The lab's loop in `world` (at the life's start), with fresh copies of the
         controllers."""
         copy = gnp.take(self.population, np.arange(self.population.size))
-        return gnp_batch(world, self.config.controller.gnp_config(), copy, self.engine_seeds)
+        return gnp_batch(
+            world, gnp_settings(self.config).controller.gnp_config(), copy, self.engine_seeds
+        )
 
 
 def record(config: RunConfig, robots: int, steps: int) -> Life:
@@ -130,7 +133,9 @@ def record(config: RunConfig, robots: int, steps: int) -> Life:
         rewards=np.zeros((steps, robots)),
         commands=np.zeros((steps, robots, 2)),
     )
-    batch = gnp_batch(life.world(), grown.controller.gnp_config(), population, seeds.engine)
+    batch = gnp_batch(
+        life.world(), gnp_settings(grown).controller.gnp_config(), population, seeds.engine
+    )
     eps, alpha = grown.training.epsilon, grown.training.alpha
     for t in range(steps):
         life.rewards[t] = batch.reward
@@ -196,7 +201,7 @@ def physics(life: Life, **options: Any) -> Timed:
 
 
 def controller(life: Life) -> Timed:
-    cfg = life.config.controller.gnp_config()
+    cfg = gnp_settings(life.config).controller.gnp_config()
     eps, alpha = life.config.training.epsilon, life.config.training.alpha
 
     def run() -> None:
@@ -303,7 +308,7 @@ def main() -> None:
         for name, run in runs.items():
             best[name] = min(best[name], cpu_seconds(run))
     rate = {name: life.work / seconds for name, seconds in best.items()}
-    method = config.controller.method
+    method = gnp_settings(config).controller.method
     print(
         f"{args.preset} ({method}, σ = {args.noise:g}), {args.robots} robots × {args.steps} "
         f"steps; robot-steps per CPU second, best of {args.rounds}"

@@ -23,7 +23,7 @@ from pathlib import Path
 
 
 def _ours(population: int, generations: int, seed: int, folder: Path) -> dict[str, float]:
-    from app.settings.config import ControllerSettings
+    from app.brains.gnp_settings import ControllerSettings
     from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, train_task
     from gnp import Schedule
 

@@ -26,6 +26,7 @@ import numpy as np
 import sim
 from app.brains.gnp_brain import initial_population
 from app.brains.gnp_controllers import gnp_batch
+from app.brains.gnp_settings import gnp_settings
 from app.loop.seeds import life_seeds
 from app.phases.training import GenerationSummary, train
 from app.settings.loading import build_config, load_preset
@@ -55,7 +56,10 @@ def loop_commands(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     poses = arena.start_poses[seeds.starts[:, 0]]
     world.reset(poses, seeds=seeds.world)
     batch = gnp_batch(
-        world, config.controller.gnp_config(), initial_population(config), seeds.engine
+        world,
+        gnp_settings(config).controller.gnp_config(),
+        initial_population(config),
+        seeds.engine,
     )
     commands = np.array([batch.step(0.1, 0.1).commands for _ in range(steps)])
     return poses, seeds.world, commands

@@ -46,8 +46,8 @@ from typing import Any
 import gymnasium as gym
 
 import gnp
+from app.brains.gnp_settings import ControllerSettings
 from app.loop.seeds import evolution_rng
-from app.settings.config import ControllerSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, dynamics
 from app.tasks.lives import BatchEnv
 from app.tasks.training import first_population, generation_lives

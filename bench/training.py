@@ -32,6 +32,7 @@ import numpy as np
 import sim
 from app.brains.gnp_brain import initial_population
 from app.brains.gnp_controllers import gnp_batch
+from app.brains.gnp_settings import gnp_settings
 from app.brains.registry import family_of
 from app.loop.seeds import life_seeds
 from app.phases.implementation import run_implementation
@@ -57,7 +58,7 @@ def loop_commands(steps: int) -> tuple[sim.World, np.ndarray, np.ndarray, np.nda
     """A world as the loop evaluates generation 0 of thesis-ch3 in, its start poses and
     robot seeds, and the (steps, 300, 2) commands the controllers gave there."""
     config = load_preset("thesis-ch3")
-    cfg = config.controller.gnp_config()
+    cfg = gnp_settings(config).controller.gnp_config()
     seeds = life_seeds(config.seed, 0, np.arange(300), 1, 10)
     arena = sim.load_arena("training")
     world = sim.World(arena, n=300, seed=config.seed, noise_sigma=config.training.noise_sigma)

@@ -15,7 +15,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from app.settings.config import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, replay_task, train_task
 from app.tasks.training import GenerationSummary
 from gnp import Schedule

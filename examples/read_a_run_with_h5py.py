@@ -12,7 +12,10 @@ with h5py.File(sys.argv[1], "r", swmr=True) as run:
     config = json.loads(run.attrs["config"])
     done = int(run["progress/generations_done"][()])
     best = run["generations/best_fitness"][:done]
-    print(f"method {config['controller']['method']}, seed {run.attrs['seed']}")
+    brain = config.get("brain", config)  # files before issue #46 keep GNP's sections at the top
+    family = brain.get("family", "gnp")
+    about = brain["controller"]["method"] if family == "gnp" else family
+    print(f"method {about}, seed {run.attrs['seed']}")
     print(f"generations done {done}, best fitness {best.max():.6f}")
     for name, group in run["implementation"].items():
         print(f"implementation {name}: mean reward {group.attrs['mean_reward']:.6f}")

@@ -18,7 +18,7 @@ def main(out: Path) -> None:
         preset_layer("quick"),
         {
             "seed": 3,
-            "controller": {"method": "BS"},
+            "brain": {"controller": {"method": "BS"}},
             "training": {"population": 12, "generations": 3, "steps": 80, "noise_sigma": 50},
         },
     )

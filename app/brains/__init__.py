@@ -1,9 +1,11 @@
 """Brain families behind one contract: GNP (RL/BS/CS), neural nets (Elman + CMA-ES, NEAT) and any
 family registered from outside (docs/brains.md).
 
-    from app.brains import BrainFamily, register
+    from app.brains import BrainFamily, BrainSettings, register
 
-    class Vehicle(BrainFamily): ...
+    class VehicleSettings(BrainSettings): ...  # the run config's `brain` section
+    class Vehicle(BrainFamily):
+        settings_model = VehicleSettings
     register("vehicle", Vehicle)
 """
 
@@ -19,11 +21,13 @@ from app.brains.registry import (
     register_controller_format,
     run_kind,
 )
+from app.settings.families import BrainSettings
 
 __all__ = [
     "BUILT_IN",
     "PLUGINS_VARIABLE",
     "BrainFamily",
+    "BrainSettings",
     "Evolution",
     "NoTracer",
     "Tracer",

@@ -19,12 +19,13 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
 import gnp
 import neuro
 from app.loop.recording import TraceLayout
 from app.settings.config import ConfigError, RunConfig
+from app.settings.families import BrainSettings
 from app.settings.loading import describe_problems
 from app.store import RunReader, RunTemplate
 
@@ -86,10 +87,10 @@ class BrainFamily(ABC):
     """
 
     name: ClassVar[str] = ""
-    """The family's registered name: `config.brain` of its runs."""
-    settings_model: ClassVar[type[BaseModel] | None] = None
-    """A family registered from outside: the model its `family` config section must fit (the
-    section's `name` included); the checked section is `self.settings`."""
+    """The family's registered name: `config.brain.family` of its runs."""
+    settings_model: ClassVar[type[BrainSettings]] = BrainSettings
+    """The model of the family's `brain` config section (`family` included): a subclass of
+    `BrainSettings` with the family's own settings; the checked section is `self.settings`."""
     learns_online: ClassVar[bool] = False
     """Whether lives learn online (ε, α, the second stage); else the file records NaN for them."""
 
@@ -97,13 +98,14 @@ class BrainFamily(ABC):
         """Bind the family to `config`.
 
         Raises:
-            ConfigError: the `family` section does not fit `settings_model` (named, on one line).
+            ConfigError: the `brain` section does not fit `settings_model` (named, on one line):
+                a config read before the family was registered.
         """
         self.config = config
-        self.settings: Any = None
-        if self.settings_model is not None and config.family is not None:
+        self.settings: Any = config.brain
+        if not isinstance(self.settings, self.settings_model):
             try:
-                self.settings = self.settings_model.model_validate(config.family.model_dump())
+                self.settings = self.settings_model.model_validate(config.brain.model_dump())
             except ValidationError as error:
                 raise ConfigError(
                     f"invalid settings of brain family {self.name!r}: {describe_problems(error)}"
@@ -111,9 +113,8 @@ class BrainFamily(ABC):
 
     @classmethod
     def selection(cls) -> dict[str, Any]:
-        """The config sections that select this family (`gnp-lab train --brain NAME`): by
-        default a `family` section naming it."""
-        return {"neuro": None, "family": {"name": cls.name}}
+        """The config layer that selects this family (`gnp-lab train --brain NAME`)."""
+        return {"brain": {"family": cls.name}}
 
     # --- what the family is called and offers -------------------------------------------------
 

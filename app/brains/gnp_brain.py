@@ -16,9 +16,12 @@ import numpy as np
 import gnp
 from app.brains.contract import BrainFamily
 from app.brains.gnp_file import GnpController
+from app.brains.gnp_settings import ControllerSettings, GnpSettings, gnp_settings
+from app.brains.learning import schedules
 from app.loop.recording import TraceLayout
 from app.loop.seeds import evolution_rng, init_rng
-from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig, TrainingSettings
+from app.settings.config import RunConfig, TrainingSettings
+from app.settings.families import DEFAULT_BRAIN
 from app.store import RunFileError, RunReader, RunTemplate
 
 if TYPE_CHECKING:
@@ -28,13 +31,15 @@ if TYPE_CHECKING:
 def initial_population(config: RunConfig) -> gnp.Population:
     """Generation 0, drawn from (seed, init)."""
     return gnp.init_population(
-        config.controller.gnp_config(), config.training.population, init_rng(config.seed)
+        gnp_settings(config).controller.gnp_config(),
+        config.training.population,
+        init_rng(config.seed),
     )
 
 
 def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tuple[float, float]:
     """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
-    eps_schedule, alpha_schedule = training.schedules()
+    eps_schedule, alpha_schedule = schedules(training)
     return gnp.epsilon_alpha_over_generations(
         eps_schedule, alpha_schedule, generation, training.generations, training.schedule_progress
     )
@@ -125,11 +130,13 @@ class GnpFamily(BrainFamily):
     """GNP with the config's method (RL, BS, CS) and judgment (crisp, fuzzy)."""
 
     name = DEFAULT_BRAIN
+    settings_model = GnpSettings
+    settings: GnpSettings
     learns_online = True
 
     def __init__(self, config: RunConfig) -> None:
         super().__init__(config)
-        self.cfg = config.controller.gnp_config()
+        self.cfg = self.settings.controller.gnp_config()
 
     @classmethod
     def of(cls, cfg: gnp.GnpConfig) -> GnpFamily:
@@ -148,14 +155,10 @@ class GnpFamily(BrainFamily):
             n_branch=cfg.n_branch,
             gamma=cfg.gamma,
         )
-        family = cls(RunConfig(controller=controller))
+        family = cls(RunConfig(brain=GnpSettings(controller=controller)))
         if family.cfg != cfg:
             raise ValueError(f"not a robot's GNP config: {cfg}")
         return family
-
-    @classmethod
-    def selection(cls) -> dict[str, Any]:
-        return {"neuro": None, "family": None}
 
     @property
     def label(self) -> str:
@@ -178,7 +181,7 @@ class GnpFamily(BrainFamily):
         return self.cfg
 
     def warm_key(self) -> dict[str, Any]:
-        return {"brain": self.name, "controller": self.config.controller.model_dump(mode="json")}
+        return {"brain": self.name, "controller": self.settings.controller.model_dump(mode="json")}
 
     def run_template(self) -> RunTemplate:
         genome = {
@@ -199,7 +202,7 @@ class GnpFamily(BrainFamily):
             pop,
             seed=config.seed,
             generations=config.training.generations,
-            evolution=config.evolution,
+            evolution=self.settings.evolution,
             rates=partial(generation_epsilon_alpha, config.training),
         )
 

@@ -24,9 +24,10 @@ import neuro
 import sim
 from app.brains.contract import BrainFamily
 from app.brains.net_file import NetController
+from app.brains.net_settings import NetSettings
 from app.loop.recording import TraceLayout
 from app.loop.seeds import optimiser_seed
-from app.settings.config import NeuroSettings, RunConfig
+from app.settings.config import RunConfig
 from app.store import RunFileError, RunTemplate
 from neuro.neat_params import NeatParams
 
@@ -103,7 +104,7 @@ class Optimiser(Protocol):
 
 
 class _CmaesOptimiser:
-    def __init__(self, settings: NeuroSettings, population: int, seed: int) -> None:
+    def __init__(self, settings: NetSettings, population: int, seed: int) -> None:
         from neuro.cmaes import Cmaes  # pycma: imported when a run evolves, not when it is listed
 
         self.net = neuro.ElmanConfig(hidden=settings.hidden)
@@ -144,29 +145,27 @@ class NetEvolution:
 
 
 class NetFamily(BrainFamily):
-    """A net of the config's `neuro` section, evolved by its optimiser."""
+    """A net of the config's `brain` section (`NetSettings`), evolved by its optimiser."""
+
+    settings_model = NetSettings
+    settings: NetSettings
 
     def __init__(self, config: RunConfig) -> None:
         super().__init__(config)
-        if config.neuro is None or config.neuro.optimiser != self.name:
-            raise ValueError(f"a {self.name} family needs a neuro section with that optimiser")
-        self.settings = config.neuro
+        if self.settings.family != self.name:
+            raise ValueError(f"a {self.name} family needs a brain section of that family")
         self.net = self.net_config()
-
-    @classmethod
-    def selection(cls) -> dict[str, Any]:
-        return {"neuro": {"optimiser": cls.name}, "family": None}
 
     @staticmethod
     def of(net: neuro.NetConfig) -> NetFamily:
         """The family of a bare net (a run's other settings at their defaults): for a
         controller file's net, or one built by hand, on show."""
         if isinstance(net, neuro.ElmanConfig):
-            settings = NeuroSettings(optimiser="cmaes", hidden=net.hidden)
-            family: NetFamily = CmaesFamily(RunConfig(neuro=settings))
+            settings = NetSettings(family="cmaes", hidden=net.hidden)
+            family: NetFamily = CmaesFamily(RunConfig(brain=settings))
         else:
             neat = NeatParams(max_hidden=net.max_hidden)
-            family = NeatFamily(RunConfig(neuro=NeuroSettings(optimiser="neat", neat=neat)))
+            family = NeatFamily(RunConfig(brain=NetSettings(family="neat", neat=neat)))
         assert family.net == net
         return family
 

@@ -47,8 +47,12 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         layers.append(read_toml(args.config))
         sources.append(args.config)
     options = nested(given_settings(args))
-    if args.brain is not None:
-        options.update(family_class(args.brain).selection())
+    if args.brain is not None:  # beside the options: a GNP option with --brain cmaes is refused
+        for key, value in family_class(args.brain).selection().items():
+            given = options.get(key)
+            if isinstance(given, dict) and isinstance(value, dict):
+                value = {**given, **value}
+            options[key] = value
     for path, value in args.assignments:
         target = options
         for part in path[:-1]:

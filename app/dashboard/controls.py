@@ -84,8 +84,8 @@ def training_config(
     preset: str, values: Mapping[tuple[str, ...], Any], brain: str = DEFAULT_BRAIN
 ) -> RunConfig:
     """The run the Train tab describes: `preset` with the brain family `brain`, overridden by
-    what its controls hold ({setting path: value}), checked once by building the model (and
-    the family's own settings, at their defaults, by binding the family).
+    what its controls hold ({setting path: value}; those of the brain are GNP's, used when it
+    is GNP), checked once by building the model (and by binding the family).
 
     Raises:
         DashboardInputError: naming each bad setting and what it allows, or the family.
@@ -94,6 +94,8 @@ def training_config(
         raise DashboardInputError(f"unknown preset {preset!r}")
     try:
         selection = family_class(brain).selection()
+        if brain != DEFAULT_BRAIN:  # the controls' brain settings are another family's
+            values = {path: v for path, v in values.items() if path[0] != "brain"}
         layers = (preset_layer(preset), selection, nested(dict(values)))
         config = build_config(*layers, source="the Train tab")
         family_of(config)  # its own settings, checked before any process starts

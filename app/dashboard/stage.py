@@ -15,10 +15,11 @@ from pathlib import Path
 
 import sim
 from app import store
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.brains.registry import family_of
 from app.dashboard.controls import DashboardInputError
 from app.phases.live import LearningSettings, LiveSession, RobotSpec, checked_noise
-from app.settings.config import ControllerSettings, RunConfig, TrainingSettings
+from app.settings.config import RunConfig, TrainingSettings
 
 MAX_STEPS_PER_ADVANCE = 50
 """A frame that comes late catches up at most this many steps (then the loop just slows)."""
@@ -59,7 +60,8 @@ def run_robot(reader: store.RunReader, generation: int = -1) -> RobotSpec:
 def random_show() -> Show:
     """An untrained random CS individual: what is on show when there is no run at all."""
     config = RunConfig(
-        controller=ControllerSettings(method="CS"), training=TrainingSettings(population=2)
+        brain=GnpSettings(controller=ControllerSettings(method="CS")),
+        training=TrainingSettings(population=2),
     )
     family = family_of(config)
     individual = family.take(family.first().individuals(), [0])

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 import viser
 
 import gnp
+from app.brains.learning import learning as learning_of
 from app.dashboard.controls import build, parse_sensors
 from app.dashboard.setting_controls import (
     SettingControls,
@@ -79,7 +80,7 @@ class FaultsTab:
         values["schedule"] = "changing" if scheduled else "fixed"
         settings = build(ImplementationSettings, values, "online learning")
         learning = replace(
-            settings.learning(),
+            learning_of(settings),
             online=bool(self.learn.value),
             horizon=horizon,
             second_stage=bool(self.second_stage.value),
@@ -152,7 +153,7 @@ def populate_faults_tab(
     for name in ("epsilon_max", "epsilon_min", "alpha_max", "alpha_min", "schedule_n"):
         add_rate(name)
     # T − t' as the implementation phase's defaults give it, within the bounds of its T.
-    horizon = add_number(gui, fields["steps"], defaults.learning().horizon, "T − t' (steps)")
+    horizon = add_number(gui, fields["steps"], learning_of(defaults).horizon, "T − t' (steps)")
     apply = gui.add_button("Apply learning settings")
     tab = FaultsTab(
         stage=stage,

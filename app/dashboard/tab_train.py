@@ -34,8 +34,8 @@ from app.settings.loading import load_preset, train_settings
 from app.system.workers import default_workers
 
 FIRST = (
-    "controller.method",
-    "controller.fuzzy",
+    "brain.controller.method",
+    "brain.controller.fuzzy",
     "training.population",
     "training.generations",
     "training.steps",

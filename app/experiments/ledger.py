@@ -30,6 +30,7 @@ from app.experiments.results import ExperimentResults
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.experiments.values import read_values_csv
 from app.settings.config import ImplementationSettings, RunConfig
+from app.settings.layouts import layout_1
 from app.settings.user_files import loads_json, read_text
 
 #: The version of the bits a run produces. Bump it with any change that alters a run's values
@@ -46,6 +47,13 @@ def _set(model: type[BaseModel], text: str) -> Any:
     return json.loads(model.model_validate_json(text).model_dump_json(exclude_defaults=True))
 
 
+def _config_identity(text: str) -> Any:
+    """A run config's settings that differ from their defaults, in layout 1 (the brain's
+    sections at the top, app/settings/layouts.py): the identity every ledger was written with."""
+    config = RunConfig.model_validate_json(text)
+    return layout_1(json.loads(config.model_dump_json(exclude_defaults=True)), config.brain.family)
+
+
 def fingerprint(task: Task) -> str:
     """A run's identity: its config and its conditions' settings that differ from their
     defaults, hashed. A setting added later at a default that keeps the bits (a new physics, a
@@ -53,7 +61,7 @@ def fingerprint(task: Task) -> str:
     changes the bits, and ENGINE_BITS says so."""
     conditions = [(name, _set(ImplementationSettings, text)) for name, text in task.conditions]
     identity: dict[str, Any] = {
-        "config": _set(RunConfig, task.config_json),
+        "config": _config_identity(task.config_json),
         "conditions": conditions,
     }
     if task.task_json:  # a task experiment's run: its brain, task and test seeds too

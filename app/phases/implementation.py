@@ -24,6 +24,7 @@ import numpy as np
 
 import sim
 from app.brains.contract import BrainFamily
+from app.brains.learning import learning as learning_of
 from app.brains.registry import family_of
 from app.loop.recording import Trajectory, TrajectoryRecorder, life_bytes
 from app.loop.rollout import Batch, rollout
@@ -96,7 +97,7 @@ def describe_fault(settings: ImplementationSettings) -> str:
 
 def epsilon_alpha_per_step(settings: ImplementationSettings) -> tuple[np.ndarray, np.ndarray]:
     """(T,) ε and (T,) α of every step."""
-    learning = settings.learning()
+    learning = learning_of(settings)
     rates = np.array([learning.rates(t, settings.fault_step) for t in range(settings.steps)])
     return rates[:, 0], rates[:, 1]
 

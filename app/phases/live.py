@@ -19,9 +19,10 @@ import numpy as np
 import gnp
 import sim
 from app.brains.contract import BrainFamily
+from app.brains.learning import LearningSettings
 from app.loop.rollout import Batch
 from app.settings.arenas import new_world
-from app.settings.config import ImplementationSettings, LearningSettings
+from app.settings.config import ImplementationSettings
 from app.settings.fields import SettingError, check_field
 from sim import CONTROL_PERIOD_S, FaultMode
 

@@ -33,6 +33,7 @@ import gnp
 import sim
 from app.brains.contract import Evolution
 from app.brains.gnp_brain import GnpFamily, generation_epsilon_alpha
+from app.brains.gnp_settings import gnp_settings
 from app.brains.registry import family_of
 from app.loop.seeds import evolution_rng, life_seeds, n_segments
 from app.phases.lives import ShardLives, live, make_world
@@ -87,7 +88,7 @@ def shared_layout(config: RunConfig) -> Layout | None:
     """The shared block of a run's generations, or None when its family does not use one."""
     if not isinstance(family_of(config), GnpFamily):
         return None
-    cfg = config.controller.gnp_config()
+    cfg = gnp_settings(config).controller.gnp_config()
     records = gnp.population.record_dtype(cfg.n_sub, cfg.n_conn_branches)
     n = config.training.population
     return {
@@ -164,7 +165,7 @@ class RowsWorker:
         self.family = self.lives.family
         self._world: sim.World | None = None
         self._world_rows = 0
-        self.cfg = config.controller.gnp_config()
+        self.cfg = gnp_settings(config).controller.gnp_config()
         training = config.training
         self._segments = n_segments(training.steps, training.redraw_every)
         self._n_starts = len(arena_of(training.arena).start_poses)
@@ -208,7 +209,7 @@ class RowsWorker:
         config, block = self.config, self.block
         first, part = evolve_part(
             self.cfg,
-            config.evolution,
+            gnp_settings(config).evolution,
             block["learned"],
             block["fitness"].copy(),
             job.generation,

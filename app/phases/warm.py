@@ -46,7 +46,7 @@ def warm_up(configs: list[RunConfig]) -> None:
 
     with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
         for i, config in enumerate(configs):
-            brain = config.model_dump(include={"controller", "neuro", "family"})
+            brain = config.model_dump(include={"brain"})
             tiny = build_config(
                 brain,
                 {"training": {"population": 4, "generations": 1, "steps": 2, "noise_sigma": 1,

@@ -24,7 +24,7 @@ OPTION_NAMES = {
 """Settings whose option is not `--field-name`: the names the CLI had before options were
 generated, kept so that every documented command still works."""
 
-NEGATIONS = {"controller.fuzzy": "--crisp"}
+NEGATIONS = {"brain.controller.fuzzy": "--crisp"}
 """A switch's "off" option where it is not `--no-field-name`."""
 
 OPTIONS_DEST = "setting_options"

@@ -22,7 +22,9 @@ from app.settings.config import (
     RunConfig,
     preset_layer,
 )
+from app.settings.families import DEFAULT_BRAIN, settings_model
 from app.settings.fields import Setting, sections, settings_of
+from app.settings.layouts import layout_2
 from app.settings.user_files import loads_json, loads_toml, read_text
 
 
@@ -64,6 +66,20 @@ def _check_tables(layer: Mapping[str, Any], source: str) -> None:
             )
 
 
+def _family(layer: Mapping[str, Any]) -> Any:
+    brain = layer.get("brain")
+    return brain.get("family") if isinstance(brain, Mapping) else None
+
+
+def _layered(base: dict[str, Any], layer: Mapping[str, Any]) -> dict[str, Any]:
+    """`layer` over `base`; a layer naming another brain family than `base`'s (GNP when none)
+    replaces the brain section: one family's settings do not apply to another's."""
+    named = _family(layer)
+    if named is not None and named != (_family(base) or DEFAULT_BRAIN):
+        base = {key: value for key, value in base.items() if key != "brain"}
+    return _merge(base, layer)
+
+
 def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     merged = dict(base)
     for key, value in overrides.items():
@@ -74,12 +90,13 @@ def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]
     return merged
 
 
-LEGACY_DEFAULTS: dict[tuple[str, str], Any] = {
+LEGACY_DEFAULTS: dict[tuple[str, ...], Any] = {
     ("training", "schedule_progress"): "g-over-G",
-    ("evolution", "judgment_pair"): "independent",
+    ("brain", "evolution", "judgment_pair"): "independent",
 }
 """Settings added when their default changed, with the behaviour that files which do not name
-them ran with: a stored config is read with these, so a resumed old run goes on as it began."""
+them ran with: a stored config is read with these (where their section is), so a resumed old
+run goes on as it began."""
 
 
 def stored_config(text: str) -> RunConfig:
@@ -91,23 +108,28 @@ def stored_config(text: str) -> RunConfig:
     data = loads_json(text, ValueError, "the stored config")
     if not isinstance(data, dict):
         raise ValueError("a stored config is a JSON object")
-    for (section, key), value in LEGACY_DEFAULTS.items():
-        part = data.setdefault(section, {})
+    data = layout_2(data)  # every file before issue #46 is in layout 1
+    for (*where, key), value in LEGACY_DEFAULTS.items():
+        part: Any = data
+        for section in where:
+            part = part.get(section) if isinstance(part, dict) else None
         if isinstance(part, dict):
             part.setdefault(key, value)
     return RunConfig.model_validate(data)
 
 
 def build_config(*layers: Mapping[str, Any], source: str = "configuration") -> RunConfig:
-    """Validate nested dicts merged left to right (later layers win) into a `RunConfig`.
+    """Validate nested dicts merged left to right (later layers win) into a `RunConfig`. Each
+    layer may be in either layout (app/settings/layouts.py): it is moved to layout 2 first.
 
     Raises:
         ConfigError: naming every bad field, its problem and the value given.
     """
     merged: dict[str, Any] = {}
-    for layer in layers:
+    for given in layers:
+        layer = layout_2(given)
         _check_tables(layer, source)
-        merged = _merge(merged, layer)
+        merged = _layered(merged, layer)
     merged = read_arena_paths(merged)  # user input: arena files are read here, and only here
     try:
         return RunConfig.model_validate(merged)
@@ -179,10 +201,15 @@ def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
 def train_settings() -> tuple[Setting, ...]:
     """What `gnp-lab train` and the dashboard's Train tab set, read from the models: the seed
     and every section's scalar settings, the implementation phase's excepted (`implement`
-    sets those) and the optional neural controller's (`--brain`)."""
+    sets those); of the brain, the default family's (GNP's; another's: `--brain`, `--set`)."""
     found = list(settings_of(RunConfig))
     for name, model in sections(RunConfig):
-        if name != "implementation":
+        if name == "brain":
+            brain = settings_model(DEFAULT_BRAIN)
+            assert brain is not None
+            for part, section in sections(brain):
+                found += settings_of(section, ("brain", part))
+        elif name != "implementation":
             found += settings_of(model, (name,))
     return tuple(found)
 

@@ -91,8 +91,8 @@ class RunSummary:
 
     @property
     def brain(self) -> str:
-        """The name of the run's brain family (`RunConfig.brain`); "" for a task run."""
-        return self.config.brain if self.config is not None else ""
+        """The name of the run's brain family (`RunConfig.brain.family`); "" for a task run."""
+        return self.config.brain.family if self.config is not None else ""
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:

@@ -13,7 +13,10 @@ import gymnasium as gym
 from pydantic import BaseModel, ConfigDict, Field
 
 import gnp
-from app.settings.config import DEFAULT_BRAIN, ControllerSettings, RunConfig
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
+from app.brains.learning import schedules
+from app.settings.config import RunConfig
+from app.settings.families import DEFAULT_BRAIN
 from app.tasks.common import TEST_PROTOCOLS, EpisodeProtocol, TaskError, TestProtocol
 from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import EvolutionConfig, Schedule
@@ -147,12 +150,13 @@ class TaskRunConfig(_Frozen):
         Raises:
             TaskError: the config's brain is not GNP (the only family that runs on tasks).
         """
-        if config.brain != DEFAULT_BRAIN:
+        brain = config.brain
+        if not isinstance(brain, GnpSettings):
             raise TaskError(
-                f"brain family {config.brain!r} does not run on Gymnasium tasks; a task run "
-                f"trains {DEFAULT_BRAIN} (drop --brain, or train {config.brain} in the arena)"
+                f"brain family {brain.family!r} does not run on Gymnasium tasks; a task run "
+                f"trains {DEFAULT_BRAIN} (drop --brain, or train {brain.family} in the arena)"
             )
-        eps, alpha = config.training.schedules()
+        eps, alpha = schedules(config.training)
         training = TaskTraining(
             population=config.training.population,
             generations=config.training.generations,
@@ -165,8 +169,8 @@ class TaskRunConfig(_Frozen):
         return cls(
             seed=config.seed,
             task=task,
-            controller=config.controller,
-            evolution=config.evolution,
+            controller=brain.controller,
+            evolution=brain.evolution,
             training=training,
         )
 

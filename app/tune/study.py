@@ -94,7 +94,7 @@ class Declared:
     def params(self) -> list[Param]:
         method = self.fixed.get("controller.method")
         if self.brain == "gnp" and method is None:
-            from app.settings.config import ControllerSettings
+            from app.brains.gnp_settings import ControllerSettings
 
             method = ControllerSettings().method  # the lab's default
         return space(self.brain, self.fixed, self.population, method, self.discrete)

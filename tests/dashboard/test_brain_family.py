@@ -24,11 +24,11 @@ from typing import Any, Literal
 
 import numpy as np
 import pytest
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 from typing_extensions import override
 
 import sim
-from app.brains import PLUGINS_VARIABLE, BrainFamily, Evolution, family_of, register
+from app.brains import PLUGINS_VARIABLE, BrainFamily, BrainSettings, Evolution, family_of, register
 from app.settings.config import RunConfig
 from app.settings.loading import build_config
 from app.store import RunReader, RunTemplate
@@ -40,11 +40,10 @@ ROOT = HERE.parents[1]
 # --- the family -------------------------------------------------------------------------------
 
 
-class VehicleSettings(BaseModel):
-    """The family's own settings: the `family` section of a run's config."""
+class VehicleSettings(BrainSettings):
+    """The family's own settings: the `brain` section of a run's config."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
-    name: Literal["braitenberg"] = "braitenberg"
+    family: Literal["braitenberg"] = "braitenberg"
     sigma: float = Field(default=0.3, gt=0.0, le=5.0, description="mutation step of a gain")
     parents: int = Field(default=2, ge=1, description="the best that breed each generation")
 
@@ -187,8 +186,8 @@ register("braitenberg", Braitenberg)
 
 CONFIG = """
 seed = 3
-[family]
-name = "braitenberg"
+[brain]
+family = "braitenberg"
 sigma = 0.5
 [training]
 population = 8
@@ -260,7 +259,7 @@ def test_a_resumed_run_on_two_workers_equals_one_never_cut(trained: Path, tmp_pa
 
     train(config(), tmp_path / "whole.h5")
     with RunReader(trained / "vehicle.h5") as cut, RunReader(tmp_path / "whole.h5") as whole:
-        assert cut.finished and cut.config.brain == "braitenberg"
+        assert cut.finished and cut.config.brain.family == "braitenberg"
         a, b = cut.history(), whole.history()
         assert np.array_equal(a.fitness, b.fitness)  # bit for bit
         assert np.array_equal(
@@ -277,7 +276,7 @@ def test_the_cli_trains_it_and_refuses_a_bad_setting_on_one_line(tmp_path: Path)
     path.write_text(CONFIG.replace("sigma = 0.5", "sigma = -1"), encoding="utf-8")
     bad = gnp_lab("train", "--config", path, "--out", tmp_path / "bad.h5")
     assert bad.returncode == 1 and bad.stderr.count("\n") == 1, bad.stderr
-    assert "invalid settings of brain family 'braitenberg': sigma: " in bad.stderr
+    assert "brain.sigma: " in bad.stderr
     assert "greater than 0 (got -1)" in bad.stderr
     assert not (tmp_path / "bad.h5").exists()
     unknown = gnp_lab("train", "--brain", "vehicle", "--runs-dir", tmp_path)
@@ -394,7 +393,7 @@ def test_a_smoke_experiment_runs_it_on_a_dask_cluster(tmp_path: Path) -> None:
     files = sorted(runs.rglob("vehicle-seed*.h5"))
     assert len(files) == 2
     with RunReader(files[0]) as run:
-        assert run.config.brain == "braitenberg" and run.finished
+        assert run.config.brain.family == "braitenberg" and run.finished
         assert run.implementation_names() == ["break-1"]
     report = gnp_lab("experiment", "report", *args, "--format", "json")
     assert report.returncode == 0, report.stderr

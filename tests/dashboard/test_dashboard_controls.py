@@ -12,6 +12,7 @@ from page_helpers import dashboard_in_process, until
 
 import gnp
 from app import store
+from app.brains.net_settings import NetSettings
 from app.dashboard.app import FRAME_SECONDS
 from app.dashboard.controls import (
     DashboardInputError,
@@ -60,8 +61,8 @@ def test_numbers_are_checked_against_their_range() -> None:
 def fields(**changes: object) -> dict[tuple[str, ...], object]:
     """What the Train tab's controls might hold, by setting path."""
     values: dict[tuple[str, ...], object] = {
-        ("controller", "method"): "BS",
-        ("controller", "fuzzy"): False,
+        ("brain", "controller", "method"): "BS",
+        ("brain", "controller", "fuzzy"): False,
         ("training", "population"): 10,
         ("training", "generations"): 4,
         ("training", "steps"): 50,
@@ -75,7 +76,7 @@ def fields(**changes: object) -> dict[tuple[str, ...], object]:
 def test_the_train_tab_overrides_its_preset() -> None:
     config = training_config("quick", fields())
     assert config.seed == 9
-    assert (config.controller.method, config.controller.fuzzy) == ("BS", False)
+    assert (config.brain.controller.method, config.brain.controller.fuzzy) == ("BS", False)
     training = config.training
     assert (training.population, training.generations, training.steps) == (10, 4, 50)
     assert training.noise_sigma == 30.0
@@ -98,7 +99,10 @@ def test_the_train_tab_overrides_its_preset() -> None:
             {"training.noise_sigma": 2000.0},
             "training.noise_sigma: Input should be less than or equal to 1023",
         ),
-        ({"controller.method": "XX"}, "controller.method: Input should be 'RL', 'BS' or 'CS'"),
+        (
+            {"brain.controller.method": "XX"},
+            "brain.controller.method: Input should be 'RL', 'BS' or 'CS'",
+        ),
         ({"training.generations": 1.5}, "training.generations: Input should be a valid integer"),
         ({"seed": 2**63}, "seed: Input should be less than or equal to 9223372036854775807"),
         ({"training.epsilon_min": 0.5}, "epsilon_min (0.5) must not exceed epsilon_max"),
@@ -116,11 +120,11 @@ def test_an_unknown_preset_is_refused() -> None:
 
 
 def test_the_train_tab_trains_any_registered_family() -> None:
-    assert training_config("quick", fields()).brain == "gnp"
+    assert training_config("quick", fields()).brain.family == "gnp"
     net = training_config("quick", fields(), "cmaes")
-    assert net.brain == "cmaes" and net.neuro is not None and net.family is None
-    assert net.training.population == 10  # the form's settings still apply
-    assert training_config("quick", fields(), "neat").brain == "neat"
+    assert net.brain == NetSettings(family="cmaes")  # GNP's controls do not apply to it
+    assert net.training.population == 10  # the form's other settings still apply
+    assert training_config("quick", fields(), "neat").brain.family == "neat"
     with pytest.raises(DashboardInputError, match="unknown brain family 'nope'"):
         training_config("quick", fields(), "nope")
 

@@ -99,9 +99,9 @@ def test_the_checkout_keeps_a_bundled_run_of_every_method() -> None:
         with store.RunReader(path) as reader:
             assert reader.generations_done == reader.config.training.generations == 1000
             configs[method] = reader.config
-    assert {m: c.controller.method for m, c in configs.items()} == {m: m for m in BUNDLED}
+    assert {m: c.brain.controller.method for m, c in configs.items()} == {m: m for m in BUNDLED}
     first = configs["CS"].model_dump()
     for config in configs.values():  # only the method (and its sub nodes) differ
         other = config.model_dump()
         assert other["seed"] == first["seed"] and other["training"] == first["training"]
-        assert other["evolution"] == first["evolution"]
+        assert other["brain"]["evolution"] == first["brain"]["evolution"]

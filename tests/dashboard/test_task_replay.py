@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import gnp
+from app.brains.gnp_settings import ControllerSettings
 from app.brains.registry import run_kind
 from app.dashboard.task_frame import cartpole_sketch
 from app.dashboard.task_replay import (
@@ -17,7 +18,6 @@ from app.dashboard.task_replay import (
     action_captions,
     feature_captions,
 )
-from app.settings.config import ControllerSettings
 from app.store import RunFileError, list_runs
 from app.tasks import (
     ObservationFault,

@@ -13,6 +13,7 @@ from lab_fixtures import datasets, tiny_config
 from app.phases.implementation import implement
 from app.phases.training import train
 from app.settings.arenas import shipped_spec
+from app.settings.layouts import layout_1
 from sim.arena import ArenaSpec
 
 #: sha256 of a tiny CS run's datasets and config, trained and implemented by the code before
@@ -44,7 +45,8 @@ def run_digest(path: Path) -> str:
         digest.update(f"{name}|{array.dtype.str}|{array.shape}".encode())
         digest.update(array.tobytes())
     with h5py.File(path, "r", locking=False) as handle:
-        config = json.loads(str(handle.attrs["config"]))
+        stored = json.loads(str(handle.attrs["config"]))
+    config = layout_1(stored, stored["brain"]["family"])  # the layout the digest was taken in
     for (*parents, key), default in ADDED_SINCE.items():
         where = config
         for parent in parents:

@@ -35,7 +35,7 @@ def test_train_implement_and_inspect(runs_dir: Path, capsys: pytest.CaptureFixtu
     assert main([*argv, "--quiet"]) == 0
     with RunReader(out) as run:
         assert run.finished and run.seed == 3
-        assert run.config.controller.method == "BS" and not run.config.controller.fuzzy
+        assert run.config.brain.controller.method == "BS" and not run.config.brain.controller.fuzzy
         assert run.config.training.noise_sigma == 20
         best = run.history().best_fitness
     # both bests, named: the run's over all generations (what `runs` lists) and the last one's

@@ -47,7 +47,7 @@ def test_train_implement_and_read_a_run_as_the_examples_do(tmp_path: Path) -> No
     with RunReader(run) as reader:
         history = reader.history()
         result = reader.implementation("sensors-2-3-dead")
-        assert reader.config.controller.method == "BS"
+        assert reader.config.brain.controller.method == "BS"
     best = [float(v) for v in re.findall(r"best fitness ([0-9.]+)", trained)]
     assert best == pytest.approx(history.best_fitness, abs=1e-6)
     assert _number(implemented, "after the fault") == pytest.approx(

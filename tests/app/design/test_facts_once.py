@@ -112,10 +112,21 @@ def test_a_tuple_of_a_literals_values_is_get_args_of_it() -> None:
 
 
 def test_the_labs_method_default_is_its_presets() -> None:
-    from app.settings.config import METHOD_PRESET, ControllerSettings
+    from app.brains.gnp_settings import ControllerSettings
+    from app.settings.config import METHOD_PRESET
     from app.settings.loading import load_preset
 
-    assert ControllerSettings().method == load_preset(METHOD_PRESET).controller.method == "CS"
+    assert ControllerSettings().method == load_preset(METHOD_PRESET).brain.controller.method == "CS"
+
+
+def test_the_settings_progress_of_eq_4_1_is_gnps() -> None:
+    """`training.schedule_progress`'s values are gnp's (app/settings imports no gnp, #46)."""
+    from typing import get_args
+
+    import gnp.config
+    from app.settings import config
+
+    assert get_args(config.GenerationProgress) == get_args(gnp.config.GenerationProgress)
 
 
 def test_the_lab_builds_its_worlds_in_one_factory() -> None:

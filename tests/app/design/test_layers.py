@@ -23,8 +23,8 @@ functions too: a lazy import is still a dependency). Layers, lowest first:
 A folder may import its own modules and any folder of a lower layer, never one of its own layer
 or above, so the folders cannot import each other in a loop.
 
-`app.loop` and `app.store` import neither `gnp` nor `neuro`: what they need of a family they ask
-through the contract (`FAMILY_FREE`).
+`app.settings`, `app.loop` and `app.store` import neither `gnp` nor `neuro`: the settings know a
+family by its name and entry points, the loop and the store ask the contract (`FAMILY_FREE`).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[3]
 PACKAGES = ("sim", "gnp", "neuro", "app")
 CORE = "app"
-FAMILY_FREE = ("app.loop", "app.store")
+FAMILY_FREE = ("app.settings", "app.loop", "app.store")
 """Folders below the brain families that import no family's package (`gnp`, `neuro`): they ask
 `app.brains`' contract instead (issue #46)."""
 LAYER = {
@@ -204,8 +204,9 @@ def test_the_checks_catch_what_they_are_for() -> None:
     assert folder("app.views.graph_view") == "app.views"
 
 
-def test_the_loop_and_the_store_import_no_brain_package(graph: dict[str, set[str]]) -> None:
+def test_the_settings_loop_and_store_import_no_brain_package(graph: dict[str, set[str]]) -> None:
     assert family_imports(graph) == []
+    assert {folder(s) for s in graph} >= set(FAMILY_FREE)  # the folders are there to check
 
 
 def test_the_family_check_catches_an_added_import(tmp_path: Path) -> None:

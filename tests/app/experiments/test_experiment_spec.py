@@ -22,14 +22,18 @@ def test_ch3_is_the_thesis_experiment() -> None:
     for scale in ("small", "thesis"):
         bs, rl = (spec.run_config(arm, scale, 3) for arm in ("BS", "RL"))
         assert bs.seed == rl.seed == 3  # paired seeds
-        assert (bs.controller.method, bs.controller.sub_nodes, bs.controller.n_branch) == (
+        assert (
+            bs.brain.controller.method,
+            bs.brain.controller.sub_nodes,
+            bs.brain.controller.n_branch,
+        ) == (
             "BS",
             2,
             2,
         )
-        assert (rl.controller.method, rl.controller.sub_nodes) == ("RL", 4)
+        assert (rl.brain.controller.method, rl.brain.controller.sub_nodes) == ("RL", 4)
         for run in (bs, rl):
-            assert run.controller.fuzzy and run.training.noise_sigma == 50
+            assert run.brain.controller.fuzzy and run.training.noise_sigma == 50
             assert run.training.population == 300 and run.training.steps == 1000
             assert run.implementation.noise_sigma == 50
         info = spec.conditions_info(scale)

@@ -112,7 +112,7 @@ def test_export_writes_every_file_and_the_controller_steps_as_the_run(
     assert isinstance(controller, GnpController)
     cfg, loaded, settings = controller.cfg, controller.individual, controller.settings
     with RunReader(runs_dir / "tiny.h5") as reader:
-        run_cfg, best = reader.config.controller.gnp_config(), _best(reader, 2)
+        run_cfg, best = reader.config.brain.controller.gnp_config(), _best(reader, 2)
         control_period = reader.config.training.control_period
     assert cfg == run_cfg
     assert settings["generation"] == 2 and settings["run"] == "tiny"
@@ -127,7 +127,7 @@ def test_an_earlier_generation_exports_its_best_with_zero_weights(
     document = json.loads((out / "controller.json").read_text())
     assert document["settings"]["generation"] == 0
     with RunReader(runs_dir / "tiny.h5") as reader:
-        cfg, best = reader.config.controller.gnp_config(), _best(reader, 0)
+        cfg, best = reader.config.brain.controller.gnp_config(), _best(reader, 0)
     controller = load_controller(out / "controller.json")
     assert isinstance(controller, GnpController)
     loaded = controller.individual
@@ -145,7 +145,7 @@ def test_the_graph_of_the_final_elite_counts_its_recorded_transitions(
     out = export_run(runs_dir / "tiny.h5", tmp_path / "final")
     nodes, edges = _parse((out / "graph.dot").read_text())
     with RunReader(runs_dir / "tiny.h5") as reader:
-        cfg = reader.config.controller.gnp_config()
+        cfg = reader.config.brain.controller.gnp_config()
         elite = reader.elite()
     assert elite is not None
     assert sorted(nodes) == list(range(cfg.n_nodes))

@@ -19,6 +19,7 @@ from lab_fixtures import assert_same_data, datasets, tiny_config
 import app.phases.training as training
 import sim
 from app.brains.net_file import NetController
+from app.brains.net_settings import NetSettings
 from app.brains.registry import family_of, load_controller
 from app.export import ExportError, export_replay, export_run
 from app.loop.seeds import life_seeds
@@ -46,7 +47,7 @@ def test_a_neural_run_is_the_same_on_any_worker_count(tmp_path: Path, optimiser:
     train(config, two, workers=2)
     assert_same_data(one, two)
     with RunReader(one) as run:
-        assert run.finished and run.config.brain == optimiser
+        assert run.finished and run.config.brain.family == optimiser
         history, elite = run.history(), run.elite()
         assert elite is not None
         # The elite is the last generation's best, lived again bit for bit.
@@ -208,7 +209,7 @@ def test_the_cli_trains_a_brain_and_lists_it(tmp_path: Path) -> None:
     assert line.startswith("cmaes-seed0-") and " cmaes: Elman net, 3 hidden " in line
     assert "finished" in line
     with RunReader(next(tmp_path.glob("*.h5"))) as run:
-        assert run.config.neuro is not None and run.config.neuro.hidden == 3
+        assert run.config.brain == NetSettings(family="cmaes", hidden=3)
 
 
 def test_the_workers_send_learned_gnp_back_but_not_the_unchanged_nets() -> None:
@@ -223,7 +224,7 @@ def test_the_workers_send_learned_gnp_back_but_not_the_unchanged_nets() -> None:
         with Evaluator(config, 2, local=False) as pool:  # two workers, one shard each or more
             lives, after = pool.evaluate(individuals, seeds, 0.1, 0.1)
         assert lives.fitness.shape == (10,)
-        if config.neuro is not None:
+        if config.brain.family != "gnp":
             assert after is individuals  # nothing came back through the pipes
         else:
             assert after is not individuals and after.size == 10  # learned copies came back

@@ -59,7 +59,7 @@ def test_the_two_halves_of_evolution_are_gnp_evolve(
     config = build_config(
         {"controller": controller, "evolution": evolution, "training": {"population": population}}
     )
-    cfg, evo = config.controller.gnp_config(), config.evolution
+    cfg, evo = config.brain.controller.gnp_config(), config.brain.evolution
     pop = gnp.init_population(cfg, population, np.random.default_rng(3))
     # Q values and genes as lives leave them: not the initial population's zeros
     rng = np.random.default_rng(4)

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from app.brains.learning import schedules
 from app.cli.parser import build_parser
 from app.cli.train import config_from_args
 from app.settings.config import PRESET_NAMES, ConfigError, RunConfig
@@ -22,20 +23,24 @@ def test_defaults_are_the_thesis_table_2_4() -> None:
     assert config.training.population == 300
     assert config.training.steps == 1000
     assert (config.training.epsilon, config.training.alpha) == (0.1, 0.1)
-    assert config.controller.gamma == 0.9
-    assert (config.controller.n_judgment, config.controller.n_processing) == (40, 20)
-    assert config.evolution.split(300) == (1, 120, 179)
-    assert config.evolution.tournament_size == 7
-    assert (config.evolution.p_crossover, config.evolution.p_mutation) == (0.1, 0.01)
+    assert config.brain.controller.gamma == 0.9
+    assert (config.brain.controller.n_judgment, config.brain.controller.n_processing) == (40, 20)
+    assert config.brain.evolution.split(300) == (1, 120, 179)
+    assert config.brain.evolution.tournament_size == 7
+    assert (config.brain.evolution.p_crossover, config.brain.evolution.p_mutation) == (0.1, 0.01)
     assert config.implementation.steps == 3000
     assert config.implementation.fault_step == 500
 
 
 def test_presets_match_the_thesis_tables() -> None:
     ch2 = load_preset("thesis-ch2")
-    assert (ch2.controller.method, ch2.controller.sub_nodes) == ("RL", 2)
+    assert (ch2.brain.controller.method, ch2.brain.controller.sub_nodes) == ("RL", 2)
     ch3 = load_preset("thesis-ch3")
-    assert (ch3.controller.method, ch3.controller.sub_nodes, ch3.controller.n_branch) == (
+    assert (
+        ch3.brain.controller.method,
+        ch3.brain.controller.sub_nodes,
+        ch3.brain.controller.n_branch,
+    ) == (
         "BS",
         2,
         2,
@@ -44,15 +49,15 @@ def test_presets_match_the_thesis_tables() -> None:
     ch3_rl = build_config(
         ch3.model_dump(exclude={"controller": {"n_sub"}}), {"controller": {"method": "RL"}}
     )
-    assert ch3_rl.controller.gnp_config().n_sub == 4
+    assert ch3_rl.brain.controller.gnp_config().n_sub == 4
     ch4 = load_preset("thesis-ch4")
-    eps, alpha = ch4.training.schedules()
+    eps, alpha = schedules(ch4.training)
     assert (eps.max, eps.min, alpha.max, alpha.min, eps.n) == (0.15, 0.01, 0.70, 0.10, 1.0)
-    eps_t, alpha_t = ch4.implementation.schedules()
+    eps_t, alpha_t = schedules(ch4.implementation)
     assert (eps_t.max, eps_t.min, alpha_t.max, alpha_t.min) == (0.015, 0.0, 0.15, 0.0)
     assert (ch4.implementation.epsilon, ch4.implementation.alpha) == (0.01, 0.10)
     ch5 = load_preset("thesis-ch5")
-    assert ch5.controller.method == "CS"
+    assert ch5.brain.controller.method == "CS"
     assert (ch5.training.steps, ch5.training.redraw_every, ch5.training.noise_sigma) == (
         2000,
         500,
@@ -60,7 +65,7 @@ def test_presets_match_the_thesis_tables() -> None:
     )
     assert ch5.implementation.noise_sigma == 50.0
     for name in PRESET_NAMES:
-        assert load_preset(name).controller.fuzzy
+        assert load_preset(name).brain.controller.fuzzy
 
 
 @pytest.mark.parametrize(
@@ -69,7 +74,10 @@ def test_presets_match_the_thesis_tables() -> None:
         ({"training": {"population": 1}}, "training.population: Input should be greater than"),
         ({"training": {"noise_sigma": -3}}, "training.noise_sigma"),
         ({"training": {"popsize": 10}}, "training.popsize: unknown setting"),
-        ({"controller": {"method": "XX"}}, "controller.method"),
+        ({"controller": {"method": "XX"}}, "brain.controller.method"),
+        ({"brain": {"controller": {"n_judgment": 3}}}, "brain.controller.n_judgment: Input"),
+        ({"brain": {"family": "cmaes", "hidden": 0}}, "brain.hidden: Input should be greater"),
+        ({"brain": {"family": "neat", "controller": {}}}, "brain.controller: unknown setting"),
         ({"implementation": {"broken_sensors": [8]}}, "sensors are numbered 0..7"),
         ({"implementation": {"broken_sensors": [2, 2]}}, "listed twice"),
         ({"training": {"epsilon_min": 0.9}}, "epsilon_min (0.9) must not exceed epsilon_max"),
@@ -90,7 +98,11 @@ def test_config_files(tmp_path: Path) -> None:
     good = tmp_path / "good.toml"
     good.write_text('seed = 3\n[training]\npopulation = 20\n[controller]\nmethod = "BS"\n')
     config = load_config(good)
-    assert (config.seed, config.training.population, config.controller.method) == (3, 20, "BS")
+    assert (config.seed, config.training.population, config.brain.controller.method) == (
+        3,
+        20,
+        "BS",
+    )
     assert config.training.steps == 1000  # unset settings keep the thesis's defaults
     broken = tmp_path / "broken.toml"
     broken.write_text("[training\npopulation = 20\n")
@@ -148,7 +160,7 @@ def test_cli_layers_preset_then_file_then_options(tmp_path: Path) -> None:
     assert config.training.generations == 9  # options beat the file
     assert config.training.redraw_every == 50
     assert config.implementation.fault_mode == "stuck"
-    assert config.controller.fuzzy is False
+    assert config.brain.controller.fuzzy is False
 
 
 def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> None:
@@ -157,13 +169,13 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
 
     new = RunConfig()
     assert new.training.schedule_progress == "last-generation-min"
-    assert new.evolution.judgment_pair == "joint"
+    assert new.brain.evolution.judgment_pair == "joint"
     assert stored_config(new.model_dump_json()) == new  # named settings are kept
     old = json.loads(new.model_dump_json())
-    del old["training"]["schedule_progress"], old["evolution"]["judgment_pair"]
+    del old["training"]["schedule_progress"], old["brain"]["evolution"]["judgment_pair"]
     legacy = stored_config(json.dumps(old))
     assert legacy.training.schedule_progress == "g-over-G"
-    assert legacy.evolution.judgment_pair == "independent"
+    assert legacy.brain.evolution.judgment_pair == "independent"
 
 
 @pytest.mark.parametrize(
@@ -171,7 +183,7 @@ def test_a_stored_config_that_predates_a_setting_keeps_its_old_behaviour() -> No
 )
 def test_the_controllers_settings_are_gnps_own(name: str) -> None:
     import gnp
-    from app.settings.config import ControllerSettings
+    from app.brains.gnp_settings import ControllerSettings
     from app.settings.fields import read_setting
 
     lab, brain = read_setting(ControllerSettings, name), read_setting(gnp.GnpConfig, name)

@@ -36,8 +36,10 @@ def test_every_train_setting_is_an_option_whose_help_is_the_model(
     settings = train_settings()
     keys = {s.key for s in settings}
     # Every section of a run but the implementation phase's (and the optional neural one).
-    assert {"seed", "controller.method", "training.population", "reward.c_from"} <= keys
-    assert "evolution.p_mutation" in keys and not any(k.startswith("implementation") for k in keys)
+    assert {"seed", "brain.controller.method", "training.population", "reward.c_from"} <= keys
+    assert "brain.evolution.p_mutation" in keys and not any(
+        k.startswith("implementation") for k in keys
+    )
     for setting in settings:
         assert f"[{_flag(setting)}" in shown
         assert _words(setting.help()) in shown, setting.key
@@ -94,8 +96,8 @@ def test_options_keep_their_historic_names() -> None:
     )
     assert given_settings(train) == {
         ("training", "noise_sigma"): 20.0,
-        ("controller", "fuzzy"): False,
-        ("controller", "method"): "BS",
+        ("brain", "controller", "fuzzy"): False,
+        ("brain", "controller", "method"): "BS",
         ("training", "steps"): 30,
         ("seed",): 3,
     }

@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from app.brains.learning import learning as learning_of
 from app.settings.arenas import shipped_spec
 from app.settings.config import RunConfig
 from app.settings.loading import build_config, load_preset
@@ -22,22 +23,30 @@ COMMON: list[tuple[str, Any, str]] = [
     # "(300) mutation: 179, crossover: 120, elite: 1"
     ("training.population", 300, "Tables 2.4/3.1/4.1/5.1, number of individuals"),
     (
-        "evolution.split(300)",
+        "brain.evolution.split(300)",
         (1, 120, 179),
         "Tables 2.4/3.1/4.1/5.1: elite 1, crossover 120, mutation 179",
     ),
     # "(61) 20 processing nodes, 40 Fuzzy judgment nodes, and 1 start node"
-    ("controller.n_judgment", 40, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
-    ("controller.n_processing", 20, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
-    ("controller.fuzzy", True, "Fuzzy GNP-RL/-TSRL throughout (§2.5.3, §3.5.1, §4.5.1, §5.5.1)"),
-    ("controller.skip_reward", "zero", "Eq. 5.3: a credit skip earns no reward"),
+    ("brain.controller.n_judgment", 40, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
+    ("brain.controller.n_processing", 20, "Tables 2.4/3.1/4.1/5.1, number of nodes"),
+    (
+        "brain.controller.fuzzy",
+        True,
+        "Fuzzy GNP-RL/-TSRL throughout (§2.5.3, §3.5.1, §4.5.1, §5.5.1)",
+    ),
+    ("brain.controller.skip_reward", "zero", "Eq. 5.3: a credit skip earns no reward"),
     # "P_c = 0.1, P_m = 0.01, tournament sizes = 7"
-    ("evolution.p_crossover", 0.1, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
-    ("evolution.p_mutation", 0.01, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
-    ("evolution.tournament_size", 7, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
-    ("evolution.nonuniform_b", 2.0, "§2.3.3 Eq. 2.5, l. 502: 'Here, b = 2 is used'"),
-    ("evolution.judgment_pair", "joint", "§2.3.3 l. 494-498: a_ip = {β_ip, α_ip} is one parameter"),
-    ("controller.gamma", 0.9, "Tables 2.4/3.1/4.1/5.1: γ = 0.9"),
+    ("brain.evolution.p_crossover", 0.1, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
+    ("brain.evolution.p_mutation", 0.01, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
+    ("brain.evolution.tournament_size", 7, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
+    ("brain.evolution.nonuniform_b", 2.0, "§2.3.3 Eq. 2.5, l. 502: 'Here, b = 2 is used'"),
+    (
+        "brain.evolution.judgment_pair",
+        "joint",
+        "§2.3.3 l. 494-498: a_ip = {β_ip, α_ip} is one parameter",
+    ),
+    ("brain.controller.gamma", 0.9, "Tables 2.4/3.1/4.1/5.1: γ = 0.9"),
     ("training.arena", "training", "Fig. 2.7(a): the training environment (§2.5.3 l. 552)"),
     ("implementation.arena", "implementation", "Fig. 2.7(b): a different environment (l. 569)"),
     # "each individual is implemented 300 times for 10 different start positions" (l. 574,
@@ -47,8 +56,12 @@ COMMON: list[tuple[str, Any, str]] = [
 
 EXPECTED: dict[str, list[tuple[str, Any, str]]] = {
     "thesis-ch2": [
-        ("controller.method", "RL", "Table 2.4: Fuzzy GNP-RL"),
-        ("controller.sub_nodes", 2, "Table 2.4: 2 sub nodes for each judgment/processing node"),
+        ("brain.controller.method", "RL", "Table 2.4: Fuzzy GNP-RL"),
+        (
+            "brain.controller.sub_nodes",
+            2,
+            "Table 2.4: 2 sub nodes for each judgment/processing node",
+        ),
         ("training.steps", 1000, "Table 2.4 l. 603: life time (training & implementation) 1000"),
         ("implementation.steps", 1000, "Table 2.4 l. 603: life time (training & implementation)"),
         ("training.generations", 1000, "not given in ch. 2; 1000 as §3.5.3 l. 861, §5.5.1"),
@@ -64,9 +77,9 @@ EXPECTED: dict[str, list[tuple[str, Any, str]]] = {
         ("implementation.has_fault", False, "§2.5.3: chapter 2 breaks no sensor"),
     ],
     "thesis-ch3": [
-        ("controller.method", "BS", "Table 3.1: Fuzzy GNP-TSRL (BS)"),
-        ("controller.sub_nodes", 2, "Table 3.1: number of sub nodes 2 (2SS & 2BS)"),
-        ("controller.n_branch", 2, "Table 3.1: number of branch connections 2"),
+        ("brain.controller.method", "BS", "Table 3.1: Fuzzy GNP-TSRL (BS)"),
+        ("brain.controller.sub_nodes", 2, "Table 3.1: number of sub nodes 2 (2SS & 2BS)"),
+        ("brain.controller.n_branch", 2, "Table 3.1: number of branch connections 2"),
         ("training.steps", 1000, "§3.5.1 l. 827: life time 1000 time steps"),
         ("training.generations", 1000, "§3.5.3 l. 861: evolved until 1000 generations"),
         ("training.redraw_every", 0, "§3.5.1: one start position per life (as ch. 2)"),
@@ -83,9 +96,13 @@ EXPECTED: dict[str, list[tuple[str, Any, str]]] = {
         ("implementation.broken_count", 1, "§3.5.1 l. 833: one sensor (simulation 2)"),
     ],
     "thesis-ch4": [
-        ("controller.method", "BS", "§4.5.1, Table 4.1: Fuzzy GNP-TSRL (BS)"),
-        ("controller.sub_nodes", 2, "Table 4.1: 2 sub nodes for each judgment/processing node"),
-        ("controller.n_branch", 2, "Table 4.1: 2 branch connections for each connection"),
+        ("brain.controller.method", "BS", "§4.5.1, Table 4.1: Fuzzy GNP-TSRL (BS)"),
+        (
+            "brain.controller.sub_nodes",
+            2,
+            "Table 4.1: 2 sub nodes for each judgment/processing node",
+        ),
+        ("brain.controller.n_branch", 2, "Table 4.1: 2 branch connections for each connection"),
         ("training.steps", 1000, "ch. 4 keeps ch. 3's training (§3.5.1 l. 827)"),
         ("training.generations", 1000, "Table 4.2 l. 1032: fitness at the 1000th generation"),
         ("training.redraw_every", 0, "as ch. 3"),
@@ -116,8 +133,8 @@ EXPECTED: dict[str, list[tuple[str, Any, str]]] = {
         ("implementation.schedule_n", 1.0, "§4.5.1 l. 1041 / Table 4.2: n = 1"),
     ],
     "thesis-ch5": [
-        ("controller.method", "CS", "Table 5.1: Fuzzy GNP-TSRL (CS)"),
-        ("controller.sub_nodes", 2, "Table 5.1: number of sub nodes 2 (CS)"),
+        ("brain.controller.method", "CS", "Table 5.1: Fuzzy GNP-TSRL (CS)"),
+        ("brain.controller.sub_nodes", 2, "Table 5.1: number of sub nodes 2 (CS)"),
         ("training.steps", 2000, "§5.5.1 l. 1261: each individual is evaluated for 2000 steps"),
         ("training.redraw_every", 500, "§5.5.1 l. 1261: start position changed every 500 steps"),
         ("training.generations", 1000, "§5.5.1 l. 1261: evolved for 1000 generations"),
@@ -138,10 +155,10 @@ EXPECTED: dict[str, list[tuple[str, Any, str]]] = {
 # Fields the thesis does not fix (engineering or an open choice written in docs/decisions.md).
 NOT_FROM_THE_THESIS = {
     "seed",  # a run setting
-    "evolution.elite_fraction",  # checked via evolution.split(300)
-    "evolution.crossover_fraction",  # checked via evolution.split(300)
-    "controller.n_sub",  # unset = the method's thesis default, checked via sub_nodes
-    "controller.n_branch",  # used by BS only; checked for ch. 3-4
+    "brain.evolution.elite_fraction",  # checked via evolution.split(300)
+    "brain.evolution.crossover_fraction",  # checked via evolution.split(300)
+    "brain.controller.n_sub",  # unset = the method's thesis default, checked via sub_nodes
+    "brain.controller.n_branch",  # used by BS only; checked for ch. 3-4
     "training.control_period",  # Webots' 64 ms (docs/decisions.md, "The robot"); not in the text
     "training.physics",  # the simulator (docs/decisions.md, "The world"); the thesis used Webots
     "training.noise_stream",  # how the noise's normals are drawn (docs/decisions.md, "A faster
@@ -159,10 +176,10 @@ NOT_FROM_THE_THESIS = {
     # GNP's task settings (#45): the thesis's robot at their defaults, which its text implies but
     # does not state (docs/decisions.md, "GNP on tasks"): Q from 0, random ties, judgments drawn
     # uniformly, a processing node's parameter read as the command.
-    "controller.q0",
-    "controller.tie_break",
-    "controller.threshold_init",
-    "controller.processing_output",
+    "brain.controller.q0",
+    "brain.controller.tie_break",
+    "brain.controller.threshold_init",
+    "brain.controller.processing_output",
     # Schedule fields that only matter for `schedule = "changing"` (ch. 4 checks them).
     "training.epsilon",
     "training.alpha",
@@ -181,15 +198,17 @@ NOT_FROM_THE_THESIS = {
 
 
 def value(config: RunConfig, path: str) -> Any:
-    """A field by dotted path; `evolution.split(300)`, `controller.sub_nodes` and
+    """A field by dotted path; `brain.evolution.split(300)`, `brain.controller.sub_nodes` and
     `implementation.broken_count` (sensors that break, fixed set or per-trial count) are derived."""
-    if path == "evolution.split(300)":
-        return config.evolution.split(300)
+    if path == "brain.evolution.split(300)":
+        return config.brain.evolution.split(300)  # type: ignore[attr-defined]
     if path == "implementation.broken_count":
         impl = config.implementation
         return len(impl.broken_sensors) or impl.break_count
-    section, name = path.split(".")
-    return getattr(getattr(config, section), name)
+    found: Any = config
+    for name in path.split("."):
+        found = getattr(found, name)
+    return found
 
 
 CASES = [
@@ -213,11 +232,10 @@ def test_preset_field_matches_the_thesis(preset: str, path: str, expected: Any) 
 @pytest.mark.parametrize("preset", sorted(EXPECTED))
 def test_every_field_is_checked_or_declared_open(preset: str) -> None:
     config = load_preset(preset)
+    models = [(section, model) for section, model in config if section not in ("seed", "brain")]
+    models += [(f"brain.{part}", model) for part, model in config.brain if part != "family"]
     fields = {"seed"} | {
-        f"{section}.{name}"
-        for section, model in config
-        if section != "seed" and model is not None  # neuro: unset for GNP, not the thesis's
-        for name in type(model).model_fields
+        f"{section}.{name}" for section, model in models for name in type(model).model_fields
     }
     checked = {path for path, _, _ in COMMON + EXPECTED[preset]}
     missing = fields - checked - NOT_FROM_THE_THESIS
@@ -227,11 +245,11 @@ def test_every_field_is_checked_or_declared_open(preset: str) -> None:
 def test_baselines_are_the_thesis_arms() -> None:
     # Table 3.1 / 5.1: Fuzzy GNP-RL has 4 sub nodes (4SS); Table 5.1: TSRL (BS) 2 sub nodes × 2.
     for preset in ("thesis-ch3", "thesis-ch5"):
-        base = load_preset(preset).model_dump(exclude={"controller": {"n_sub"}})
+        base = load_preset(preset).model_dump(exclude={"brain": {"controller": {"n_sub"}}})
         rl = build_config(base, {"controller": {"method": "RL"}})
-        assert rl.controller.sub_nodes == 4
+        assert rl.brain.controller.sub_nodes == 4
         bs = build_config(base, {"controller": {"method": "BS"}})
-        assert (bs.controller.sub_nodes, bs.controller.n_branch) == (2, 2)
+        assert (bs.brain.controller.sub_nodes, bs.brain.controller.n_branch) == (2, 2)
     # Table 4.1: TSRLco(A) trains with ε_ev = 0.01, α_ev = 0.10 and TSRLco(B) with 0.15, 0.70;
     # the preset's fixed values are the overlay's, the changing ones its min and max.
     ch4 = load_preset("thesis-ch4")
@@ -247,7 +265,7 @@ def test_ch4_learning_rates_follow_table_4_1_in_both_phases() -> None:
     assert training.generation_epsilon_alpha(ch4.training, 0) == pytest.approx((0.15, 0.70))
     assert training.generation_epsilon_alpha(ch4.training, 999) == pytest.approx((0.01, 0.10))
     # §4.5.1 case 2 (l. 1041): fixed 0.010/0.100 until t' = 500, then 0.015/0.150 decaying to 0.
-    learning = ch4.implementation.learning()
+    learning = learning_of(ch4.implementation)
     assert learning.rates(499, 500) == (0.01, 0.10)
     assert learning.rates(500, 500) == pytest.approx((0.015, 0.15))
     assert learning.rates(1750, 500) == pytest.approx((0.0075, 0.075))

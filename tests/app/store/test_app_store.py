@@ -17,8 +17,9 @@ from lab_fixtures import file_digest, tiny_config
 
 import gnp
 from app.brains.gnp_brain import initial_population
+from app.brains.net_settings import NetSettings
 from app.brains.registry import family_of
-from app.settings.config import NeuroSettings
+from app.settings.loading import build_config
 from app.store import (
     SCHEMA_VERSION,
     RunFileError,
@@ -55,7 +56,7 @@ def test_finished_run_is_self_describing(finished_run: Path) -> None:
         assert set(history.mean_terms) == set(TERM_NAMES)
         family = family_of(run.config)
         cfg, best = family.graph_config, family.best(run, 1)
-        assert cfg == config.controller.gnp_config()
+        assert cfg == config.brain.controller.gnp_config()
         assert best.size == 1
         gnp.check_population(cfg, best)
         assert np.array_equal(run.best_genome_arrays(-1)["q_ss"], run.best_genome_arrays(2)["q_ss"])
@@ -169,11 +170,9 @@ def test_run_names_hold_the_brains_stem_seed_and_utc_time(tmp_path: Path) -> Non
     # 23:04:05 on New Year's Eve at UTC−5 is 04:04:05 UTC the next day (and year).
     new_york = datetime(2025, 12, 31, 23, 4, 5, tzinfo=timezone(timedelta(hours=-5)))
     assert run_name(stem, config.seed, new_york) == "CS-fuzzy-seed7-20260101T040405Z"
-    crisp = config.model_copy(
-        update={"controller": config.controller.model_copy(update={"method": "BS", "fuzzy": False})}
-    )
+    crisp = build_config(config.model_dump(), {"controller": {"method": "BS", "fuzzy": False}})
     assert run_name(family_of(crisp).file_stem, 12, now) == "BS-crisp-seed12-20260102T030405Z"
-    neat = config.model_copy(update={"neuro": NeuroSettings(optimiser="neat")})
+    neat = config.model_copy(update={"brain": NetSettings(family="neat")})
     assert run_name(family_of(neat).file_stem, 7, now) == "neat-seed7-20260102T030405Z"
     # A name already taken gets the first free copy number.
     first = new_run_path(tmp_path, stem, 7, now)

@@ -15,6 +15,7 @@ from lab_fixtures import tiny_config
 from app.brains.registry import family_of
 from app.loop.recording import Trajectory
 from app.settings.config import ImplementationSettings
+from app.settings.layouts import layout_1
 from app.store import Implementation, RunReader, RunTemplate, RunWriter, add_implementation, schema
 from app.store.schema import (
     IMPLEMENTATION_LAYOUT,
@@ -192,19 +193,20 @@ def test_a_run_file_written_before_a_setting_existed_loads_with_its_old_behaviou
     finished_run: Path, tmp_path: Path
 ) -> None:
     """A file whose stored config does not name `schedule_progress` and `judgment_pair` ran
-    with the behaviour of its time (`LEGACY_DEFAULTS`), not today's defaults."""
+    with the behaviour of its time (`LEGACY_DEFAULTS`), not today's defaults; it was written
+    in layout 1 (app/settings/layouts.py)."""
     old = tmp_path / "old.h5"
     shutil.copyfile(finished_run, old)
     with h5py.File(old, "r+") as handle:
-        config = json.loads(handle.attrs["config"])
+        config = layout_1(json.loads(handle.attrs["config"]), "gnp")
         del config["training"]["schedule_progress"], config["evolution"]["judgment_pair"]
         handle.attrs["config"] = json.dumps(config)
     with RunReader(old) as run:
         assert run.config.training.schedule_progress == "g-over-G"
-        assert run.config.evolution.judgment_pair == "independent"
+        assert run.config.brain.evolution.judgment_pair == "independent"
     with RunReader(finished_run) as run:  # a file of today names both
         assert run.config.training.schedule_progress == "last-generation-min"
-        assert run.config.evolution.judgment_pair == "joint"
+        assert run.config.brain.evolution.judgment_pair == "joint"
 
 
 def test_an_implementation_read_without_its_recorded_trials_keeps_everything_else() -> None:

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from app.settings.config import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, dynamics, read_task_run, train_task
 from gnp import Schedule
 

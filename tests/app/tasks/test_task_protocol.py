@@ -14,9 +14,9 @@ from experiment_fixtures import in_process_client
 from test_peer import _spec
 
 import gnp
+from app.brains.gnp_settings import ControllerSettings
 from app.experiments.runner import RunOptions, run_experiment
 from app.experiments.spec_loading import parse
-from app.settings.config import ControllerSettings
 from app.tasks.config import TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.peer import PeerRun, read_peer, run_peer
 from app.tasks.training import (

@@ -13,9 +13,9 @@ import pytest
 from gymnasium import spaces
 
 import gnp
+from app.brains.gnp_settings import ControllerSettings
 from app.cli import main
 from app.phases.generations import Interrupted
-from app.settings.config import ControllerSettings
 from app.tasks import (
     BatchEnv,
     ObservationFault,
