@@ -95,8 +95,8 @@ def new_world(
     seed: int,
     noise_sigma: float,
     control_period: float = sim.CONTROL_PERIOD_S,
-    physics: sim.Physics = "pymunk",
-    noise_stream: sim.NoiseStream = "box-muller-v1",
+    physics: sim.Physics = sim.DEFAULT_PHYSICS,
+    noise_stream: sim.NoiseStream = sim.DEFAULT_NOISE_STREAM,
 ) -> sim.World:
     """A world of `n` robots in `arena`: the one place the lab builds a `sim.World` (training's
     shards, the implementation phase's trials, the dashboard's live robots)."""

@@ -25,7 +25,17 @@ from app.settings.errors import ConfigError
 from app.settings.families import DEFAULT_BRAIN, BrainSettings, brain_section
 from app.settings.fields import setting
 from app.settings.layouts import layout_2
-from sim import CONTROL_PERIOD_S, IR_MAX, LIFE_STEPS, N_SENSORS, FaultMode, NoiseStream, Physics
+from sim import (
+    CONTROL_PERIOD_S,
+    DEFAULT_NOISE_STREAM,
+    DEFAULT_PHYSICS,
+    IR_MAX,
+    LIFE_STEPS,
+    N_SENSORS,
+    FaultMode,
+    NoiseStream,
+    Physics,
+)
 from sim.arena import ArenaSpec
 from sim.kinds import CFrom
 
@@ -133,12 +143,12 @@ class TrainingSettings(_Frozen):
     noise_sigma: float = _noise_sigma()
     control_period: float = setting(CONTROL_PERIOD_S, "control step", "s", gt=0.0, le=1.0)
     physics: Physics = Field(
-        default="pymunk",
+        default=DEFAULT_PHYSICS,
         description="the world's physics in both phases, like control_period: pymunk (the "
         "reference) or analytic (the same contacts in numba, faster, for sweeps)",
     )
     noise_stream: NoiseStream = Field(
-        default="box-muller-v1",
+        default=DEFAULT_NOISE_STREAM,
         description="how the sensor noise's normals are drawn in both phases: box-muller-v1 "
         "(every earlier run's bits) or ziggurat-v1 (faster, other draws of the same N(0, σ²))",
     )

@@ -206,11 +206,6 @@ def test_the_training_life_is_the_envs_episode() -> None:
 FACT_SOURCES = ("sim", "gnp", "neuro", "app", "bench", "examples")
 HOME = "sim/kinds.py"
 FACTS = {sim.DEFAULT_PHYSICS: "DEFAULT_PHYSICS", sim.DEFAULT_NOISE_STREAM: "DEFAULT_NOISE_STREAM"}
-PENDING = {
-    # #46: modules another branch edits; they still spell both defaults.
-    "app/settings/config.py": {"pymunk", "box-muller-v1"},
-    "app/settings/arenas.py": {"pymunk", "box-muller-v1"},
-}
 
 
 def _strings(node: ast.expr | None) -> Iterator[str]:
@@ -246,8 +241,7 @@ def test_the_default_physics_and_noise_stream_are_written_in_one_module() -> Non
     assert sim.DEFAULT_PHYSICS in sim.PHYSICS
     assert sim.DEFAULT_NOISE_STREAM in sim.NOISE_STREAMS
     for fact, name in FACTS.items():
-        pending = {module for module, facts in PENDING.items() if fact in facts}
-        assert modules_writing(fact) == {HOME, *pending}, (
+        assert modules_writing(fact) == {HOME}, (
             f"{fact!r} is a default in one module, {HOME}: elsewhere write sim.{name}"
         )
 
