@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import cast
+from typing import Any, Final, TypeAlias, cast
 
 import numpy as np
+import numpy.typing as npt
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
+from numba.core.base import BaseContext
+from numba.core.typing import Context, Signature
 from numba.extending import intrinsic
 
 from gnp.config import JUDGMENT, NODE_COST, PROCESSING, SKIP_COST, SPEED_MAX, STEP_BUDGET
@@ -28,6 +31,23 @@ from gnp.rng import next_uniform
 
 _JUDGMENT_COST, _PROCESSING_COST = NODE_COST[JUDGMENT], NODE_COST[PROCESSING]
 
+# The kernel's arrays, by dtype (numba reads no annotations: these are for mypy and readers).
+Floats: TypeAlias = npt.NDArray[np.float64]
+"""Observations, rewards, (ε, α) rates and wheel commands."""
+Records: TypeAlias = npt.NDArray[np.uint8]
+"""A population's records as one flat byte array (`Population.record_bytes`)."""
+Walks: TypeAlias = npt.NDArray[np.int32]
+"""The engine state's walk, (N, `gnp.engine.WALK_WIDTH`)."""
+Streams: TypeAlias = npt.NDArray[np.uint64]
+"""The engine state's random streams, (N,) splitmix64 states."""
+Traces: TypeAlias = npt.NDArray[np.int32]
+"""Trace arrays: visits (5, N, max visits) and counts (N,), `gnp.engine.TRACE_DTYPE`."""
+Layout: TypeAlias = tuple[int, ...]
+"""`record_layout`'s tuple."""
+Reader: TypeAlias = Callable[[Floats, Any, np.uint64, np.uint64], float]
+"""`read(obs, source, i, j)`: what controller i sees of sensor j (`read_observed`); `source` is
+whatever the reader reads besides `obs` (Any: numba's `Dispatcher` type keeps no type variable)."""
+
 
 _LAYOUT_FIELDS = (
     "q_ss", "q_bs", "q_cs", "mu_beta", "mu_alpha", "conn", "credit", "function", "speed"
@@ -35,7 +55,7 @@ _LAYOUT_FIELDS = (
 
 
 @functools.cache
-def record_layout(n_sub: int, n_conn_branches: int) -> tuple[int, ...]:
+def record_layout(n_sub: int, n_conn_branches: int) -> Layout:
     """The record layout as the kernel reads it: the record's size in bytes, then where each
     field of `_LAYOUT_FIELDS` starts, in words of the field's own size."""
     fields = record_dtype(n_sub, n_conn_branches).fields
@@ -50,7 +70,9 @@ def record_layout(n_sub: int, n_conn_branches: int) -> tuple[int, ...]:
 _WITHOUT_NRT = {"_nrt": False}
 
 
-def _prefetch_typer(typingctx, array, index):
+def _prefetch_typer(
+    _typingctx: Context, array: types.Type, index: types.Type
+) -> tuple[Signature, Callable[[BaseContext, Any, Signature, list[Any]], Any]] | None:
     """Hint the CPU to load array[index] (a tuple of ndim indices) into cache; no effect else.
 
     The engine is bound by memory latency: a world step evicts the population's records, and
@@ -62,7 +84,9 @@ def _prefetch_typer(typingctx, array, index):
     if len(index) != array.ndim:
         return None
 
-    def codegen(context, builder, signature, args):
+    def codegen(
+        context: BaseContext, builder: ir.IRBuilder, signature: Signature, args: list[Any]
+    ) -> Any:
         array_type, index_type = signature.args
         arr = context.make_array(array_type)(context, builder, args[0])
         indices = [
@@ -81,18 +105,20 @@ def _prefetch_typer(typingctx, array, index):
     return types.void(array, index), codegen
 
 
-_prefetch = cast(Callable[[np.ndarray, tuple[int, ...]], None], intrinsic(_prefetch_typer))
+_prefetch = cast(
+    Callable[[npt.NDArray[np.float32], tuple[int, ...]], None], intrinsic(_prefetch_typer)
+)
 
 
 @njit(cache=True, inline="always")
-def _prefetch_record(words: np.ndarray, start: int, lines: int) -> None:
+def _prefetch_record(words: npt.NDArray[np.float32], start: int, lines: int) -> None:
     """Prefetch the `lines` cache lines of a record that begins at float32 word `start`."""
     for i in range(lines):
         _prefetch(words, (start + i * (CACHE_LINE // 4),))
 
 
 @njit(cache=True, inline="always")
-def _ix(i):  # pragma: no cover - compiled
+def _ix(i: int) -> np.uint64:  # pragma: no cover - compiled
     """A flat index as unsigned: numba then skips its negative-index wraparound, two
     instructions on every one of a visit's ~25 loads and stores."""
     return np.uint64(i)
@@ -100,7 +126,7 @@ def _ix(i):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _egreedy(
-    q: np.ndarray, start: int, k: int, eps: float, s: np.uint64, first: int
+    q: npt.NDArray[np.float32], start: int, k: int, eps: float, s: np.uint64, first: int
 ) -> tuple[np.uint64, int]:
     """ε-greedy over the k action values q[start : start + k]: (new stream state, chosen index).
 
@@ -135,18 +161,51 @@ def _egreedy(
 
 
 # Positions in the `run` tuple the kernel hands its helpers.
-_METHOD, _N_NODES, _WORDS32, _LAYOUT, _WALK, _COUNT = 0, 3, 7, 10, 11, 19
+_METHOD: Final = 0
+_N_NODES: Final = 3
+_WORDS32: Final = 7
+_LAYOUT: Final = 10
+_WALK: Final = 11
+_COUNT: Final = 19
+
+Run: TypeAlias = tuple[
+    int,  # method
+    bool,  # fuzzy
+    float,  # gamma
+    int,  # n_nodes
+    int,  # n_judgment
+    int,  # n_sub
+    int,  # n_conn
+    npt.NDArray[np.float32],  # words32
+    npt.NDArray[np.int16],  # words16
+    npt.NDArray[np.int8],  # words8
+    Layout,
+    Walks,
+    Floats,  # wheels
+    Streams,
+    Floats,  # obs
+    Floats,  # reward
+    Floats,  # rates
+    bool,  # learn
+    Traces,  # visits
+    Traces,  # count
+]
+"""Everything a visit reads, in one tuple (`walk_kernel` builds it)."""
 
 
 @njit(cache=True, inline="always")
-def read_observed(obs, source, i, j):  # pragma: no cover - compiled
+def read_observed(
+    obs: Floats, _source: object, i: np.uint64, j: np.uint64
+) -> float:  # pragma: no cover - compiled
     """What controller i sees of sensor j: `obs[i, j]` (`step_kernel`'s reader; a caller of
     `walk_kernel` may draw each reading when a judgment node first reads it)."""
     return obs[i, j]
 
 
 @njit(cache=True, inline="always")
-def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
+def _visit(
+    c: int, used: int, k: int, run: Run, read: Reader, source: Any
+) -> tuple[int, int]:  # pragma: no cover - compiled
     """Controller c's next visit (after the start node, if it stands there): choose, learn,
     run, and move on. Its walk (`walk[c]`, `rng[c]`) is read from and written back to memory,
     so that controllers can take turns (see `step_kernel`). Returns (used, k): the step's
@@ -254,7 +313,9 @@ def _visit(c, used, k, run, read, source):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _turn(c, used, k, waiting, run, read, source):  # pragma: no cover - compiled
+def _turn(
+    c: int, used: int, k: int, waiting: int, run: Run, read: Reader, source: Any
+) -> tuple[int, int, int, int]:  # pragma: no cover - compiled
     """Lane of controller c: one visit; once c's step is done the lane takes the next waiting
     controller. A lane whose controller number reaches N is idle. Returns (c, used, k,
     waiting) for the lane's next turn."""
@@ -273,7 +334,7 @@ def _turn(c, used, k, waiting, run, read, source):  # pragma: no cover - compile
 
 
 @njit(cache=True, inline="always")
-def _prefetch_walk(c, run):  # pragma: no cover - compiled
+def _prefetch_walk(c: int, run: Run) -> None:  # pragma: no cover - compiled
     """Prefetch what controller c's step starts with: its current node's record, and the Q
     values of its last two visits, which its first visit updates (the world step in between
     has evicted them). Q values lead a record, so their first line is prefetched, no more:
@@ -288,7 +349,7 @@ def _prefetch_walk(c, run):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def records_part(records: np.ndarray, n_nodes: int, layout: tuple, lo: int, hi: int) -> np.ndarray:
+def records_part(records: Records, n_nodes: int, layout: Layout, lo: int, hi: int) -> Records:
     """The records of controllers lo..hi − 1 (a view): `step_kernel` runs them as a population
     of their own, with the same rows of the engine state."""
     size = n_nodes * layout[0]
@@ -297,9 +358,10 @@ def records_part(records: np.ndarray, n_nodes: int, layout: tuple, lo: int, hi: 
 
 @njit(cache=True, **_WITHOUT_NRT)  # type: ignore[call-overload]
 def step_kernel(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count,
-):  # fmt: skip  # pragma: no cover - compiled
+    method: int, fuzzy: bool, gamma: float, n_nodes: int, n_judgment: int, n_sub: int,
+    n_conn: int, records: Records, layout: Layout, walk: Walks, wheels: Floats, rng: Streams,
+    obs: Floats, reward: Floats, rates: Floats, learn: bool, visits: Traces, count: Traces,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """Run every controller's visits until its step's time units are spent.
 
     Two controllers take turns, a visit each: the record of a controller's next node is
@@ -315,9 +377,11 @@ def step_kernel(
 
 @njit(cache=True, inline="always")
 def walk_kernel(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count, read, source,
-):  # fmt: skip  # pragma: no cover - compiled
+    method: int, fuzzy: bool, gamma: float, n_nodes: int, n_judgment: int, n_sub: int,
+    n_conn: int, records: Records, layout: Layout, walk: Walks, wheels: Floats, rng: Streams,
+    obs: Floats, reward: Floats, rates: Floats, learn: bool, visits: Traces, count: Traces,
+    read: Reader, source: Any,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """`step_kernel`'s body, inlined into its caller, whose judgment nodes read sensor j of
     controller i as `read(obs, source, i, j)`: a compiled caller may pass a numba function
     that fills `obs` on demand (pass it by name in the call: inlined, the call is static and

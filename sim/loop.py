@@ -118,8 +118,8 @@ def observe(world: WorldArrays, t: int) -> None:
 def read_lazily(
     observed: npt.NDArray[np.float64],
     source: tuple[WorldArrays, int, npt.NDArray[np.bool_]],
-    i: int,
-    j: int,
+    i: int | np.uint64,
+    j: int | np.uint64,
 ) -> float:
     """What robot i sees of sensor j at the step `source` = (world, t, drawn) names, drawn
     the first time a sensor of its pair is read in the step (`drawn`: (N, 4) bool, cleared each

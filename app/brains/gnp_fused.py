@@ -13,12 +13,20 @@ from numba import njit
 import gnp
 import sim
 from app.loop import fused
-from app.loop.fused import Watched, watch_buffers, watched, world_steps
+from app.loop.fused import Floats, LazySource, Watched, watch_buffers, watched, world_steps
 from gnp import engine, kernel
-from gnp.engine import TRACE_DTYPE, VISIT_FIELDS, check_population, kernel_arguments, method_code
-from gnp.kernel import records_part, walk_kernel
+from gnp.engine import (
+    TRACE_DTYPE,
+    VISIT_FIELDS,
+    KernelArguments,
+    check_population,
+    kernel_arguments,
+    method_code,
+)
+from gnp.kernel import Layout, Records, Streams, Traces, Walks, records_part, walk_kernel
 from sim import analytic, drive, khepera, loop, noise, rays, reward, sensors
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
+from sim.loop import WorldArrays
 
 
 def steps(
@@ -79,9 +87,11 @@ def steps(
 
 @njit(cache=True)
 def _run(
-    world, brain, epsilon, alpha, learn, judge_observed, t0, reward, each, term_sums, table, block,
-    poses_out, seen_out, commands_out, readings_out, table_out, visits_out, count_out,
-):  # fmt: skip  # pragma: no cover - compiled
+    world: WorldArrays, brain: KernelArguments, epsilon: Floats, alpha: Floats, learn: bool,
+    judge_observed: bool, t0: int, reward: Floats, each: Floats, term_sums: Floats,
+    table: Floats, block: int, poses_out: Floats, seen_out: Floats, commands_out: Floats,
+    readings_out: Floats, table_out: Floats, visits_out: Traces, count_out: Traces,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """`app.loop.fused.world_steps` with GNP's controllers (`brain`: `kernel_arguments`), the
     trace kept in `visits_out`, `count_out` when they have robots."""
     world_steps(
@@ -92,7 +102,9 @@ def _run(
 
 
 @njit(inline="always")
-def _part(brain, lo, hi):  # pragma: no cover - compiled
+def _part(
+    brain: KernelArguments, lo: int, hi: int
+) -> tuple[KernelArguments, Floats]:  # pragma: no cover - compiled
     """Controllers lo..hi − 1 of `brain` (views) and their wheels."""
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
         brain
@@ -105,7 +117,10 @@ def _part(brain, lo, hi):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def _act_part(part, obs, reward, rates, learn, trace_out, row, lo, hi, source):  # pragma: no cover
+def _act_part(
+    part: KernelArguments, obs: Floats, reward: Floats, rates: Floats, learn: bool,
+    trace_out: tuple[Traces, Traces], row: int, lo: int, hi: int, source: LazySource,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """One step of `_part`'s controllers, their trace in row `row` of `trace_out`."""
     method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng = (
         part
@@ -119,9 +134,11 @@ def _act_part(part, obs, reward, rates, learn, trace_out, row, lo, hi, source): 
 
 @njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def _act(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count, source,
-):  # fmt: skip  # pragma: no cover - compiled
+    method: int, fuzzy: bool, gamma: float, n_nodes: int, n_judgment: int, n_sub: int,
+    n_conn: int, records: Records, layout: Layout, walk: Walks, wheels: Floats, rng: Streams,
+    obs: Floats, reward: Floats, rates: Floats, learn: bool, visits: Traces, count: Traces,
+    source: LazySource,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """`gnp.kernel.step_kernel` whose judgment nodes read through `sim.loop.read_lazily`
     (compiled without numba's reference counting, as `step_kernel` is)."""
     walk_kernel(

@@ -16,14 +16,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 import sim
 from sim import loop
 from sim.khepera import N_SENSORS
+from sim.loop import WorldArrays
 
 ROBOTS_PER_BLOCK = 64
 """Robots that live the k steps together before the next ones start. Robots share no data, so
@@ -57,7 +59,7 @@ def watch_buffers(k: int, n: int) -> Watched:
         commands=np.empty((k, n, 2)),
         readings=np.empty((k, n, sim.N_SENSORS)),
         term_tables=np.empty((k, n, len(sim.TERM_NAMES))),
-        traces=lambda s: None,
+        traces=lambda _s: None,
     )
 
 
@@ -94,6 +96,23 @@ class FusedSteps(Protocol):
         ...
 
 
+Floats: TypeAlias = npt.NDArray[np.float64]
+
+LazySource: TypeAlias = tuple[WorldArrays, int, npt.NDArray[np.bool_]]
+"""What `act` hands `sim.loop.read_lazily` to draw a reading: (the robots' part of the world,
+the step t, which (robot, sensor pair) are drawn)."""
+
+PartOf: TypeAlias = Callable[[Any, int, int], tuple[Any, Floats]]
+"""`world_steps`' `part_of(brain, lo, hi)`. The controllers are the family's own (Any: numba's
+`Dispatcher` type keeps no type variable)."""
+
+ActPart: TypeAlias = Callable[
+    [Any, Floats, Floats, Floats, bool, Any, int, int, int, LazySource], None
+]
+"""`world_steps`' `act(part, observations, reward, rates, learn, trace_out, row, lo, hi,
+source)`, the part and trace the family's own."""
+
+
 def fused_steps(controllers: object) -> FusedSteps | None:
     """The controllers' compiled steps, if their family offers them."""
     fused: FusedSteps | None = getattr(controllers, "fused", None)
@@ -102,10 +121,11 @@ def fused_steps(controllers: object) -> FusedSteps | None:
 
 @njit(inline="always")
 def world_steps(
-    world, brain, part_of, act, epsilon, alpha, learn, judge_observed, t0, reward, each,
-    term_sums, table, block, poses_out, seen_out, commands_out, readings_out, table_out,
-    trace_out,
-):  # fmt: skip  # pragma: no cover - compiled
+    world: WorldArrays, brain: Any, part_of: PartOf, act: ActPart, epsilon: Floats,
+    alpha: Floats, learn: bool, judge_observed: bool, t0: int, reward: Floats, each: Floats,
+    term_sums: Floats, table: Floats, block: int, poses_out: Floats, seen_out: Floats,
+    commands_out: Floats, readings_out: Floats, table_out: Floats, trace_out: Any,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """k = len(epsilon) steps of `Batch.step`: observe, act (and learn), step, sense, judge;
     block by block of robots; each step's arrays kept in the `_out` arrays when they have k
     rows. Inlined into a family's compiled call, which passes its own functions by name (the

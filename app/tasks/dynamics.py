@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 import gnp
@@ -31,13 +33,26 @@ from gnp import config as gnp_config
 from gnp import kernel, methods, rng
 from gnp.config import SENSOR_MAX
 from gnp.engine import check_population, kernel_arguments, method_code
-from gnp.kernel import read_observed, records_part, walk_kernel
+from gnp.kernel import (
+    Floats,
+    Layout,
+    Records,
+    Streams,
+    Traces,
+    Walks,
+    read_observed,
+    records_part,
+    walk_kernel,
+)
 from gnp.methods import BRANCH_SELECTION as _BS
 from gnp.methods import CREDIT as _CS
 from gnp.methods import SKIP_EARNS as _SKIP_EARNS
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
 CARTPOLE, MOUNTAIN_CAR, ACROBOT = 0, 1, 2
+
+Observations: TypeAlias = npt.NDArray[np.float32]
+"""A batch's observations, (N, obs_dim) float32 as the envs return them."""
 
 # CartPoleEnv's constants, as its __init__ computes them.
 _CP_GRAVITY = 9.8
@@ -52,7 +67,9 @@ _CP_X_LIMIT = 2.4
 
 
 @njit(cache=True, inline="always")
-def _cartpole(state, i, action):  # pragma: no cover - compiled
+def _cartpole(
+    state: Floats, i: int, action: int
+) -> tuple[float, bool]:  # pragma: no cover - compiled
     """CartPoleEnv.step (euler) on row i: (reward, terminated)."""
     x, x_dot, theta, theta_dot = state[i, 0], state[i, 1], state[i, 2], state[i, 3]
     force = _CP_FORCE_MAG if action == 1 else -_CP_FORCE_MAG
@@ -79,7 +96,9 @@ _MC_FORCE, _MC_GRAVITY = 0.001, 0.0025
 
 
 @njit(cache=True, inline="always")
-def _mountain_car(state, i, action):  # pragma: no cover - compiled
+def _mountain_car(
+    state: Floats, i: int, action: int
+) -> tuple[float, bool]:  # pragma: no cover - compiled
     """MountainCarEnv.step (goal velocity 0) on row i: (reward, terminated)."""
     position, velocity = state[i, 0], state[i, 1]
     velocity += (action - 1) * _MC_FORCE + math.cos(3 * position) * (-_MC_GRAVITY)
@@ -96,7 +115,9 @@ _AC_MAX_VEL_1, _AC_MAX_VEL_2 = 4 * math.pi, 9 * math.pi
 
 
 @njit(cache=True, inline="always")
-def _acrobot_dsdt(t1, t2, dt1, dt2, a, two):  # pragma: no cover - compiled
+def _acrobot_dsdt(
+    t1: float, t2: float, dt1: float, dt2: float, a: float, two: float
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     """AcrobotEnv._dsdt ("book"): (dθ1, dθ2, ddθ1, ddθ2), its operations in its order.
 
     Its `x**2` of a numpy float64 is libm's `pow(x, 2.0)`, which differs from x·x in the last
@@ -124,7 +145,7 @@ def _acrobot_dsdt(t1, t2, dt1, dt2, a, two):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _wrap(x):  # pragma: no cover - compiled
+def _wrap(x: float) -> float:  # pragma: no cover - compiled
     diff = math.pi - (-math.pi)
     while x > math.pi:
         x = x - diff
@@ -134,7 +155,9 @@ def _wrap(x):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _acrobot(state, i, action, two):  # pragma: no cover - compiled
+def _acrobot(
+    state: Floats, i: int, action: int, two: float
+) -> tuple[float, bool]:  # pragma: no cover - compiled
     """AcrobotEnv.step (no torque noise) on row i: one RK4 step of 0.2 s, (reward, terminated)."""
     a = -1.0 if action == 0 else (0.0 if action == 1 else 1.0)
     y0, y1, y2, y3 = state[i, 0], state[i, 1], state[i, 2], state[i, 3]
@@ -164,7 +187,9 @@ def _acrobot(state, i, action, two):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _step(task, state, i, action, two):  # pragma: no cover - compiled
+def _step(
+    task: int, state: Floats, i: int, action: int, two: float
+) -> tuple[float, bool]:  # pragma: no cover - compiled
     if task == CARTPOLE:
         return _cartpole(state, i, action)
     if task == MOUNTAIN_CAR:
@@ -173,7 +198,9 @@ def _step(task, state, i, action, two):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _observe(task, state, i, obs, j):  # pragma: no cover - compiled
+def _observe(
+    task: int, state: Floats, i: int, obs: Observations, j: int
+) -> None:  # pragma: no cover - compiled
     """Row i's observation (float32, as the env returns it) into obs[j]."""
     if task == ACROBOT:
         obs[j, 0] = np.float32(math.cos(state[i, 0]))
@@ -188,7 +215,15 @@ def _observe(task, state, i, obs, j):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _step_batch(task, state, actions, obs, reward, terminated, two):  # pragma: no cover
+def _step_batch(
+    task: int,
+    state: Floats,
+    actions: npt.NDArray[np.int64],
+    obs: Observations,
+    reward: Floats,
+    terminated: npt.NDArray[np.bool_],
+    two: float,
+) -> None:  # pragma: no cover - compiled
     for i in range(state.shape[0]):
         reward[i], terminated[i] = _step(task, state, i, actions[i], two)
         _observe(task, state, i, obs, i)
@@ -254,9 +289,10 @@ _NO_COUNT = np.empty(0, np.int32)
 
 @njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def _act(
-    method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng,
-    obs, reward, rates, learn, visits, count,
-):  # fmt: skip  # pragma: no cover - compiled
+    method: int, fuzzy: bool, gamma: float, n_nodes: int, n_judgment: int, n_sub: int,
+    n_conn: int, records: Records, layout: Layout, walk: Walks, wheels: Floats, rng: Streams,
+    obs: Floats, reward: Floats, rates: Floats, learn: bool, visits: Traces, count: Traces,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """`gnp.kernel.step_kernel`, compiled here (without reference counting, as it is)."""
     walk_kernel(
         method, fuzzy, gamma, n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels,
@@ -266,8 +302,9 @@ def _act(
 
 @njit(cache=True)
 def _end_episode(
-    method, gamma, n_nodes, n_conn, layout, words32, walk, c, reward, lr
-):  # fmt: skip  # pragma: no cover - compiled
+    method: int, gamma: float, n_nodes: int, n_conn: int, layout: Layout,
+    words32: npt.NDArray[np.float32], walk: Walks, c: int, reward: float, lr: float,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """`gnp.end_episode` of controller c (its walk row `walk[0]`), in its arithmetic."""
     pn = walk[0, 1]
     if pn < 0:
@@ -293,10 +330,12 @@ def _end_episode(
 
 @njit(cache=True)
 def _lives(
-    task, horizon, state, obs, low, scale, n_actions, action_start, method, fuzzy, gamma,
-    n_nodes, n_judgment, n_sub, n_conn, records, layout, walk, wheels, rng, rates, learn,
-    max_steps, returns, lengths, visits, count, two,
-):  # fmt: skip  # pragma: no cover - compiled
+    task: int, horizon: int, state: Floats, obs: Observations, low: Floats, scale: Floats,
+    n_actions: int, action_start: int, method: int, fuzzy: bool, gamma: float, n_nodes: int,
+    n_judgment: int, n_sub: int, n_conn: int, records: Records, layout: Layout, walk: Walks,
+    wheels: Floats, rng: Streams, rates: Floats, learn: bool, max_steps: int, returns: Floats,
+    lengths: npt.NDArray[np.int64], visits: Traces, count: Traces, two: float,
+) -> None:  # fmt: skip  # pragma: no cover - compiled
     """Every individual's episode, one after the other (they share nothing, so the order
     changes no bit), each step as `app.tasks.lives.live` takes it: read, `step_kernel`, act,
     the env's step, and the terminal Sarsa update when the task terminates."""
@@ -362,7 +401,7 @@ def lives(
     low = np.ascontiguousarray(adapter.obs_low, np.float64)
     scale = SENSOR_MAX / (adapter.obs_high - adapter.obs_low)
     brain = kernel_arguments(method_code(cfg), cfg, pop, state)
-    _lives(  # type: ignore[call-arg]
+    _lives(
         task.code, task.horizon, env_state, obs, low, np.ascontiguousarray(scale, np.float64),
         adapter.n_actions, adapter.action_start, *brain, rates, learn, max_steps, returns,
         lengths, _NO_TRACE, _NO_COUNT, 2.0,

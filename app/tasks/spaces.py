@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from gymnasium import spaces
@@ -133,8 +133,8 @@ def _bounds(
 
 def task_adapter(
     task: str,
-    observation_space: spaces.Space,
-    action_space: spaces.Space,
+    observation_space: spaces.Space[Any],
+    action_space: spaces.Space[Any],
     obs_low: Sequence[float | None] | None = None,
     obs_high: Sequence[float | None] | None = None,
     act_low: Sequence[float | None] | None = None,
