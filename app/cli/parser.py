@@ -3,7 +3,7 @@
 Only the chosen command's parser is built with its options (`build_parser(verbs)`): the others
 are listed by name and help. A command's options may need heavy modules (`train`'s are built
 from the run configuration's models, which import the simulator and numba), so `gnp-lab --help`
-and `gnp-lab runs` never import them (tests/app/test_cli_startup.py).
+and `gnp-lab runs` never import them (tests/app/cli/test_cli_startup.py).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ A family whose controllers are numba functions may offer them fused with the wor
 (`Controllers`' optional `fused`, a `FusedSteps`): k steps of the batch in one compiled call,
 every stage of `app.loop.rollout.Batch.step` (`sim.loop` for the world, the family's kernel for
 the controllers) on the world's and the controllers' own arrays in `Batch.step`'s order, so the
-same bits (GNP's: `app.brains.gnp_fused`; tests/app/test_fused.py compares them step by step).
+same bits (GNP's: `app.brains.gnp_fused`; tests/app/loop/test_fused.py compares them step by step).
 `world_steps` is the world's half, inlined into the family's compiled call. Watched steps (the
 trajectory recorder, the dashboard) also keep what each step saw, commanded, read and earned,
 and the controllers' trace. A step in which a scheduled fault fires goes through the stages one

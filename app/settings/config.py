@@ -42,7 +42,7 @@ from sim.kinds import CFrom
 ScheduleKind = Literal["fixed", "changing"]
 GenerationProgress = Literal["last-generation-min", "g-over-G"]
 """How far Eq. 4.1-4.2 is at generation g: gnp's `gnp.config.GenerationProgress`, whose values
-these are (tests/app/test_facts_once.py checks they agree)."""
+these are (tests/app/design/test_facts_once.py checks they agree)."""
 
 PRESET_NAMES = ("quick", "thesis-ch2", "thesis-ch3", "thesis-ch4", "thesis-ch5")
 

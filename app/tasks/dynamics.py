@@ -5,7 +5,7 @@ Each task is a numba function that advances row i of a float64 state array by on
 (`_cartpole`, `_mountain_car`, `_acrobot`: returns (reward, terminated)) and one that writes
 row i's float32 observation, with Gymnasium's operations in Gymnasium's order (the same
 float64 arithmetic, libm's `cos`/`sin`, which numpy's give bit for bit on this machine: tested
-step for step against `gymnasium.make(id)` over whole episodes, tests/app/test_task_fast.py).
+step for step against `gymnasium.make(id)` over whole episodes, tests/app/tasks/test_task_fast.py).
 `step_batch` steps a whole (N, d) batch; `starts` draws the start states of seeds as the single
 env's `reset(seed=s)` does (`np.random.default_rng(s)`, Gymnasium's `np_random`), first
 observations computed by numpy as Gymnasium computes them (Acrobot's first one takes float32

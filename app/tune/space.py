@@ -25,7 +25,7 @@ class TuneError(ValueError):
 TUNING_SEEDS = range(700_000_000, 720_000_000)
 """Every seed tuning uses, run seeds and episode seeds alike. Experiments' run seeds are small
 (0..~10,000, and fracnetics' episode seeds run seed + g above them) and their test episodes
-start at 1,000,000 (`[task] first_test_seed`); tests/app/test_tune_seeds.py checks every
+start at 1,000,000 (`[task] first_test_seed`); tests/app/tune/test_tune_seeds.py checks every
 shipped spec against this range."""
 
 FIRST_RUN_SEED = TUNING_SEEDS.start

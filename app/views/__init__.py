@@ -2,5 +2,5 @@
 layout, the genome's shape and geometry helpers.
 
 Layering: `app.views` imports the lab core (`app`, `app.store`), `sim` and `gnp`, never
-`app.dashboard` nor `app.export`; both of those import it (tests/app/test_layers.py).
+`app.dashboard` nor `app.export`; both of those import it (tests/app/design/test_layers.py).
 """
