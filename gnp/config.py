@@ -20,7 +20,7 @@ SKIP_COST = 1
 STEP_BUDGET = 5
 #: Sensors judged by judgment nodes (J0..J7) and wheels set by processing nodes (P0, P1): the
 #: robot's (`sim.N_SENSORS`), the defaults of `n_inputs` and `n_outputs`. gnp does not import
-#: sim, so it keeps its own copy; tests/app/test_sim_gnp_boundary.py ties the two.
+#: sim, so it keeps its own copy; tests/app/design/test_sim_gnp_boundary.py ties the two.
 N_SENSORS = 8
 N_WHEELS = 2
 RIGHT_WHEEL, LEFT_WHEEL = 0, 1

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 #: Inputs (IR sensors) and outputs (wheels: left, right) of every net: the robot's
 #: (`sim.N_SENSORS`, two wheels). neuro does not import sim, so it keeps its own copy;
-#: tests/app/test_sim_gnp_boundary.py ties the two.
+#: tests/app/design/test_sim_gnp_boundary.py ties the two.
 N_INPUTS = 8
 N_OUTPUTS = 2
 
