@@ -1,9 +1,10 @@
 """One neural controller as the body of a controller document: its net's shape and every weight.
 
-The body is {"net": {...ElmanConfig or RecurrentConfig...}, "arrays": {name: nested lists,
-without the batch axis}}; the file around it (format, version, settings) is written and read by
-`app.store.controller_file`. Floats are written as Python's shortest round-trip repr, so the
-body gives back arrays equal bit for bit and a net that steps identically.
+The body is {"net": {...ElmanConfig or RecurrentConfig, its sizes where not the robot's...},
+"arrays": {name: nested lists, without the batch axis}}; the file around it (format, version,
+settings) is written and read by `app.store.controller_file`. Floats are written as Python's
+shortest round-trip repr, so the body gives back arrays equal bit for bit and a net that steps
+identically.
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ random state — is a function of (seed, parameters, the fitness of every genera
 `replay` rebuilds it from those plain arrays, so a run resumes without neat-python's pickled
 checkpoints (`neat.Checkpointer`).
 
-neat-python reads its parameters from an INI file; `ini_text` writes it from `NeatParams`.
+neat-python reads its parameters from an INI file; `ini_text` writes it from `NeatParams` and
+the net's sizes (`RecurrentConfig`: the robot's 8 inputs and 2 outputs unless told otherwise).
 """
 
 from __future__ import annotations
@@ -26,12 +27,14 @@ import numpy as np
 from neat.graphs import required_for_output
 
 from neuro.neat_params import NeatParams as NeatParams  # still importable from here
-from neuro.nets import N_INPUTS, N_OUTPUTS, NeuroError, RecurrentConfig, zeros
+from neuro.net_configs import N_INPUTS, N_OUTPUTS, NeuroError, RecurrentConfig
+from neuro.nets import zeros
 
 
-def ini_text(params: NeatParams, pop_size: int) -> str:
-    """neat-python's INI config: a recurrent net, 8 inputs, 2 tanh outputs, sum aggregation,
-    fully connected inputs → outputs at the start, no hidden nodes, response fixed at 1."""
+def ini_text(params: NeatParams, pop_size: int, net: RecurrentConfig) -> str:
+    """neat-python's INI config: a recurrent net of `net`'s inputs and tanh outputs, sum
+    aggregation, fully connected inputs → outputs at the start, no hidden nodes, response fixed
+    at 1."""
     p = params
     return f"""[NEAT]
 fitness_criterion = max
@@ -41,8 +44,8 @@ pop_size = {pop_size}
 reset_on_extinction = True
 
 [DefaultGenome]
-num_inputs = {N_INPUTS}
-num_outputs = {N_OUTPUTS}
+num_inputs = {net.n_inputs}
+num_outputs = {net.n_outputs}
 num_hidden = 0
 feed_forward = False
 initial_connection = full_direct
@@ -102,12 +105,12 @@ min_species_size = 2
 """
 
 
-def neat_config(params: NeatParams, pop_size: int) -> neat.Config:
+def neat_config(params: NeatParams, pop_size: int, net: RecurrentConfig) -> neat.Config:
     """neat-python's `Config`, read from `ini_text`'s INI (neat-python reads files only)."""
     fd, name = tempfile.mkstemp(suffix=".ini", prefix="gnp-lab-neat-")
     try:
         with os.fdopen(fd, "w") as handle:
-            handle.write(ini_text(params, pop_size))
+            handle.write(ini_text(params, pop_size, net))
         return neat.Config(
             neat.DefaultGenome,
             neat.DefaultReproduction,
@@ -119,17 +122,24 @@ def neat_config(params: NeatParams, pop_size: int) -> neat.Config:
         os.unlink(name)
 
 
-def encode(genome: Any, genome_config: Any, max_hidden: int) -> dict[str, np.ndarray]:
-    """One genome as the dense arrays of `RecurrentConfig(max_hidden)` (leading axis 1).
+def encode(genome: Any, genome_config: Any, net: RecurrentConfig) -> dict[str, np.ndarray]:
+    """One genome as the dense arrays of `net` (leading axis 1).
 
-    Units 0, 1 are the output nodes; then the hidden nodes with an enabled path to an output,
-    in key order. A node without enabled inputs is inactive (neat-python leaves it at 0), and
-    nodes with no path to an output are left out (they cannot change the outputs).
+    Units 0 … n_outputs − 1 are the output nodes; then the hidden nodes with an enabled path to
+    an output, in key order. A node without enabled inputs is inactive (neat-python leaves it at
+    0), and nodes with no path to an output are left out (they cannot change the outputs).
 
     Raises:
-        NeuroError: the genome uses more than `max_hidden` hidden nodes.
+        NeuroError: the genome uses more than `net.max_hidden` hidden nodes, or its inputs
+            and outputs are not `net`'s.
     """
     outputs = list(genome_config.output_keys)
+    n_in, max_hidden = len(genome_config.input_keys), net.max_hidden
+    if (n_in, len(outputs)) != (net.n_inputs, net.n_outputs):
+        raise NeuroError(
+            f"a NEAT genome of {n_in} inputs and {len(outputs)} outputs is not a net of "
+            f"{net.n_inputs} and {net.n_outputs}"
+        )
     enabled = [cg.key for cg in genome.connections.values() if cg.enabled]
     required = required_for_output(genome_config.input_keys, outputs, enabled)
     hidden = sorted(k for k in required if k not in outputs)
@@ -138,12 +148,12 @@ def encode(genome: Any, genome_config: Any, max_hidden: int) -> dict[str, np.nda
             f"a NEAT genome uses {len(hidden)} hidden nodes, more than max_hidden = {max_hidden}"
         )
     unit = {key: j for j, key in enumerate([*outputs, *hidden])}
-    arrays = zeros(RecurrentConfig(max_hidden=max_hidden), 1)
+    arrays = zeros(net, 1)
     for cg in genome.connections.values():
         i, o = cg.key
         if not cg.enabled or o not in unit:
             continue
-        column = -i - 1 if i < 0 else N_INPUTS + unit[i]
+        column = -i - 1 if i < 0 else n_in + unit[i]
         arrays["weights"][0, unit[o], column] = cg.weight
         arrays["active"][0, unit[o]] = 1
     for key, j in unit.items():
@@ -160,11 +170,21 @@ class NeatSearch:
         params: the NEAT settings.
         pop_size: genomes per generation.
         seed: seed of the search's own `random.Random` state.
+        n_inputs, n_outputs: the task's inputs and outputs (the robot's by default); the genomes
+            are run as `self.net`, `params.net_config(n_inputs, n_outputs)`.
     """
 
-    def __init__(self, params: NeatParams, pop_size: int, seed: int) -> None:
+    def __init__(
+        self,
+        params: NeatParams,
+        pop_size: int,
+        seed: int,
+        n_inputs: int = N_INPUTS,
+        n_outputs: int = N_OUTPUTS,
+    ) -> None:
+        self.net = params.net_config(n_inputs, n_outputs)
         self.params = params
-        self.config = neat_config(params, pop_size)
+        self.config = neat_config(params, pop_size, self.net)
         self._random = random.Random(seed)
         with self._draws():
             self.population = neat.Population(self.config)
@@ -196,7 +216,7 @@ class NeatSearch:
     def arrays(self) -> dict[str, np.ndarray]:
         """The generation to evaluate as dense nets (leading axis pop_size)."""
         genome_config = self.config.genome_config
-        parts = [encode(g, genome_config, self.params.max_hidden) for _, g in self.genomes()]
+        parts = [encode(g, genome_config, self.net) for _, g in self.genomes()]
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     def tell(self, fitness: np.ndarray) -> None:
@@ -220,9 +240,17 @@ class NeatSearch:
             )
 
 
-def replay(params: NeatParams, pop_size: int, seed: int, fitness: np.ndarray) -> NeatSearch:
-    """The search after telling each row of `fitness` (g, pop_size) in turn, evaluating nothing."""
-    search = NeatSearch(params, pop_size, seed)
+def replay(
+    params: NeatParams,
+    pop_size: int,
+    seed: int,
+    fitness: np.ndarray,
+    n_inputs: int = N_INPUTS,
+    n_outputs: int = N_OUTPUTS,
+) -> NeatSearch:
+    """The search after telling each row of `fitness` (g, pop_size) in turn, evaluating nothing
+    (the sizes as `NeatSearch`'s)."""
+    search = NeatSearch(params, pop_size, seed, n_inputs, n_outputs)
     for row in np.asarray(fitness, dtype=np.float64):
         search.tell(row)
     return search

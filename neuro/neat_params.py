@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from neuro.net_configs import RecurrentConfig
+from neuro.net_configs import N_INPUTS, N_OUTPUTS, RecurrentConfig
 
 
 class NeatParams(BaseModel):
@@ -30,6 +30,7 @@ class NeatParams(BaseModel):
     max_stagnation: int = Field(default=20, ge=1, le=100_000)
     species_elitism: int = Field(default=2, ge=0, le=1000)
 
-    def net_config(self) -> RecurrentConfig:
-        """The dense net every genome of this search is run as."""
-        return RecurrentConfig(max_hidden=self.max_hidden)
+    def net_config(self, n_inputs: int = N_INPUTS, n_outputs: int = N_OUTPUTS) -> RecurrentConfig:
+        """The dense net every genome of a search with these settings is run as, for a task of
+        `n_inputs` inputs and `n_outputs` outputs (the robot's by default)."""
+        return RecurrentConfig(max_hidden=self.max_hidden, n_inputs=n_inputs, n_outputs=n_outputs)

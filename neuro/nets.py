@@ -1,7 +1,8 @@
 """Batched neural controllers: an Elman net and NEAT's recurrent net, stepped for N at once.
 
-A controller maps 8 inputs in [0, 1] to 2 outputs in [−1, 1]; the lab scales IR readings to the
-inputs and the outputs to wheel commands. Each controller has its own weights (a leading batch
+A controller maps its config's `n_inputs` inputs in [0, 1] to `n_outputs` outputs in [−1, 1]
+(the robot's 8 and 2 by default); the lab scales IR readings to the inputs and the outputs to
+wheel commands. Each controller has its own weights (a leading batch
 axis N on every array) and its own activations, carried from step to step (`init_state`). The
 compiled kernels sum every product of a row in a fixed order, with no fast-math reassociation,
 so a controller's outputs depend on its own weights and inputs only, never on its batch.
@@ -15,7 +16,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from neuro.net_configs import N_INPUTS, N_OUTPUTS, ElmanConfig, NetConfig, NeuroError
+from neuro.net_configs import ElmanConfig, NetConfig, NeuroError
 from neuro.net_configs import RecurrentConfig as RecurrentConfig  # still importable from here
 
 Floats: TypeAlias = npt.NDArray[np.float64]
@@ -92,19 +93,25 @@ def init_state(cfg: NetConfig, n: int) -> np.ndarray:
 def step(
     cfg: NetConfig, arrays: dict[str, np.ndarray], state: np.ndarray, inputs: np.ndarray
 ) -> np.ndarray:
-    """One step of N controllers: (N, 2) outputs in [−1, 1]; `state` (N, units) is updated.
+    """One step of N controllers: (N, n_outputs) outputs in [−1, 1]; `state` (N, units) is updated.
 
     Args:
         cfg: the nets' shape.
         arrays: the N controllers' weights (see `ElmanConfig.shapes`, `RecurrentConfig.shapes`).
         state: (N, units) activations of the previous step (`init_state` at a start).
-        inputs: (N, 8) inputs in [0, 1].
+        inputs: (N, n_inputs) inputs in [0, 1].
+
+    Raises:
+        NeuroError: the inputs' width is not the net's, or the inputs, state and arrays do not
+            fit together.
     """
     n = len(state)
     x = np.ascontiguousarray(inputs, dtype=np.float64)
-    if x.shape != (n, N_INPUTS) or state.shape != (n, cfg.n_units):
+    if x.ndim != 2 or x.shape[1] != cfg.n_inputs:
+        raise NeuroError(f"the net takes {cfg.n_inputs} inputs a row, got inputs {x.shape}")
+    if len(x) != n or state.shape != (n, cfg.n_units):
         raise NeuroError(f"inputs {x.shape} and state {state.shape} do not fit {n} nets")
-    out = np.empty((n, N_OUTPUTS))
+    out = np.empty((n, cfg.n_outputs))
     new = np.empty_like(state)
     if isinstance(cfg, ElmanConfig):
         a = arrays
@@ -112,7 +119,7 @@ def step(
     else:
         a = arrays
         _recurrent(a["weights"], a["bias"], a["response"], a["active"], state, x, new)
-        out[:] = new[:, :N_OUTPUTS]
+        out[:] = new[:, : cfg.n_outputs]
     state[...] = new
     return out
 

@@ -102,7 +102,7 @@ def test_dense_nets_match_neat_pythons_own_recurrent_network() -> None:
     inputs = np.random.default_rng(0).uniform(0, 1, (5, 8))
     grown = 0
     for _, genome in search.genomes():
-        arrays = encode(genome, search.config.genome_config, params.max_hidden)
+        arrays = encode(genome, search.config.genome_config, cfg)
         grown += int(arrays["active"][0, 2:].sum())
         oracle = neat.nn.RecurrentNetwork.create(genome, search.config)
         state = neuro.init_state(cfg, 1)
@@ -119,4 +119,4 @@ def test_a_genome_beyond_the_capacity_is_named() -> None:
         search.tell(np.arange(6.0))
     genome = max((g for _, g in search.genomes()), key=lambda g: len(g.nodes))
     with pytest.raises(neuro.NeuroError, match="more than max_hidden = 0"):
-        encode(genome, search.config.genome_config, 0)
+        encode(genome, search.config.genome_config, neuro.RecurrentConfig(max_hidden=0))
