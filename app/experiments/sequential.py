@@ -24,7 +24,8 @@ lifted the family-wise error of two such claims to 0.061 and of three to 0.070 a
 Δ, which its repeated confidence interval (Jennison & Turnbull 1989) allows with probability at
 most its level over all looks; with Holm's stepping, the chance of any wrong `held` or
 `reversed` over the experiment is at most α whatever the number of claims and looks (under the
-normal approximation; the null simulations of tests/app/experiments/test_null_error.py measure 0.02–0.045).
+normal approximation; the null simulations of tests/app/experiments/test_null_error.py measure
+0.02–0.045).
 One look (no stages) is plain Holm with two-sided t-intervals. The boundary is on the normal
 scale; each look's nominal level is turned into a t-interval (Welch, or paired t) for the runs
 at hand. `judge` takes the claims of one family: `report.analyse` passes the primary ones.

@@ -13,8 +13,8 @@ are sent only what to do (`RowsJob`, `EvolveJob`: a few numbers), never a popula
 The parent is left copying a generation's fitness out and writing the run file, which
 `app.phases.generations` overlaps with the next generation's lives. Bits do not change: a life
 does not depend on its world's other robots, the seeds are keyed by individual, and the two
-halves of evolution draw exactly what `gnp.evolve` draws (tests/app/phases/test_shared_generations.py
-holds them to it).
+halves of evolution draw exactly what `gnp.evolve` draws
+(tests/app/phases/test_shared_generations.py holds them to it).
 
 Only a GNP population goes this way (its records are one block of memory); the nets' families,
 whose individuals do not learn, keep the pipes.
