@@ -54,10 +54,16 @@ class NetworkLayout:
         return int(np.count_nonzero(self.kinds == kind))
 
 
+def _output_names(cfg: neuro.NetConfig) -> tuple[str, ...]:
+    """The robot's wheels, or y0, y1, … for a net of other sizes (a task's)."""
+    robot = (cfg.n_inputs, cfg.n_outputs) == (neuro.N_INPUTS, len(WHEELS))
+    return WHEELS if robot else tuple(f"y{o}" for o in range(cfg.n_outputs))
+
+
 def _unit_name(cfg: neuro.NetConfig, unit: int) -> str:
-    if isinstance(cfg, neuro.RecurrentConfig) and unit < neuro.N_OUTPUTS:
-        return WHEELS[unit]
-    return f"h{unit if isinstance(cfg, neuro.ElmanConfig) else unit - neuro.N_OUTPUTS}"
+    if isinstance(cfg, neuro.RecurrentConfig) and unit < cfg.n_outputs:
+        return _output_names(cfg)[unit]
+    return f"h{unit if isinstance(cfg, neuro.ElmanConfig) else unit - cfg.n_outputs}"
 
 
 def _wiring(
@@ -66,7 +72,7 @@ def _wiring(
     """Context units, hidden units, and weights as (source kind, source index, target node
     key, weight); a target key is a hidden unit, or −1 − wheel for a wheel."""
     neuro.check_arrays(cfg, arrays)
-    n_in, n_out = neuro.N_INPUTS, neuro.N_OUTPUTS
+    n_in, n_out = cfg.n_inputs, cfg.n_outputs
     links: list[tuple[int, int, int, float]] = []
     if isinstance(cfg, neuro.ElmanConfig):
         w_in, w_rec, w_out = arrays["w_in"][0], arrays["w_rec"][0], arrays["w_out"][0]
@@ -100,7 +106,7 @@ def network_layout(
         neuro.NeuroError: `arrays` are not nets of `cfg`.
     """
     context, hidden, links = _wiring(cfg, arrays)
-    n_in, n_out = neuro.N_INPUTS, neuro.N_OUTPUTS
+    n_in, n_out = cfg.n_inputs, cfg.n_outputs
     kinds = np.array(
         [INPUT] * n_in + [CONTEXT] * len(context) + [HIDDEN] * len(hidden) + [OUTPUT] * n_out,
         np.int64,
@@ -110,7 +116,7 @@ def network_layout(
         *(f"s{i}" for i in range(n_in)),
         *(_unit_name(cfg, k) + "(t−1)" for k in context),
         *(_unit_name(cfg, j) for j in hidden),
-        *WHEELS,
+        *_output_names(cfg),
     )
     column_x = width * np.array([0.0, 0.55, 1.0])
     positions = np.zeros((len(kinds), 2))

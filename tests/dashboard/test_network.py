@@ -267,3 +267,17 @@ def test_the_network_view_draws_the_weights_and_recolours_the_nodes_live() -> No
         assert not np.all(view.node_colors == NEUTRAL)
     finally:
         server.stop()
+
+
+def test_a_net_of_a_tasks_sizes_draws_its_own_inputs_and_outputs() -> None:
+    """A net of other sizes than the robot's (a Gymnasium task's: 4 features, 3 actions) is
+    laid out from its config's widths, its outputs named y0.. instead of wheels."""
+    cfg = neuro.ElmanConfig(hidden=2, n_inputs=4, n_outputs=3)
+    arrays = neuro.from_flat(cfg, np.random.default_rng(1).normal(size=(1, cfg.n_params)))
+    layout = network_layout(cfg, arrays)
+    assert [layout.count(k) for k in (INPUT, CONTEXT, HIDDEN, OUTPUT)] == [4, 2, 2, 3]
+    assert layout.names[-3:] == ("y0", "y1", "y2")
+    edges = drawn_edges(cfg, arrays)
+    assert edges[("s3", "h1")] == arrays["w_in"][0, 1, 3]
+    assert edges[("h0", "y2")] == arrays["w_out"][0, 2, 0]
+    assert len(edges) == 2 * 4 + 2 * 2 + 3 * 2
