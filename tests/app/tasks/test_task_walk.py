@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import gnp
-from app.settings.config import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings
 from app.tasks.common import TestProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.store import read_task_run
