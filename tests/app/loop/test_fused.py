@@ -208,7 +208,9 @@ def test_the_compiled_path_is_taken_only_for_gnp_in_an_analytic_world(
     compiled_calls: list[int],
 ) -> None:
     rollout(_batch("BS", True, "true", physics="pymunk"), 3, 0.1, 0.1)
-    rollout(_batch("BS", True, "true"), 3, 0.1, 0.1, second_stage=False)
+    ablated = _batch("BS", True, "true")
+    gnp_of(ablated).second_stage = False
+    rollout(ablated, 3, 0.1, 0.1)
     assert compiled_calls == []
     rollout(_batch("BS", True, "true"), 3, 0.1, 0.1)
     assert compiled_calls == [3]
