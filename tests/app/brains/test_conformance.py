@@ -153,3 +153,29 @@ def test_names_that_disagree_are_named() -> None:
     assert "no family is registered under 'wanderer-2'" in found
     with pytest.raises(ValueError, match="named otherwise"):
         register(Renamed)
+
+
+def test_a_lazy_entry_whose_class_is_named_otherwise_is_refused_when_looked_up() -> None:
+    from app.brains import family_class
+    from app.settings import families
+    from app.settings.errors import ConfigError
+
+    register("elman", "app.brains.nets:CmaesFamily", "app.brains.net_settings:NetSettings")
+    try:
+        with pytest.raises(ConfigError) as raised:
+            family_class("elman")
+    finally:
+        del families._table["elman"]
+    found = str(raised.value)
+    assert "'elman' is named otherwise" in found and "CmaesFamily.name is 'cmaes'" in found
+    assert "NetSettings.family admits only 'cmaes', 'neat'" in found and "\n" not in found
+
+
+def test_arrays_not_of_the_genome_layout_are_refused_on_one_line() -> None:
+    from app.store import RunFileError
+
+    family = Wanderer(tiny_config(Wanderer))
+    with pytest.raises(RunFileError, match=r"^genome array gain must be \(3, 2\) float64, got"):
+        family.from_arrays({"gain": np.zeros((3, 2), np.float32)})
+    with pytest.raises(RunFileError, match=r"^genome arrays must be \['gain'\], got \['bias'\]$"):
+        family.from_arrays({"bias": np.zeros((3, 2))})
