@@ -171,7 +171,7 @@ class Checks:
         """Controllers of generation 0's first `n` individuals (copies), rates set."""
         family = self.family
         individuals = family.for_life(family.take(family.first().individuals(), list(range(n))))
-        controllers = family.controllers(individuals, 100 + np.arange(n, dtype=np.int64))
+        controllers: Any = family.controllers(individuals, 100 + np.arange(n, dtype=np.int64))
         if is_learner(controllers):
             controllers.set_rates(0.1, 0.1, True)
         return controllers

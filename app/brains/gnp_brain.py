@@ -37,6 +37,11 @@ def initial_population(config: RunConfig) -> gnp.Population:
     )
 
 
+def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
+    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
+    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
+
+
 def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tuple[float, float]:
     """(ε, α) of a generation: fixed, or Eq. 4.1-4.2."""
     eps_schedule, alpha_schedule = schedules(training)
@@ -237,8 +242,6 @@ class GnpFamily(BrainFamily):
 
     @property
     def trace_layout(self) -> TraceLayout:
-        from app.brains.gnp_controllers import gnp_trace
-
         return gnp_trace(self.cfg)
 
     def tracer(self) -> GraphTracer:

@@ -12,14 +12,8 @@ import gnp
 import sim
 from app.brains import gnp_fused
 from app.loop.fused import FusedSteps, Watched
-from app.loop.recording import TraceLayout
 from app.loop.rollout import Batch
 from app.settings.config import CFrom
-
-
-def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
-    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
-    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
 
 
 class GnpControllers:
