@@ -25,6 +25,8 @@ POPULATION = 4
 """Individuals of the default config's population."""
 STEPS = 5
 """Steps the controllers take in each check of theirs."""
+ROBOTS = 2
+"""Robots the controllers' checks drive: the fewest a population has."""
 
 
 class FamilyCheckError(AssertionError):
@@ -167,7 +169,7 @@ class Checks:
 
     # --- lives --------------------------------------------------------------------------------
 
-    def controllers(self, n: int = 3) -> Any:
+    def controllers(self, n: int = ROBOTS) -> Any:
         """Controllers of generation 0's first `n` individuals (copies), rates set."""
         family = self.family
         individuals = family.for_life(family.take(family.first().individuals(), list(range(n))))
@@ -191,11 +193,11 @@ class Checks:
 
     def commands(self) -> str | None:
         controllers = self.controllers()
-        if controllers.size != 3:
-            return f"controllers of 3 individuals have size {controllers.size}"
+        if controllers.size != ROBOTS:
+            return f"controllers of {ROBOTS} individuals have size {controllers.size}"
         for _ in range(STEPS):
-            commands, _ = controllers.act(self.observations(3), np.ones(3), trace=False)
-            wrong = self.wrong_commands(commands, 3)
+            commands, _ = controllers.act(self.observations(ROBOTS), np.ones(ROBOTS), trace=False)
+            wrong = self.wrong_commands(commands, ROBOTS)
             if wrong:
                 return wrong
         return None
@@ -203,28 +205,30 @@ class Checks:
     def rows_independent(self) -> str | None:
         a, b = self.controllers(), self.controllers()
         for _ in range(STEPS):
-            seen = self.observations(3)
+            seen = self.observations(ROBOTS)
             other = seen.copy()
-            other[1:] = self.observations(2)
-            mine, _ = a.act(seen, np.ones(3), trace=False)
-            theirs, _ = b.act(other, np.ones(3), trace=False)
+            other[1:] = self.observations(ROBOTS - 1)
+            mine, _ = a.act(seen, np.ones(ROBOTS), trace=False)
+            theirs, _ = b.act(other, np.ones(ROBOTS), trace=False)
             if not np.array_equal(np.asarray(mine)[0], np.asarray(theirs)[0]):
                 return "robot 0's commands depend on the others' observations"
         return None
 
     def reset(self) -> str | None:
         controllers = self.controllers()
-        controllers.act(self.observations(3), np.ones(3), trace=False)
+        controllers.act(self.observations(ROBOTS), np.ones(ROBOTS), trace=False)
         controllers.reset_episode()
-        commands, _ = controllers.act(self.observations(3), np.zeros(3), trace=False)
-        return self.wrong_commands(commands, 3)
+        commands, _ = controllers.act(self.observations(ROBOTS), np.zeros(ROBOTS), trace=False)
+        return self.wrong_commands(commands, ROBOTS)
 
     def traced(self) -> str | None:
-        _, trace = self.controllers().act(self.observations(3), np.ones(3), trace=True)
+        _, trace = self.controllers().act(self.observations(ROBOTS), np.ones(ROBOTS), trace=True)
         for name, (shape, dtype) in self.family.trace_layout.items():
             value = np.asarray(getattr(trace, name))
-            if value.shape != (3, *shape) or value.dtype != np.dtype(dtype):
-                return f"trace {name} is {value.shape} {value.dtype}, not {(3, *shape)} {dtype}"
+            if value.shape != (ROBOTS, *shape) or value.dtype != np.dtype(dtype):
+                return (
+                    f"trace {name} is {value.shape} {value.dtype}, not {(ROBOTS, *shape)} {dtype}"
+                )
         return None
 
     def online(self) -> str | None:

@@ -137,7 +137,7 @@ def test_wrong_commands_and_coupled_robots_are_named() -> None:
             del engine_seeds
             return Coupled(individuals["gain"])
 
-    assert "act: (N, 2) finite commands in range: commands are (3, 3), not (3, 2)" in problems_of(
+    assert "act: (N, 2) finite commands in range: commands are (2, 3), not (2, 2)" in problems_of(
         WrongShape
     )
     assert "act: rows independent: robot 0's commands depend" in problems_of(Meddling)
