@@ -28,7 +28,6 @@ if TYPE_CHECKING:
     )
     from neuro.nets import (
         check_arrays,
-        concat,
         field_dtype,
         from_flat,
         init_state,
@@ -46,7 +45,6 @@ __all__ = [
     "NeuroError",
     "RecurrentConfig",
     "check_arrays",
-    "concat",
     "field_dtype",
     "from_flat",
     "init_state",
@@ -70,7 +68,6 @@ _HOMES = {
     ),
     "nets": (
         "check_arrays",
-        "concat",
         "field_dtype",
         "from_flat",
         "init_state",

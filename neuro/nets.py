@@ -80,11 +80,6 @@ def take(arrays: dict[str, np.ndarray], index: np.ndarray | list[int]) -> dict[s
     return {k: np.ascontiguousarray(v[idx]) for k, v in arrays.items()}
 
 
-def concat(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-    """Controllers of several batches, in order."""
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-
-
 def init_state(cfg: NetConfig, n: int) -> np.ndarray:
     """(N, units) activations at an episode's start: all zero."""
     return np.zeros((n, cfg.n_units))

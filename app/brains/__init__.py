@@ -1,15 +1,18 @@
 """Brain families behind one contract: GNP (RL/BS/CS), neural nets (Elman + CMA-ES, NEAT) and any
 family registered from outside (docs/brains.md).
 
-    from app.brains import BrainFamily, BrainSettings, register
+    from app.brains import BrainFamily, BrainSettings, check_family, register
 
     class VehicleSettings(BrainSettings): ...  # the run config's `brain` section
     class Vehicle(BrainFamily):
+        name = "vehicle"
         settings_model = VehicleSettings
-    register("vehicle", Vehicle)
+    register(Vehicle)
+    check_family(Vehicle)  # in its tests: every problem, named
 """
 
-from app.brains.contract import BrainFamily, Evolution, NoTracer, Tracer
+from app.brains.conformance import FamilyCheckError, check_family
+from app.brains.contract import BrainFamily, Evolution, NoTracer, SecondStage, Tracer
 from app.brains.registry import (
     BUILT_IN,
     PLUGINS_VARIABLE,
@@ -29,8 +32,11 @@ __all__ = [
     "BrainFamily",
     "BrainSettings",
     "Evolution",
+    "FamilyCheckError",
     "NoTracer",
+    "SecondStage",
     "Tracer",
+    "check_family",
     "family_class",
     "family_of",
     "load_controller",

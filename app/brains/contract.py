@@ -9,14 +9,17 @@ evosax's `Strategy` (a population asked for and told its fitness) and on Gymnasi
 
 Individuals are whatever the family chooses (a `gnp.Population`, a dict of arrays) with a
 leading individual axis; the lab only passes them back to the family. What the run file stores
-of them is a dict of arrays (`arrays`), the same layout as the family's run template.
+of them is a dict of arrays (`arrays`) of the family's `genome_layout`. Individuals that are such
+dicts themselves need no code of their own (`take`, `concat`, `from_arrays`, `copies` have
+defaults for them, as evosax's pytrees); `app.brains.check_family` checks a family against all
+of this.
 """
 
 from __future__ import annotations
 
 import copy
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 from pydantic import ValidationError
@@ -27,7 +30,7 @@ from app.loop.recording import TraceLayout
 from app.settings.config import ConfigError, RunConfig
 from app.settings.families import BrainSettings
 from app.settings.loading import describe_problems
-from app.store import RunReader, RunTemplate
+from app.store import RunFileError, RunReader, RunTemplate
 
 if TYPE_CHECKING:
     from app.loop.rollout import Controllers  # the loop: imported by a family's lives
@@ -54,6 +57,38 @@ class Evolution(Protocol):
         ...
 
 
+@runtime_checkable
+class SecondStage(Protocol):
+    """Controllers whose method has a second stage the dashboard may switch off live (GNP's
+    BS branch, CS credit; `gnp.step`)."""
+
+    second_stage: bool
+
+
+ArrayLayout = TraceLayout
+"""One individual's (or one controller step's) arrays: name -> (shape, dtype)."""
+
+
+def checked_arrays(layout: ArrayLayout, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """`arrays` if they are individuals of `layout`: its names, its shapes after one leading
+    axis shared by all, its dtypes.
+
+    Raises:
+        RunFileError: one line naming the first mismatch.
+    """
+    if sorted(arrays) != sorted(layout):
+        raise RunFileError(f"genome arrays must be {sorted(layout)}, got {sorted(arrays)}")
+    n = len(next(iter(arrays.values()), ()))
+    for name, (shape, dtype) in layout.items():
+        a = arrays[name]
+        if a.shape != (n, *shape) or a.dtype != np.dtype(dtype):
+            raise RunFileError(
+                f"genome array {name} must be {(n, *shape)} {np.dtype(dtype)}, "
+                f"got {a.shape} {a.dtype}"
+            )
+    return arrays
+
+
 class Tracer(Protocol):
     """What a live robot keeps of its controller's traced steps, for the dashboard's panels."""
 
@@ -78,21 +113,25 @@ class NoTracer:
 
 
 class BrainFamily(ABC):
-    """One brain family, bound to a run's config. Subclass it, set `name`, implement the
-    abstract methods, and `app.brains.register` it; the rest has defaults.
+    """One brain family, bound to a run's config. Subclass it, set `name` and `settings_model`,
+    implement the abstract methods, and `app.brains.register` it; the rest has defaults (those
+    of individuals for dicts of arrays: override them for other individuals).
 
-    Capabilities are declared, not asked by type: `learns_online` (ε/α and Sarsa matter),
-    `graph_config` (a GNP node graph the views draw), `network_config` (a net the dashboard
-    draws as a network). A family with none of them still trains, adapts, exports and shows.
+    Capabilities are declared, not asked by type: `learns_online` (ε/α and Sarsa matter: its
+    controllers are an `app.loop.rollout.OnlineLearner`), `graph_config` (a GNP node graph the
+    views draw), `network_config` (a net the dashboard draws as a network). A family with none
+    of them still trains, adapts, exports and shows.
     """
 
     name: ClassVar[str] = ""
-    """The family's registered name: `config.brain.family` of its runs."""
+    """The family's name, written here once: `register` files the class under it, and it is
+    `config.brain.family` of its runs (the settings model's `family` default, checked)."""
     settings_model: ClassVar[type[BrainSettings]] = BrainSettings
     """The model of the family's `brain` config section (`family` included): a subclass of
     `BrainSettings` with the family's own settings; the checked section is `self.settings`."""
     learns_online: ClassVar[bool] = False
-    """Whether lives learn online (ε, α, the second stage); else the file records NaN for them."""
+    """Whether lives learn online (ε, α reach its controllers); else the file records NaN for
+    them."""
 
     def __init__(self, config: RunConfig) -> None:
         """Bind the family to `config`.
@@ -155,9 +194,19 @@ class BrainFamily(ABC):
 
     # --- evolution ----------------------------------------------------------------------------
 
+    @property
     @abstractmethod
+    def genome_layout(self) -> ArrayLayout:
+        """What the run file stores of one individual (`Evolution.arrays` without the
+        leading axis)."""
+
     def run_template(self) -> RunTemplate:
         """The run file's shapes: one individual's arrays, one step's trace of one controller."""
+
+        def zeros(layout: ArrayLayout) -> dict[str, np.ndarray]:
+            return {name: np.zeros((1, *shape), dtype) for name, (shape, dtype) in layout.items()}
+
+        return RunTemplate(self.config, zeros(self.genome_layout), zeros(self.trace_layout))
 
     @abstractmethod
     def first(self) -> Evolution:
@@ -172,17 +221,22 @@ class BrainFamily(ABC):
 
     # --- individuals --------------------------------------------------------------------------
 
-    @abstractmethod
     def take(self, individuals: Any, rows: np.ndarray | list[int]) -> Any:
         """The individuals at `rows` (copies)."""
+        index = np.asarray(rows, dtype=np.int64)
+        return {name: np.ascontiguousarray(a[index]) for name, a in individuals.items()}
 
-    @abstractmethod
     def concat(self, parts: list[Any]) -> Any:
         """Individuals one after the other."""
+        return {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
 
-    @abstractmethod
     def from_arrays(self, arrays: dict[str, np.ndarray]) -> Any:
-        """Individuals from what the run file stores (`arrays` of the run template's layout)."""
+        """Individuals from what the run file stores (`arrays` of `genome_layout`).
+
+        Raises:
+            RunFileError: arrays not of the layout (one line, see `checked_arrays`).
+        """
+        return checked_arrays(self.genome_layout, arrays)
 
     def best(self, run: RunReader, generation: int = -1) -> Any:
         """A generation's best of `run` (one individual; negative generations from the end),

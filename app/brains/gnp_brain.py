@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, override
 
 import numpy as np
 
 import gnp
-from app.brains.contract import BrainFamily
+from app.brains.contract import ArrayLayout, BrainFamily
 from app.brains.gnp_file import GnpController
 from app.brains.gnp_settings import ControllerSettings, GnpSettings, gnp_settings
 from app.brains.learning import schedules
@@ -22,7 +22,7 @@ from app.loop.recording import TraceLayout
 from app.loop.seeds import evolution_rng, init_rng
 from app.settings.config import RunConfig, TrainingSettings
 from app.settings.families import DEFAULT_BRAIN
-from app.store import RunFileError, RunReader, RunTemplate
+from app.store import RunFileError, RunReader
 
 if TYPE_CHECKING:
     from app.brains.gnp_controllers import GnpControllers
@@ -35,6 +35,11 @@ def initial_population(config: RunConfig) -> gnp.Population:
         config.training.population,
         init_rng(config.seed),
     )
+
+
+def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
+    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
+    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
 
 
 def generation_epsilon_alpha(training: TrainingSettings, generation: int) -> tuple[float, float]:
@@ -183,16 +188,12 @@ class GnpFamily(BrainFamily):
     def warm_key(self) -> dict[str, Any]:
         return {"brain": self.name, "controller": self.settings.controller.model_dump(mode="json")}
 
-    def run_template(self) -> RunTemplate:
-        genome = {
-            name: np.zeros((1, *shape), gnp.field_dtype(name))
+    @property
+    def genome_layout(self) -> ArrayLayout:
+        return {
+            name: (shape, gnp.field_dtype(name))
             for name, shape in gnp.field_shapes(self.cfg).items()
         }
-        trace = {
-            name: np.zeros((1, *shape), gnp.TRACE_DTYPE)
-            for name, shape in gnp.trace_shapes(self.cfg).items()
-        }
-        return RunTemplate(config=self.config, genome=genome, trace=trace)
 
     def evolution(self, pop: gnp.Population) -> GnpEvolution:
         """`pop` as the run's population, evolving with the run's settings."""
@@ -209,11 +210,13 @@ class GnpFamily(BrainFamily):
     def first(self) -> GnpEvolution:
         return self.evolution(initial_population(self.config))
 
+    @override
     def rebuild(
         self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
     ) -> GnpEvolution:
-        return self.evolution(self.from_arrays(arrays))
+        return self.evolution(self.from_arrays(arrays))  # its state is its population
 
+    # Individuals are a `gnp.Population`, not a dict of arrays.
     def take(self, individuals: gnp.Population, rows: np.ndarray | list[int]) -> gnp.Population:
         return gnp.take(individuals, rows)
 
@@ -239,8 +242,6 @@ class GnpFamily(BrainFamily):
 
     @property
     def trace_layout(self) -> TraceLayout:
-        from app.brains.gnp_controllers import gnp_trace
-
         return gnp_trace(self.cfg)
 
     def tracer(self) -> GraphTracer:

@@ -12,18 +12,14 @@ import gnp
 import sim
 from app.brains import gnp_fused
 from app.loop.fused import FusedSteps, Watched
-from app.loop.recording import TraceLayout
 from app.loop.rollout import Batch
 from app.settings.config import CFrom
 
 
-def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
-    """The layout of a GNP step's trace (`gnp.StepTrace`'s fields)."""
-    return {field: (shape, gnp.TRACE_DTYPE) for field, shape in gnp.trace_shapes(cfg).items()}
-
-
 class GnpControllers:
-    """A `gnp.Population` and its engine state: online Sarsa, ε-greedy."""
+    """A `gnp.Population` and its engine state: online Sarsa, ε-greedy (an `OnlineLearner`).
+    `second_stage` off is the live ablation of `gnp.step` (BS: greedy branch connection, CS:
+    no credit branch), the dashboard's switch."""
 
     def __init__(
         self, cfg: gnp.GnpConfig, population: gnp.Population, engine_seeds: np.ndarray
@@ -31,21 +27,18 @@ class GnpControllers:
         self.cfg = cfg
         self.population = population
         self.state = gnp.init_state(cfg, population.size, engine_seeds)
+        self.second_stage = True
+        self.epsilon, self.alpha, self.learn = 0.0, 0.0, False  # until the loop sets them
+
+    def set_rates(self, epsilon: float, alpha: float, learn: bool) -> None:
+        self.epsilon, self.alpha, self.learn = epsilon, alpha, learn
 
     @property
     def size(self) -> int:
         return self.population.size
 
     def act(
-        self,
-        observations: np.ndarray,
-        reward: np.ndarray,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool,
-        trace: bool,
-        second_stage: bool,
+        self, observations: np.ndarray, reward: np.ndarray, *, trace: bool
     ) -> tuple[np.ndarray, gnp.StepTrace | None]:
         return gnp.step(
             self.cfg,
@@ -53,11 +46,11 @@ class GnpControllers:
             self.state,
             observations,
             reward,
-            epsilon,
-            alpha,
-            learn,
+            self.epsilon,
+            self.alpha,
+            self.learn,
             trace=trace,
-            second_stage=second_stage,
+            second_stage=self.second_stage,
         )
 
     def reset_episode(self) -> None:
@@ -68,9 +61,9 @@ class GnpControllers:
         """The compiled steps the loop may take: these controllers' own (`fits`, `steps`)."""
         return self
 
-    def fits(self, second_stage: bool) -> bool:
+    def fits(self) -> bool:
         """The compiled walk runs the method's second stage: on, or a method without one."""
-        return second_stage or not self.cfg.traits.two_stage
+        return self.second_stage or not self.cfg.traits.two_stage
 
     def steps(
         self,

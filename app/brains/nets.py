@@ -1,9 +1,9 @@
 """Neural nets behind the contract: an Elman net evolved by CMA-ES (pycma), or NEAT (neat-python).
 
 The nets see IR readings scaled to [0, 1] (÷ `sim.IR_MAX`) and their outputs in [−1, 1] become
-wheel commands (× `sim.MAX_COMMAND`). They do not learn online: ε, α and `learn` are ignored and
-the file records ε and α as NaN. A step's trace is the nets' activations (what the dashboard
-draws); a new episode zeroes them.
+wheel commands (× `sim.MAX_COMMAND`). They do not learn online: the file records ε and α as
+NaN. A step's trace is the nets' activations (what the dashboard draws); a new episode zeroes
+them.
 
 The lab is the GNP arm's: the same lives, fitness (Eq. 2.8), arena, life time and budget in
 robot-steps, the optimiser's population being `training.population`. The optimiser draws from a
@@ -16,19 +16,19 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, override
 
 import numpy as np
 
 import neuro
 import sim
-from app.brains.contract import BrainFamily
+from app.brains.contract import ArrayLayout, BrainFamily, Evolution
 from app.brains.net_file import NetController
 from app.brains.net_settings import NetSettings
 from app.loop.recording import TraceLayout
 from app.loop.seeds import optimiser_seed
 from app.settings.config import RunConfig
-from app.store import RunFileError, RunTemplate
+from app.store import RunFileError
 from neuro.neat_params import NeatParams
 
 
@@ -57,16 +57,9 @@ class NeuralControllers:
         return len(self.state)
 
     def act(
-        self,
-        observations: np.ndarray,
-        reward: np.ndarray,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool,
-        trace: bool,
-        second_stage: bool,
+        self, observations: np.ndarray, reward: np.ndarray, *, trace: bool
     ) -> tuple[np.ndarray, NeuralTrace | None]:
+        del reward  # a net reads no reward
         outputs = neuro.step(self.net, self.arrays, self.state, observations / sim.IR_MAX)
         commands = outputs * sim.MAX_COMMAND
         return commands, NeuralTrace(self.state.copy()) if trace else None
@@ -117,13 +110,14 @@ class _CmaesOptimiser:
         self.es.tell(fitness)
 
 
-class NetEvolution:
+class NetEvolution(Evolution):
     """Nets as generations go by: an optimiser asked for each generation and told its fitness."""
 
     def __init__(self, optimiser: Optimiser) -> None:
         self._optimiser = optimiser
         self._arrays = optimiser.arrays()
 
+    @override
     def epsilon_alpha(self, generation: int) -> tuple[float, float]:
         return float("nan"), float("nan")  # no online learning
 
@@ -133,6 +127,7 @@ class NetEvolution:
     def arrays(self, individuals: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return individuals
 
+    @override
     def advance(
         self, learned: dict[str, np.ndarray], fitness: np.ndarray, generation: int
     ) -> dict[str, np.ndarray]:
@@ -184,16 +179,14 @@ class NetFamily(BrainFamily):
     def make_optimiser(self) -> Optimiser:
         """A new optimiser at generation 0."""
 
-    def run_template(self) -> RunTemplate:
-        trace = {
-            name: np.zeros((1, *shape), dtype)
-            for name, (shape, dtype) in trace_layout(self.net).items()
-        }
-        return RunTemplate(config=self.config, genome=neuro.zeros(self.net, 1), trace=trace)
+    @property
+    def genome_layout(self) -> ArrayLayout:
+        return {name: (shape, neuro.field_dtype(name)) for name, shape in self.net.shapes().items()}
 
     def first(self) -> NetEvolution:
         return NetEvolution(self.make_optimiser())
 
+    @override
     def rebuild(
         self, generation: int, arrays: dict[str, np.ndarray], fitness: np.ndarray
     ) -> NetEvolution:
@@ -219,18 +212,7 @@ class NetFamily(BrainFamily):
             )
         return evolution
 
-    def take(
-        self, individuals: dict[str, np.ndarray], rows: np.ndarray | list[int]
-    ) -> dict[str, np.ndarray]:
-        return neuro.take(individuals, rows)
-
-    def concat(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-        return neuro.concat(parts)
-
-    def from_arrays(self, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        neuro.check_arrays(self.net, arrays)
-        return arrays
-
+    @override
     def controllers(
         self, individuals: dict[str, np.ndarray], engine_seeds: np.ndarray
     ) -> NeuralControllers:

@@ -1,13 +1,13 @@
-"""The registry of brain families: `register(name, entry_point)` and `family_of(config)`.
+"""The registry of brain families: `register(Family)` and `family_of(config)`.
 
-As Gymnasium's `register(id, entry_point)` and `make`: a family is registered under its name,
-by its class or by a `"module:Class"` string imported on first use (so a run of GNP never imports
-pycma or neat-python). The table itself is the settings' (`app.settings.families`), so that a
-config's `brain` section is checked with its family's model wherever it is read. A family
-defined outside the lab registers itself when its module is imported; list such modules in the
-environment variable `GNP_LAB_BRAINS` (comma-separated), and every process of the lab (the CLI,
-its worker processes, Dask workers, which inherit the environment) imports them before it looks
-a family up.
+As Gymnasium's `register(id, entry_point)` and `make`: a family is registered under its class's
+`name`, by its class, or under a name by a `"module:Class"` string imported on first use (so a
+run of GNP never imports pycma or neat-python), checked against the class's `name` then. The
+table itself is the settings' (`app.settings.families`), so that a config's `brain` section is
+checked with its family's model wherever it is read. A family defined outside the lab registers
+itself when its module is imported; list such modules in the environment variable
+`GNP_LAB_BRAINS` (comma-separated), and every process of the lab (the CLI, its worker processes,
+Dask workers, which inherit the environment) imports them before it looks a family up.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from app.settings import families
 from app.settings.config import ConfigError, RunConfig
-from app.settings.families import BUILT_IN, PLUGINS_VARIABLE, BrainSettings
+from app.settings.families import BUILT_IN, PLUGINS_VARIABLE
 from app.store import RunSummary
 from app.store.controller_file import Controller, ControllerFormat, read_controller
 
@@ -38,17 +38,30 @@ __all__ = [
 
 
 def register(
-    name: str,
-    entry_point: type[BrainFamily] | str,
-    settings: type[BrainSettings] | str | None = None,
+    family: type[BrainFamily] | str,
+    entry_point: str | None = None,
+    settings: str | None = None,
 ) -> None:
-    """Register a family under `name`: its class, or `"module:Class"` imported on first use;
-    `settings`: its settings model, a class or `"module:Class"` (default: the class's
-    `settings_model`). Registering a name again replaces it (a module imported twice registers
-    twice)."""
+    """Register a family: its class, under its `name` (`register(Vehicle)`); or under the name
+    `family` a `"module:Class"` `entry_point` imported on first use, with its settings model
+    `settings` (`"module:Class"`, default the class's `settings_model`), their names checked
+    then. Registering a name again replaces it (a module imported twice registers twice).
+
+    Raises:
+        ValueError: not a valid name.
+        ConfigError: a class whose names disagree (`app.settings.families.disagreements`).
+    """
+    entry: type[BrainFamily] | str
+    if isinstance(family, str):
+        name, entry = family, entry_point or ""
+        if not entry:
+            raise ValueError(f'register({name!r}) needs the family\'s "module:Class"')
+    else:
+        name, entry = family.name, family
+        families.refuse(name, families.disagreements(name, family))
     if not name or not name.replace("-", "").replace("_", "").isalnum():
         raise ValueError(f"a brain family's name is letters, digits, '-' and '_', got {name!r}")
-    families.enter(name, entry_point, settings)
+    families.enter(name, entry, settings)
 
 
 def names() -> tuple[str, ...]:

@@ -73,8 +73,8 @@ def watched(filled: Watched, traces: Callable[[int], Any]) -> Watched:
 class FusedSteps(Protocol):
     """Controllers' compiled steps with an analytic world (see the module's docstring)."""
 
-    def fits(self, second_stage: bool) -> bool:
-        """Whether the compiled steps are the staged ones with `second_stage` as asked."""
+    def fits(self) -> bool:
+        """Whether the compiled steps are the staged ones as the controllers are set now."""
         ...
 
     def steps(

@@ -3,13 +3,14 @@
 Every phase steps robots through this one loop: training lives, the implementation phase, the
 dashboard's live robots and the experiments' conditions. A `Batch` pairs a `sim.World` of N robots
 with N controllers (`Controllers`, a brain family's, see `app.brains`); `rollout` advances it T
-steps with ε/α given per step, optionally recording the first robots' lives.
+steps with ε/α given per step (to the controllers that learn online), optionally recording the
+first robots' lives.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, get_args
+from typing import Any, Protocol, get_args, runtime_checkable
 
 import numpy as np
 
@@ -45,22 +46,15 @@ class Controllers(Protocol):
 
     Optional: a `fused` attribute (`app.loop.fused.FusedSteps`, or None), the controllers'
     steps compiled with the analytic world's; the loop takes them wherever it may (see
-    `Batch.compiled`), else it calls `act` between the world's stages.
+    `Batch.compiled`), else it calls `act` between the world's stages. Controllers that learn
+    online are also an `OnlineLearner`.
     """
 
     @property
     def size(self) -> int: ...
 
     def act(
-        self,
-        observations: np.ndarray,
-        reward: np.ndarray,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool,
-        trace: bool,
-        second_stage: bool,
+        self, observations: np.ndarray, reward: np.ndarray, *, trace: bool
     ) -> tuple[np.ndarray, Any]:
         """(N, 2) wheel commands (left, right) for (N, 8) observations, given the (N,) reward
         of the previous step; with the step's trace when `trace`, else None."""
@@ -68,6 +62,16 @@ class Controllers(Protocol):
 
     def reset_episode(self) -> None:
         """Start a new episode (what a controller keeps across episodes is its own choice)."""
+        ...
+
+
+@runtime_checkable
+class OnlineLearner(Protocol):
+    """Controllers that learn online (their family's `learns_online`): the loop gives them the
+    rates of the steps to come (`Batch.set_rates`) whenever those change."""
+
+    def set_rates(self, epsilon: float, alpha: float, learn: bool) -> None:
+        """ε and α of the next steps; `learn`: online learning on."""
         ...
 
 
@@ -90,6 +94,8 @@ class Batch:
         self.controllers = controllers
         self.reward = np.zeros(world.n)
         self.c_from = c_from
+        self._learner = controllers if isinstance(controllers, OnlineLearner) else None
+        self._rates: tuple[float, float, bool] | None = None
 
     @property
     def size(self) -> int:
@@ -101,25 +107,27 @@ class Batch:
         self.controllers.reset_episode()
         self.reward = np.zeros(self.size)
 
-    def compiled(self, second_stage: bool = True) -> bool:
+    def set_rates(self, epsilon: float, alpha: float, learn: bool) -> None:
+        """Online learning's ε, α and switch for the next staged steps: given to controllers
+        that learn online when they change (others have none)."""
+        rates = (epsilon, alpha, learn)
+        if self._learner is not None and rates != self._rates:
+            self._learner.set_rates(*rates)
+            self._rates = rates
+
+    def compiled(self) -> bool:
         """Whether `step` and `rollout` may run this batch in compiled calls (`app.loop.fused`):
-        analytic physics, controllers that offer them fitting `second_stage` (GNP's: the
-        method's second stage on, or none)."""
+        analytic physics, controllers that offer them and whose compiled steps fit their
+        staged ones as they are set (GNP's second stage)."""
         steps = fused.fused_steps(self.controllers)
-        return self.world.physics == "analytic" and steps is not None and steps.fits(second_stage)
+        return self.world.physics == "analytic" and steps is not None and steps.fits()
 
     def step(
-        self,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool = True,
-        trace: bool = False,
-        second_stage: bool = True,
+        self, epsilon: float, alpha: float, *, learn: bool = True, trace: bool = False
     ) -> StepRecord:
-        """One control step of every robot; `second_stage` off is the live ablation of
-        `gnp.step` (BS: greedy branch connection, CS: no credit branch)."""
-        if self.compiled(second_stage) and compiled_steps(self.world, 0, 1, 0) == 1:
+        """One control step of every robot; ε, α and `learn` reach controllers that learn
+        online only."""
+        if self.compiled() and compiled_steps(self.world, 0, 1, 0) == 1:
             _, watched = self.run_compiled(np.array([epsilon]), np.array([alpha]), learn, None)
             assert watched is not None
             return StepRecord(
@@ -129,29 +137,16 @@ class Batch:
                 watched.term_tables[0],
                 watched.trace(0) if trace else None,
             )
-        return self.staged_step(epsilon, alpha, learn=learn, trace=trace, second_stage=second_stage)
+        return self.staged_step(epsilon, alpha, learn=learn, trace=trace)
 
     def staged_step(
-        self,
-        epsilon: float,
-        alpha: float,
-        *,
-        learn: bool = True,
-        trace: bool = False,
-        second_stage: bool = True,
+        self, epsilon: float, alpha: float, *, learn: bool = True, trace: bool = False
     ) -> StepRecord:
         """`step` one stage at a time from Python, for any controllers and physics (the
         compiled path's oracle in the tests)."""
+        self.set_rates(epsilon, alpha, learn)
         seen = self.world.observe()
-        commands, step_trace = self.controllers.act(
-            seen,
-            self.reward,
-            epsilon,
-            alpha,
-            learn=learn,
-            trace=trace,
-            second_stage=second_stage,
-        )
+        commands, step_trace = self.controllers.act(seen, self.reward, trace=trace)
         self.world.step(commands)
         readings = self.world.sense()
         judged = readings if self.c_from == "true" else self.world.observe()
@@ -206,26 +201,25 @@ def rollout(
     recorder: TrajectoryRecorder | None = None,
     episode_starts: np.ndarray | None = None,
     redraw_every: int = 0,
-    second_stage: bool = True,
 ) -> Rollout:
     """Advance `batch` by `steps` control steps.
 
     Args:
         batch: the robots and controllers; their state carries on from call to call.
         steps: how many steps.
-        epsilon, alpha: ε and α, constant or (steps,) per step.
-        learn: online Sarsa on (Q tables change in place).
+        epsilon, alpha: ε and α, constant or (steps,) per step (controllers that learn online
+            take them, see `OnlineLearner`).
+        learn: online learning on (GNP: Sarsa changes its Q tables in place).
         recorder: records the first `recorder.k` robots' steps (appended to what it holds).
         episode_starts: (N, S) start poses of each robot's episodes, with `redraw_every` > 0:
             every `redraw_every` steps the robots move to their next start pose.
         redraw_every: episode length in steps (0: one episode).
-        second_stage: the method's second stage on (see `gnp.step`).
     """
     eps, alp = per_step(epsilon, steps), per_step(alpha, steps)
     sums = np.zeros((batch.size, len(sim.TERM_NAMES)))
     step_sums = np.zeros(steps)
     poses = batch.world.arena.start_poses
-    compiled = batch.compiled(second_stage)
+    compiled = batch.compiled()
     t = 0
     while t < steps:
         if redraw_every > 0 and t > 0 and t % redraw_every == 0:
@@ -254,13 +248,7 @@ def rollout(
             step_sums[t : t + run] = each.sum(axis=1)
             t += run
             continue
-        record = batch.step(
-            float(eps[t]),
-            float(alp[t]),
-            learn=learn,
-            trace=recorder is not None,
-            second_stage=second_stage,
-        )
+        record = batch.step(float(eps[t]), float(alp[t]), learn=learn, trace=recorder is not None)
         sums += record.term_table
         step_sums[t] = record.reward.sum()
         if recorder is not None:

@@ -18,7 +18,7 @@ import numpy as np
 
 import gnp
 import sim
-from app.brains.contract import BrainFamily
+from app.brains.contract import BrainFamily, SecondStage
 from app.brains.learning import LearningSettings
 from app.loop.rollout import Batch
 from app.settings.arenas import new_world
@@ -152,13 +152,9 @@ class LiveRobot:
         fault_step = self._fault_steps[-1] if self._fault_steps else None
         epsilon, alpha = learning.rates(self.t, fault_step)
         self._rates = (epsilon, alpha)
-        record = self._batch.step(
-            epsilon,
-            alpha,
-            learn=learning.online,
-            trace=True,
-            second_stage=learning.second_stage,
-        )
+        if isinstance(self._batch.controllers, SecondStage):  # GNP's live ablation
+            self._batch.controllers.second_stage = learning.second_stage
+        record = self._batch.step(epsilon, alpha, learn=learning.online, trace=True)
         assert record.trace is not None
         reward = float(record.reward[0])
         self._seen = record.observations

@@ -4,10 +4,16 @@ A run's config names its family in `brain.family`; its `brain` section is checke
 model the family declares (a subclass of `BrainSettings`). The models live with their families
 (app/brains), above this layer: the table holds them as `"module:Class"` strings, imported on
 first use (Gymnasium's `register(id, entry_point)`), so the settings never import a family.
-`app.brains.register` writes here. Families defined outside the lab register themselves when
-their module is imported: list such modules in `GNP_LAB_BRAINS` (comma-separated), and every
-process of the lab (the CLI, its worker processes, Dask workers, which inherit the environment)
-imports them before it looks a family up.
+`app.brains.register` writes here.
+
+A family's name is written once, as its class's `name`: a class is filed under it, and a
+`"module:Class"` entry's key is checked against it when the class is imported; the settings
+model's `family` default (if it has one) must be it too (`disagreements`).
+
+Families defined outside the lab register themselves when their module is imported: list such
+modules in `GNP_LAB_BRAINS` (comma-separated), and every process of the lab (the CLI, its worker
+processes, Dask workers, which inherit the environment) imports them before it looks a family
+up.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from __future__ import annotations
 import importlib
 import os
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -115,10 +121,52 @@ def entry(name: str) -> Entry:
     return found
 
 
+def disagreements(name: str, family: Any, settings: Any = None) -> list[str]:
+    """Where a family's names disagree: its table key `name`, its class's `name` and its
+    settings model's `family` (the table's model, else the class's `settings_model`)."""
+    problems = []
+    declared = getattr(family, "name", None)
+    if declared != name:
+        problems.append(f"{family.__module__}.{family.__qualname__}.name is {declared!r}")
+    declared_model = getattr(family, "settings_model", None)
+    model = settings if settings is not None else declared_model
+    if settings is not None and declared_model is not None and settings is not declared_model:
+        problems.append(f"its settings model is {settings.__name__}, not its class's")
+    if isinstance(model, type) and issubclass(model, BrainSettings):
+        problems += model_disagreements(name, model)
+    return problems
+
+
+def model_disagreements(name: str, model: type[BrainSettings]) -> list[str]:
+    """Where settings model `model` disagrees with family name `name`: its `family` default
+    (the base `BrainSettings`' is the config's default family, not a family's own) or choices."""
+    field = model.model_fields["family"]
+    if model is not BrainSettings and not field.is_required() and field.default != name:
+        return [f"{model.__name__}.family defaults to {field.default!r}"]
+    choices = get_args(field.annotation) if get_origin(field.annotation) is Literal else ()
+    if choices and name not in choices:
+        return [f"{model.__name__}.family admits only {', '.join(map(repr, choices))}"]
+    return []
+
+
+def refuse(name: str, problems: list[str]) -> None:
+    """Raise if family `name` has `problems` (of `disagreements`).
+
+    Raises:
+        ConfigError: one line naming each disagreement.
+    """
+    if problems:
+        raise ConfigError(f"brain family {name!r} is named otherwise: {'; '.join(problems)}")
+
+
 def family_class(name: str) -> Any:
-    """The class registered under `name`, imported on first use (see `entry`)."""
+    """The class registered under `name`, imported on first use (see `entry`) and its names
+    checked (see `disagreements`)."""
     found = entry(name)
-    found.family = resolved(found.family)
+    if isinstance(found.family, str):
+        family = resolved(found.family)
+        refuse(name, disagreements(name, family, resolved(found.settings)))
+        found.family = family
     return found.family
 
 
@@ -135,7 +183,11 @@ def settings_model(name: str) -> type[BrainSettings] | None:
     if found.settings is None:
         declared = getattr(family_class(name), "settings_model", None)
         found.settings = declared or BrainSettings
-    found.settings = resolved(found.settings)
+    if isinstance(found.settings, str):
+        model = resolved(found.settings)
+        assert isinstance(model, type) and issubclass(model, BrainSettings)
+        refuse(name, model_disagreements(name, model))
+        found.settings = model
     assert isinstance(found.settings, type) and issubclass(found.settings, BrainSettings)
     return found.settings
 

@@ -1,7 +1,8 @@
 """A new brain family in one file: a Braitenberg vehicle with evolved gains (issue #33).
 
 The family below is all there is of it: a settings model, controllers, an evolution strategy and
-the contract's methods (`app.brains.BrainFamily`), registered under "braitenberg". Nothing under
+the contract's members (`app.brains.BrainFamily`; its individuals are dicts of arrays, so
+`take`, `concat` and `from_arrays` are the contract's), registered under its `name`. Nothing under
 app/ names it. The tests take it through everything the lab does with a brain: train (in worker
 processes, started by `gnp-lab`), resume a cut run to the same bits, implement with a broken
 sensor, export, a smoke experiment on a real Dask cluster, and the dashboard in Chromium.
@@ -28,10 +29,18 @@ from pydantic import Field
 from typing_extensions import override
 
 import sim
-from app.brains import PLUGINS_VARIABLE, BrainFamily, BrainSettings, Evolution, family_of, register
+from app.brains import (
+    PLUGINS_VARIABLE,
+    BrainFamily,
+    BrainSettings,
+    Evolution,
+    check_family,
+    family_of,
+    register,
+)
 from app.settings.config import RunConfig
 from app.settings.loading import build_config
-from app.store import RunReader, RunTemplate
+from app.store import RunReader
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -66,18 +75,14 @@ class Vehicles:
         return len(self.gains)
 
     # The loop's `Controllers.act` (a protocol, named by the lab's loop alone: importing it here
-    # would load the loop's kernels in every process that finds the family): a vehicle neither
-    # learns nor explores, so it reads no reward, ε, α or learning switches.
+    # would load the loop's kernels in every process that finds the family): a vehicle does not
+    # learn, so it reads no reward.
     def act(
         self,
         observations: np.ndarray,
         reward: np.ndarray,  # noqa: ARG002
-        epsilon: float,  # noqa: ARG002
-        alpha: float,  # noqa: ARG002
         *,
-        learn: bool,  # noqa: ARG002
         trace: bool,
-        second_stage: bool,  # noqa: ARG002
     ) -> tuple[np.ndarray, Drive | None]:
         drive = self.bias + np.einsum("nws,ns->nw", self.gains, observations / sim.IR_MAX)
         return np.clip(drive, -1.0, 1.0) * sim.MAX_COMMAND, Drive(drive) if trace else None
@@ -129,9 +134,13 @@ class Braitenberg(BrainFamily):
     def description(self) -> str:
         return f"braitenberg vehicle, sigma {self.settings.sigma:g}"
 
-    def run_template(self) -> RunTemplate:
-        genome = {"gains": np.zeros((1, 2, sim.N_SENSORS)), "bias": np.zeros((1, 2))}
-        return RunTemplate(config=self.config, genome=genome, trace={"drive": np.zeros((1, 2))})
+    @property
+    def genome_layout(self) -> dict[str, tuple[tuple[int, ...], Any]]:
+        return {"gains": ((2, sim.N_SENSORS), np.float64), "bias": ((2,), np.float64)}
+
+    @property
+    def trace_layout(self) -> dict[str, tuple[tuple[int, ...], Any]]:
+        return {"drive": ((2,), np.float64)}
 
     def first(self) -> VehicleEvolution:
         rng = np.random.default_rng([self.config.seed, 0xB7])
@@ -148,24 +157,9 @@ class Braitenberg(BrainFamily):
     ) -> VehicleEvolution:
         return VehicleEvolution(self, self.from_arrays(arrays))  # its state is its population
 
-    def take(
-        self, individuals: dict[str, np.ndarray], rows: np.ndarray | list[int]
-    ) -> dict[str, np.ndarray]:
-        return {k: v[np.asarray(rows)].copy() for k, v in individuals.items()}
-
-    def concat(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-
-    def from_arrays(self, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {"gains": np.asarray(arrays["gains"], float), "bias": np.asarray(arrays["bias"])}
-
     @override
     def controllers(self, individuals: dict[str, np.ndarray], engine_seeds: np.ndarray) -> Vehicles:
         return Vehicles(individuals)
-
-    @property
-    def trace_layout(self) -> dict[str, tuple[tuple[int, ...], Any]]:
-        return {"drive": ((2,), np.dtype(np.float64))}
 
     def controller_document(
         self, individual: dict[str, np.ndarray], settings: dict[str, Any]
@@ -179,7 +173,7 @@ class Braitenberg(BrainFamily):
         }
 
 
-register("braitenberg", Braitenberg)
+register(Braitenberg)
 
 
 # --- the lab, with it -------------------------------------------------------------------------
@@ -252,6 +246,10 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> Path:
     done = gnp_lab("train", "--resume", runs / "vehicle.h5", "--workers", "2", "--quiet")
     assert done.returncode == 0, done.stderr
     return runs
+
+
+def test_it_keeps_the_contract() -> None:
+    check_family(Braitenberg)  # what its author runs first: every problem, named
 
 
 def test_a_resumed_run_on_two_workers_equals_one_never_cut(trained: Path, tmp_path: Path) -> None:

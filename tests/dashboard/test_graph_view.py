@@ -197,8 +197,8 @@ def test_second_stage_off_a_bs_robot_takes_the_greedy_branch(dashboard: object) 
 
 @pytest.mark.parametrize("method", ["BS", "CS"])
 def test_rollout_carries_the_second_stage_switch(method: str) -> None:
-    """`rollout(..., second_stage=False)` steps the batch as `gnp.step` does with it off."""
-    from app.brains.gnp_controllers import gnp_batch
+    """Controllers with `second_stage` off step in `rollout` as `gnp.step` does with it off."""
+    from app.brains.gnp_controllers import gnp_batch, gnp_of
     from app.loop.rollout import rollout
 
     cfg = gnp.GnpConfig(method=method)  # type: ignore[arg-type]
@@ -209,11 +209,12 @@ def test_rollout_carries_the_second_stage_switch(method: str) -> None:
         world = sim.World(arena, n=3, seed=5)
         world.reset(arena.start_poses[:3])
         batch = gnp_batch(world, cfg, population, np.arange(3))
+        gnp_of(batch).second_stage = False  # GNP's own switch, not the loop's
         if off_in_rollout:
-            rollout(batch, 60, 0.2, 0.1, second_stage=False)
+            rollout(batch, 60, 0.2, 0.1)
         else:  # the same, step by step through gnp.step
             for _ in range(60):
-                batch.step(0.2, 0.1, second_stage=False)
+                batch.step(0.2, 0.1)
         results.append((world.poses.copy(), population.q_ss.copy(), population.q_bs.copy()))
         # Off: the second stage's Q table never moves; Q_SS learns.
         fresh = gnp.init_population(cfg, 3, np.random.default_rng(2))

@@ -26,9 +26,7 @@ def test_readings_are_scaled_in_and_commands_out() -> None:
     controllers = NeuralControllers(NET, arrays)
     seen = np.zeros((1, 8))
     seen[0, 2] = 511.5
-    commands, trace = controllers.act(
-        seen, np.zeros(1), 0.1, 0.1, learn=True, trace=True, second_stage=True
-    )
+    commands, trace = controllers.act(seen, np.zeros(1), trace=True)
     h0 = np.tanh(0.5)
     assert np.allclose(commands, [[10 * np.tanh(h0), 10 * np.tanh(-0.5)]], rtol=0, atol=1e-12)
     assert trace is not None and np.allclose(trace.activation, [[h0, 0.0, 0.0]], atol=1e-15)

@@ -20,7 +20,8 @@ import pytest
 import gnp
 import sim
 from app.brains import gnp_fused
-from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
+from app.brains.gnp_brain import gnp_trace
+from app.brains.gnp_controllers import gnp_batch, gnp_of
 from app.loop import fused
 from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
@@ -208,7 +209,9 @@ def test_the_compiled_path_is_taken_only_for_gnp_in_an_analytic_world(
     compiled_calls: list[int],
 ) -> None:
     rollout(_batch("BS", True, "true", physics="pymunk"), 3, 0.1, 0.1)
-    rollout(_batch("BS", True, "true"), 3, 0.1, 0.1, second_stage=False)
+    ablated = _batch("BS", True, "true")
+    gnp_of(ablated).second_stage = False
+    rollout(ablated, 3, 0.1, 0.1)
     assert compiled_calls == []
     rollout(_batch("BS", True, "true"), 3, 0.1, 0.1)
     assert compiled_calls == [3]

@@ -13,7 +13,8 @@ from lab_fixtures import assert_same_data, tiny_config
 
 import gnp
 import sim
-from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
+from app.brains.gnp_brain import gnp_trace
+from app.brains.gnp_controllers import gnp_batch, gnp_of
 from app.cli.parser import build_parser
 from app.cli.train import config_from_args
 from app.loop.recording import TrajectoryRecorder

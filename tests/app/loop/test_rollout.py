@@ -7,7 +7,8 @@ import pytest
 
 import gnp
 import sim
-from app.brains.gnp_controllers import gnp_batch, gnp_of, gnp_trace
+from app.brains.gnp_brain import gnp_trace
+from app.brains.gnp_controllers import gnp_batch, gnp_of
 from app.loop.recording import TrajectoryRecorder
 from app.loop.rollout import Batch, rollout
 
