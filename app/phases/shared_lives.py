@@ -170,7 +170,8 @@ class RowsWorker:
         self._segments = n_segments(training.steps, training.redraw_every)
         self._n_starts = len(arena_of(training.arena).start_poses)
 
-    def __call__(self, job: RowsJob | EvolveJob, count: Count) -> None:
+    def __call__(self, job: RowsJob | EvolveJob, _count: Count) -> None:
+        # A `Handler`: its progress callback is unused, a job reports when it returns.
         if isinstance(job, EvolveJob):
             self.evolve(job)
             return

@@ -27,6 +27,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from numba.core import event
+from typing_extensions import override
 
 if TYPE_CHECKING:
     from app.settings.config import RunConfig
@@ -98,6 +99,7 @@ class CompileWatch(event.Listener):
         if kind is None:
             self.finish()
 
+    @override
     def on_start(self, ev: event.Event) -> None:
         if threading.get_ident() != self._thread:
             return
@@ -150,6 +152,7 @@ class _GiveUp(event.Listener):
     def __init__(self) -> None:
         self._thread = threading.get_ident()
 
+    @override
     def on_start(self, ev: event.Event) -> None:
         if threading.get_ident() == self._thread:
             raise _Cold

@@ -233,7 +233,7 @@ def run_peer(
             peer.run.seed,
             t.steps,
             peer.test_seeds,
-            progress=(lambda g, best: progress(g)) if progress is not None else None,
+            progress=(lambda g, _best: progress(g)) if progress is not None else None,
         )
         _write_fracnetics(path, peer, result)
         return read_peer(path)
