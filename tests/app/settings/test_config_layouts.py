@@ -22,7 +22,7 @@ from app.store import RunReader, list_runs
 from gnp import EvolutionConfig
 from neuro.neat_params import NeatParams
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 BUNDLED = sorted((ROOT / "saved_runs").glob("demo*.h5"))
 
 #: Layout 1 as every file before #46 wrote it, and the same config in layout 2.
