@@ -23,7 +23,7 @@ from pathlib import Path
 
 
 def _ours(population: int, generations: int, seed: int, folder: Path) -> dict[str, float]:
-    from app.brains.gnp_settings import ControllerSettings
+    from app.brains.gnp_settings import ControllerSettings, GnpSettings
     from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, train_task
     from gnp import Schedule
 
@@ -31,7 +31,7 @@ def _ours(population: int, generations: int, seed: int, folder: Path) -> dict[st
         return TaskRunConfig(
             seed=seed,
             task=TaskSettings(id="CartPole-v1"),
-            controller=ControllerSettings(method="RL", fuzzy=False),
+            brain=GnpSettings(controller=ControllerSettings(method="RL", fuzzy=False)),
             training=TaskTraining(
                 population=population, generations=g, steps=500, epsilon=Schedule.fixed(0.01)
             ),

@@ -46,7 +46,7 @@ from typing import Any
 import gymnasium as gym
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.loop.seeds import evolution_rng
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, dynamics
 from app.tasks.lives import BatchEnv
@@ -58,7 +58,7 @@ def config(task: str, population: int, generations: int, seed: int) -> TaskRunCo
     return TaskRunConfig(
         seed=seed,
         task=TaskSettings(id=task),
-        controller=ControllerSettings(method="RL", fuzzy=False),
+        brain=GnpSettings(controller=ControllerSettings(method="RL", fuzzy=False)),
         training=TaskTraining(
             population=population,
             generations=generations,
@@ -95,7 +95,7 @@ def gnp_run(cfg: TaskRunConfig) -> tuple[int, float, float]:
             steps += int(lives.lengths.sum())
             pop = gnp.evolve(
                 gcfg, lives.learned, lives.returns, g, training.generations,
-                evolution_rng(cfg.seed, g), cfg.evolution,
+                evolution_rng(cfg.seed, g), cfg.brain.evolution,
             )  # fmt: skip
     finally:
         env.close()

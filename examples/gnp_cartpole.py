@@ -15,7 +15,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, replay_task, train_task
 from app.tasks.training import GenerationSummary
 from gnp import Schedule
@@ -31,7 +31,7 @@ def main() -> None:
     config = TaskRunConfig(
         seed=args.seed,
         task=TaskSettings(id="CartPole-v1"),
-        controller=ControllerSettings(method="RL", fuzzy=False),
+        brain=GnpSettings(controller=ControllerSettings(method="RL", fuzzy=False)),
         training=TaskTraining(
             population=args.population,
             generations=args.generations,

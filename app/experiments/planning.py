@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import pydantic_core
 from pydantic import BaseModel
 
 from app.experiments.layout import experiment_dir
@@ -85,7 +86,7 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
     settings as a task run (`TaskRunConfig.from_run_config`), the arm's brain and the test
     seeds; a fracnetics arm takes fracnetics' documented settings of the task, with the
     arm's own (`fracnetics`) over them."""
-    from app.tasks.config import TaskRunConfig, TaskSettings
+    from app.tasks.config import TaskRunConfig, TaskSettings, task_layout_1
     from app.tasks.fracnetics_arm import arm_settings
     from app.tasks.peer import PeerRun
 
@@ -100,7 +101,9 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
         ),
         test_seeds=spec.task.seeds(),
     )
-    return peer.model_dump_json(exclude=_later_defaults(run))
+    data = peer.model_dump(mode="json", exclude=_later_defaults(run))
+    data["run"] = task_layout_1(data["run"])  # the identity committed ledgers hold (layout 1)
+    return pydantic_core.to_json(data).decode()
 
 
 def _later_defaults(run: TaskRunConfig) -> dict[str, Any]:
@@ -117,7 +120,7 @@ def _later_defaults(run: TaskRunConfig) -> dict[str, Any]:
 
     return {
         "run": {
-            "controller": unset(run.controller, TASK_SETTINGS),
+            "brain": {"controller": unset(run.brain.controller, TASK_SETTINGS)},
             "training": unset(run.training, PROTOCOL_FIELDS),
         }
     }

@@ -79,7 +79,7 @@ def train(
     else:
         stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
         name = settings.id.replace("/", "_")  # "ALE/Pong-v5": a file name, not a folder
-        path = Path(args.runs_dir) / f"{name}-{task_config.controller.method}-{stamp}.h5"
+        path = Path(args.runs_dir) / f"{name}-{task_config.brain.controller.method}-{stamp}.h5"
     try:
         train_task(task_config, path, _progress(args.quiet))
     except (KeyboardInterrupt, Interrupted):

@@ -1,25 +1,33 @@
 """Settings of a GNP run on a Gymnasium task: the task, and the lab's own GNP settings.
 
-A `TaskRunConfig` holds the lab's `ControllerSettings` and `EvolutionConfig` unchanged and, of
-the training phase, what a task uses: population, generations, a life's cap in steps and the
-ε/α schedules (built from the lab's `TrainingSettings`, so `gnp-lab train`'s options set them).
+A `TaskRunConfig` names its brain as a robot run's config does: a `brain` section holding the
+family's own settings (GNP's `GnpSettings`: `controller`, `evolution`; GNP is the only family
+that runs on tasks for now) and, of the training phase, what a task uses: population,
+generations, a life's cap in steps and the ε/α schedules (built from the lab's
+`TrainingSettings`, so `gnp-lab train`'s options set them). A task config stored in layout 1
+(`controller`, `evolution` at the top; every task run and preset before issue #46) is moved to
+layout 2 when read (`app.settings.layouts.layout_2`); `task_layout_1` maps a dumped one back,
+for a task experiment's identity (`app.experiments.ledger`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from functools import cached_property
+from typing import Any
 
 import gymnasium as gym
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings, GnpSettings
+from app.brains.gnp_settings import GnpSettings
 from app.brains.learning import schedules
 from app.settings.config import RunConfig
-from app.settings.families import DEFAULT_BRAIN
+from app.settings.families import DEFAULT_BRAIN, BrainSettings
+from app.settings.layouts import GNP_SECTIONS, layout_1, layout_2
 from app.tasks.common import TEST_PROTOCOLS, EpisodeProtocol, TaskError, TestProtocol
 from app.tasks.spaces import TaskAdapter, task_adapter
-from gnp import EvolutionConfig, Schedule
+from gnp import Schedule
 from gnp.config import GenerationProgress
 
 Bounds = tuple[float | None, ...] | None
@@ -106,14 +114,57 @@ PROTOCOL_FIELDS = tuple(EpisodeProtocol.model_fields)
 """`EpisodeProtocol`'s settings, which `TaskTraining` holds and a `[task]` section sets."""
 
 
+def not_on_tasks(family: str) -> TaskError:
+    """The refusal of a brain family other than GNP on a task."""
+    return TaskError(
+        f"brain family {family!r} does not run on Gymnasium tasks; a task run "
+        f"trains {DEFAULT_BRAIN} (drop --brain, or train {family} in the arena)"
+    )
+
+
+TASK_LAYOUT_1 = ("seed", "task", *GNP_SECTIONS, "training")
+"""A task config's sections in layout 1, in the order its JSON held them."""
+
+
+def task_layout_1(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A dumped task config (`TaskRunConfig.model_dump(mode="json")`, some fields left out or
+    not) in layout 1, its sections in the order layout 1 wrote them: a task run's identity as
+    every committed ledger holds it."""
+    out = layout_1(data, DEFAULT_BRAIN)
+    return {key: out[key] for key in TASK_LAYOUT_1 if key in out} | {
+        key: value for key, value in out.items() if key not in TASK_LAYOUT_1
+    }
+
+
 class TaskRunConfig(_Frozen):
     """Everything a task run's results depend on."""
 
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
     task: TaskSettings
-    controller: ControllerSettings = ControllerSettings()
-    evolution: EvolutionConfig = EvolutionConfig()
+    brain: GnpSettings = Field(
+        default=GnpSettings(), description="the brain: GNP's settings (controller, evolution)"
+    )
     training: TaskTraining = TaskTraining()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _in_layout_2(cls, data: Any) -> Any:
+        """A stored task config of layout 1 moved to layout 2; a brain of another family
+        refused (`TaskError`)."""
+        if not isinstance(data, Mapping):
+            return data
+        data = layout_2(data)
+        brain = data.get("brain")
+        family = (
+            brain.family
+            if isinstance(brain, BrainSettings)
+            else brain.get("family", DEFAULT_BRAIN)
+            if isinstance(brain, Mapping)
+            else DEFAULT_BRAIN
+        )
+        if family != DEFAULT_BRAIN:
+            raise not_on_tasks(str(family))
+        return data
 
     @cached_property
     def adapter(self) -> TaskAdapter:
@@ -128,9 +179,9 @@ class TaskRunConfig(_Frozen):
             TaskError: `processing_output` "function" on a task whose action is not Discrete.
         """
         adapter = self.adapter
-        settings = self.controller.gnp_config().model_dump()
+        settings = self.brain.controller.gnp_config().model_dump()
         outputs = adapter.n_outputs
-        if self.controller.processing_output == "function":
+        if self.brain.controller.processing_output == "function":
             if adapter.kind != "discrete":
                 raise TaskError(
                     f"{self.task.id}: processing_output = 'function' needs a Discrete action; "
@@ -143,7 +194,7 @@ class TaskRunConfig(_Frozen):
     def from_run_config(
         cls, config: RunConfig, task: TaskSettings, protocol: EpisodeProtocol | None = None
     ) -> TaskRunConfig:
-        """The task run of the lab's settings (seed, controller, evolution, population,
+        """The task run of the lab's settings (seed, brain, population,
         generations, steps, ε/α schedules) and of `protocol` (its episodes and test; the
         defaults when None); the arena, noise and physics do not apply.
 
@@ -152,10 +203,7 @@ class TaskRunConfig(_Frozen):
         """
         brain = config.brain
         if not isinstance(brain, GnpSettings):
-            raise TaskError(
-                f"brain family {brain.family!r} does not run on Gymnasium tasks; a task run "
-                f"trains {DEFAULT_BRAIN} (drop --brain, or train {brain.family} in the arena)"
-            )
+            raise not_on_tasks(brain.family)
         eps, alpha = schedules(config.training)
         training = TaskTraining(
             population=config.training.population,
@@ -166,13 +214,7 @@ class TaskRunConfig(_Frozen):
             schedule_progress=config.training.schedule_progress,
             **{name: getattr(protocol or EpisodeProtocol(), name) for name in PROTOCOL_FIELDS},
         )
-        return cls(
-            seed=config.seed,
-            task=task,
-            controller=brain.controller,
-            evolution=brain.evolution,
-            training=training,
-        )
+        return cls(seed=config.seed, task=task, brain=brain, training=training)
 
 
 __all__ = [
@@ -183,4 +225,5 @@ __all__ = [
     "TaskTraining",
     "TestProtocol",
     "make_env",
+    "task_layout_1",
 ]

@@ -69,7 +69,7 @@ def task_evolution(config: TaskRunConfig, pop: gnp.Population) -> GnpEvolution:
         pop,
         seed=config.seed,
         generations=training.generations,
-        evolution=config.evolution,
+        evolution=config.brain.evolution,
         rates=training.epsilon_alpha,
     )
 

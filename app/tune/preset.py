@@ -1,7 +1,9 @@
 """The preset a study writes, and reading one back for `gnp-lab train --preset FILE`.
 
 A tuned preset is a TOML file of data only: the settings tables a config file has
-(`[controller]`, `[evolution]`, `[training]`; a fracnetics study's `[fracnetics]`) and a
+(`[brain.controller]`, `[brain.evolution]`, `[training]`; a fracnetics study's `[fracnetics]`;
+a preset written before issue #46, such as those shipped in app/experiments/shipped/tuned/,
+has `[controller]` and `[evolution]`, moved when read as any layer is) and a
 `[tuning]` table recording the study it came from (task, brain, seeds, trials, budget, best
 value, Optuna's version, the sampler and its seed).
 """
@@ -61,7 +63,8 @@ def _value(value: Any) -> str:
 
 
 def _table(lines: list[str], name: str, values: dict[str, Any]) -> None:
-    lines.append(f"\n[{name}]")
+    if not values or any(not isinstance(v, dict) for v in values.values()):
+        lines.append(f"\n[{name}]")  # a table of tables only (`[brain]`) is implied
     subtables = []
     for key, value in values.items():
         if isinstance(value, dict):

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from app.settings.layouts import layout_2
 from app.tasks.common import EpisodeProtocol
 from app.tune.preset import TuningRecord, now, write_preset
 from app.tune.space import FIRST_VALIDATION_SEED, TuneError, nested, run_seeds
@@ -48,12 +49,14 @@ def preset_settings(
         return {"fracnetics": settings, "training": sizes}
     run = gnp_config(declared, task, values, run_seeds(1)[0])
     run.gnp_config()
-    brain = {"method": run.controller.method, "fuzzy": run.controller.fuzzy}  # named always
+    controller = run.brain.controller
+    brain = {"method": controller.method, "fuzzy": controller.fuzzy}  # named always
     merged = nested({f"controller.{k}": v for k, v in brain.items()} | declared.run_settings())
     for section, table in nested(values).items():
         merged.setdefault(section, {}).update(table)
     merged.setdefault("training", {}).update(sizes)
-    order = ("controller", "evolution", "training")
+    merged = layout_2(merged)  # the study's names are layout 1's; a preset is written in 2
+    order = ("brain", "training")
     tables = {s: merged[s] for s in (*order, *sorted(set(merged) - set(order))) if s in merged}
     protocol = run.training.model_dump(include=set(EpisodeProtocol.model_fields))
     bounds = {k: v for k, v in declared.task_settings().items() if k not in protocol}

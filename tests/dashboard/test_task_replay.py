@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.brains.registry import run_kind
 from app.dashboard.task_frame import cartpole_sketch
 from app.dashboard.task_replay import (
@@ -37,7 +37,7 @@ def tiny_task_config(seed: int = 1) -> TaskRunConfig:
     return TaskRunConfig(
         seed=seed,
         task=TaskSettings(id="CartPole-v1"),
-        controller=ControllerSettings(method="CS", fuzzy=False),
+        brain=GnpSettings(controller=ControllerSettings(method="CS", fuzzy=False)),
         training=TaskTraining(population=8, generations=3, steps=200, epsilon=Schedule.fixed(0.01)),
     )
 
@@ -130,7 +130,13 @@ def test_a_run_whose_processing_nodes_emit_their_function_replays(tmp_path: Path
     config = tiny_task_config().model_copy(update={"task": TaskSettings(id="Acrobot-v1")})
     config = config.model_copy(
         update={
-            "controller": config.controller.model_copy(update={"processing_output": "function"})
+            "brain": config.brain.model_copy(
+                update={
+                    "controller": config.brain.controller.model_copy(
+                        update={"processing_output": "function"}
+                    )
+                }
+            )
         }
     )
     path = train_task(config, tmp_path / "acrobot.h5")

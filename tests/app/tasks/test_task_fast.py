@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, dynamics, read_task_run, train_task
 from gnp import Schedule
 
@@ -71,7 +71,9 @@ def _training(
     return TaskRunConfig(
         seed=3,
         task=TaskSettings(id=task),
-        controller=ControllerSettings(method=method, fuzzy=method == "CS", **controller),
+        brain=GnpSettings(
+            controller=ControllerSettings(method=method, fuzzy=method == "CS", **controller)
+        ),
         training=TaskTraining(
             population=10, generations=3, steps=200, epsilon=Schedule.fixed(0.05)
         ),

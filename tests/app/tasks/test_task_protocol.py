@@ -14,7 +14,7 @@ from experiment_fixtures import in_process_client
 from test_peer import _spec
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.experiments.runner import RunOptions, run_experiment
 from app.experiments.spec_loading import parse
 from app.tasks.config import TaskRunConfig, TaskSettings, TaskTraining
@@ -35,7 +35,7 @@ def _run(**training: Any) -> TaskRunConfig:
     return TaskRunConfig(
         seed=5,
         task=TaskSettings(id="CartPole-v1"),
-        controller=ControllerSettings(method="RL", fuzzy=False, **controller),
+        brain=GnpSettings(controller=ControllerSettings(method="RL", fuzzy=False, **controller)),
         training=TaskTraining(population=8, generations=4, steps=120, **training),
     )
 
@@ -46,7 +46,13 @@ def test_a_greedy_test_freezes_the_elite_and_a_learning_off_elite_tests_the_same
     # learning off (ε = α = 0) with ties to the first sub node: one fixed policy
     off = _run(epsilon=gnp.Schedule.fixed(0.0), alpha=gnp.Schedule.fixed(0.0))
     off = off.model_copy(
-        update={"controller": off.controller.model_copy(update={"tie_break": "first"})}
+        update={
+            "brain": off.brain.model_copy(
+                update={
+                    "controller": off.brain.controller.model_copy(update={"tie_break": "first"})
+                }
+            )
+        }
     )
     result = run_peer(PeerRun(run=off, test_seeds=TEST_SEEDS), tmp_path / "off.h5")
     assert result.protocol_returns is not None
@@ -168,7 +174,7 @@ def test_a_runs_identity_names_the_new_settings_only_when_set() -> None:
     validated = plan(parse(data, "tiny"), "smoke", "runs")[2]
     assert base.name == tuned.name == validated.name == "RL-seed40"
     assert len({fingerprint(base), fingerprint(tuned), fingerprint(validated)}) == 3
-    assert PeerRun.model_validate_json(tuned.task_json).run.controller.q0 == -10.0
+    assert PeerRun.model_validate_json(tuned.task_json).run.brain.controller.q0 == -10.0
 
 
 def test_emitting_the_function_gives_a_discrete_task_one_output_per_action() -> None:
@@ -177,12 +183,14 @@ def test_emitting_the_function_gives_a_discrete_task_one_output_per_action() -> 
     emit = {"processing_output": "function"}
     for task, actions in (("CartPole-v1", 2), ("Acrobot-v1", 3)):
         config = TaskRunConfig(
-            task=TaskSettings(id=task), controller=ControllerSettings(method="RL", **emit)
+            task=TaskSettings(id=task),
+            brain=GnpSettings(controller=ControllerSettings(method="RL", **emit)),
         )
         assert config.gnp_config().n_outputs == actions
         assert TaskRunConfig(task=TaskSettings(id=task)).gnp_config().n_outputs == 1
     pendulum = TaskRunConfig(
-        task=TaskSettings(id="Pendulum-v1"), controller=ControllerSettings(**emit)
+        task=TaskSettings(id="Pendulum-v1"),
+        brain=GnpSettings(controller=ControllerSettings(**emit)),
     )
     with pytest.raises(TaskError, match="needs a Discrete action"):
         pendulum.gnp_config()

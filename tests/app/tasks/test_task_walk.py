@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.tasks.common import TestProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.store import read_task_run
@@ -23,8 +23,10 @@ def cs_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = TaskRunConfig(
         seed=7,
         task=TaskSettings(id="MountainCar-v0"),
-        controller=ControllerSettings(
-            method="CS", fuzzy=True, n_judgment=8, n_processing=4, skip_reward="step"
+        brain=GnpSettings(
+            controller=ControllerSettings(
+                method="CS", fuzzy=True, n_judgment=8, n_processing=4, skip_reward="step"
+            )
         ),
         training=TaskTraining(
             population=6, generations=2, steps=CAP, epsilon=gnp.Schedule.fixed(0.1)

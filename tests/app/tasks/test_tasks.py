@@ -13,7 +13,7 @@ import pytest
 from gymnasium import spaces
 
 import gnp
-from app.brains.gnp_settings import ControllerSettings
+from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.cli import main
 from app.phases.generations import Interrupted
 from app.tasks import (
@@ -275,7 +275,7 @@ def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) ->
     config = TaskRunConfig(
         seed=1,
         task=TaskSettings(id="CartPole-v1"),
-        controller=ControllerSettings(method="RL", fuzzy=False),
+        brain=GnpSettings(controller=ControllerSettings(method="RL", fuzzy=False)),
         training=TaskTraining(population=100, generations=10, epsilon=Schedule.fixed(0.01)),
     )
     run = read_task_run(train_task(config, tmp_path / "r.h5"))
@@ -298,7 +298,7 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     argv = ["train", "--task", "CartPole-v1", "--generations", "2", "--population", "10"]
     assert main([*argv, "--seed", "3", "--method", "RL", "--out", str(out), "--quiet"]) == 0
     assert "best return" in capsys.readouterr().out
-    assert read_task_run(out).config.controller.method == "RL"
+    assert read_task_run(out).config.brain.controller.method == "RL"
     assert main(["replay", "cp", "--runs-dir", str(tmp_path), "--seed", "9"]) == 0
     said = capsys.readouterr().out
     expected = replay_task(out, 9)

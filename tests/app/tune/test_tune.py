@@ -56,20 +56,25 @@ def test_a_study_writes_a_preset_that_train_takes(
     assert record.budget_env_steps == 20_000 and record.generations == 4
     assert record.run_seeds == [tuning.run_seeds(1)[0]]
     assert record.optuna_version and record.sampler_seed == 0
-    assert layer["controller"]["method"] == "RL" and layer["controller"]["fuzzy"] is False
+    text = preset.read_text(encoding="utf-8")  # layout 2: the brain's sections in [brain]
+    assert "\n[brain.controller]\n" in text and "\n[brain.evolution]\n" in text
+    assert "\n[brain]\n" not in text and "\n[controller]\n" not in text
+    brain = layer["brain"]
+    assert brain["controller"]["method"] == "RL" and brain["controller"]["fuzzy"] is False
     searched = {p.path for p in tuning.space("gnp", method="RL")} - {
         "training.epsilon_min",
         "training.alpha_min",
     }
-    flat = {f"{s}.{k}" for s, table in layer.items() for k in table}
+    tables = brain | {s: table for s, table in layer.items() if s != "brain"}
+    flat = {f"{s}.{k}" for s, table in tables.items() for k in table}  # the study's names
     assert searched <= flat
 
     run = tmp_path / "cp.h5"
     argv = ["train", "--task", "CartPole-v1", "--preset", str(preset), "--seed", "5"]
     assert main([*argv, "--out", str(run), "--quiet"]) == 0
     config = read_task_run(run).config
-    assert config.evolution.p_mutation == layer["evolution"]["p_mutation"]
-    assert config.controller.n_judgment == layer["controller"]["n_judgment"]
+    assert config.brain.evolution.p_mutation == brain["evolution"]["p_mutation"]
+    assert config.brain.controller.n_judgment == brain["controller"]["n_judgment"]
     assert config.training.generations == 4 and config.training.population == 10
     assert config.training.epsilon.max == layer["training"]["epsilon_max"]
     assert config.seed == 5
