@@ -30,11 +30,12 @@ LAYOUT_1 = (*GNP_SECTIONS, "neuro", "family")
 """The keys that mark a config (or a layer of one) as written in layout 1."""
 
 
-def _deep_merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+def deep_merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """`base` with `overrides` over it, tables merged key by key (a config's layers)."""
     merged = dict(base)
     for key, value in overrides.items():
         if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
-            merged[key] = _deep_merge(dict(merged[key]), value)
+            merged[key] = deep_merge(dict(merged[key]), value)
         else:
             merged[key] = value
     return merged
@@ -66,7 +67,7 @@ def layout_2(data: Mapping[str, Any]) -> dict[str, Any]:
         brain |= {k: data[k] for k in GNP_SECTIONS if k in data}
     given = data.get("brain")
     if isinstance(given, Mapping):
-        brain = _deep_merge(brain, given)
+        brain = deep_merge(brain, given)
     moved["brain"] = brain
     return moved
 

@@ -24,7 +24,7 @@ from app.settings.config import (
 )
 from app.settings.families import DEFAULT_BRAIN, settings_model
 from app.settings.fields import Setting, sections, settings_of
-from app.settings.layouts import layout_2
+from app.settings.layouts import deep_merge, layout_2
 from app.settings.user_files import loads_json, loads_toml, read_text
 
 
@@ -77,17 +77,7 @@ def _layered(base: dict[str, Any], layer: Mapping[str, Any]) -> dict[str, Any]:
     named = _family(layer)
     if named is not None and named != (_family(base) or DEFAULT_BRAIN):
         base = {key: value for key, value in base.items() if key != "brain"}
-    return _merge(base, layer)
-
-
-def _merge(base: dict[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
-    merged = dict(base)
-    for key, value in overrides.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
-            merged[key] = _merge(dict(merged[key]), value)
-        else:
-            merged[key] = value
-    return merged
+    return deep_merge(base, layer)
 
 
 LEGACY_DEFAULTS: dict[tuple[str, ...], Any] = {
