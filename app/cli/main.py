@@ -87,7 +87,16 @@ def _handler(command: str) -> Callable[[argparse.Namespace], int]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `gnp-lab`; returns the exit status."""
     words = list(sys.argv[1:] if argv is None else argv)
-    return _run(chosen_command(words), words)
+    status = _run(chosen_command(words), words)
+    if argv is None and status == EXIT_INTERRUPTED:
+        # The command's own process, stopped by Ctrl-C or SIGTERM: everything it keeps is
+        # closed by now. End without the interpreter's teardown, whose finalizers can crash
+        # (SIGSEGV, seen once in CI) on a numba compilation the signal cut half-way.
+        with contextlib.suppress(OSError):  # a closed pipe has nothing left to take
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(status)
+    return status
 
 
 def _run(command: str | None, words: list[str]) -> int:
