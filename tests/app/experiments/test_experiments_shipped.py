@@ -50,6 +50,8 @@ TASKS += (
     "gnp-vs-fracnetics-tuned-cartpole",
     "gnp-vs-fracnetics-tuned-mountaincar",
 )
+#: ... and CS re-tuned off the floor (issue #45).
+TASKS += ("cs-retuned-acrobot", "cs-retuned-mountaincar")
 SHIPPED = tuple(sorted(THESIS_SHIPPED + BEYOND + TASKS))
 # "Fig. 3.6 (Simulation 1)" and "§2.5, Table 2.5 (its text)" cite Fig. 3.6 and Table 2.5
 SOURCE = re.compile(r"(Table|Fig\.) \d\.\d+")
@@ -254,7 +256,7 @@ def test_a_task_experiment_gives_every_arm_one_budget_on_fresh_seeds(name: str) 
     spec = load_shipped(name)
     assert spec.task is not None and spec.task.test_seeds >= 20 and spec.kind == "beyond"
     brains = [a.brain for a in spec.arms]
-    assert brains.count("gnp") == 3 and set(brains) == {"gnp", "fracnetics"}  # ours, the peer
+    assert brains.count("gnp") >= 2 and set(brains) == {"gnp", "fracnetics"}  # ours, the peer
     for scale in ("small", "thesis"):
         assert len(spec.seed_list(scale)) >= 20  # at least 20 seeds per arm
         budgets = {
