@@ -180,9 +180,11 @@ class TaskRunConfig(_Frozen):
         )
         return RunConfig(seed=self.seed, brain=self.brain, training=sizes)
 
-    @cached_property
+    @property
     def family(self) -> BrainFamily:
-        """The brain family bound to the task (`run_config`, `io`).
+        """The brain family bound to the task (`run_config`, `io`): bound anew at each call
+        (a tenth of a millisecond), so a copy of the config with other settings
+        (`model_copy`) never holds its original's family.
 
         Raises:
             TaskError: the family is not registered, or cannot run on this task (one line).
