@@ -221,3 +221,24 @@ def test_an_unknown_family_and_one_that_cannot_size_itself_are_one_line(tmp_path
     stored = json.loads(config.model_dump_json()) | {"brain": {"family": "nope"}}
     with pytest.raises(TaskError, match="CartPole-v1: unknown brain family 'nope'"):
         _ = TaskRunConfig.model_validate(stored).family
+
+
+def test_a_task_experiment_trains_and_tests_a_net_arm(tmp_path: Path) -> None:
+    from experiment_fixtures import in_process_client
+    from test_peer import _spec
+
+    from app.experiments.runner import RunOptions, run_experiment
+    from app.experiments.spec_loading import parse
+
+    data = _spec()
+    data["task"]["test_protocol"] = "greedy"
+    data["arms"][0] = {"name": "GNP", "label": "CMA-ES", "config": {"brain": {"family": "cmaes"}}}
+    data["comparisons"][1]["metric"] = "test_return_as_trained"
+    with in_process_client() as client:
+        options = RunOptions(client=client, quiet=True)
+        results = run_experiment(parse(data, "tiny"), "smoke", tmp_path, options=options)
+    greedy = results.scalar("test_return_greedy", "GNP")
+    assert np.isfinite(greedy).all()  # a net's protocols are the same lives
+    np.testing.assert_array_equal(greedy, results.scalar("test_return_as_trained", "GNP"))
+    run = read_task_run(next(tmp_path.rglob("GNP-seed40.h5")))
+    assert run.config.brain.family == "cmaes" and np.isnan(run.epsilon).all()
