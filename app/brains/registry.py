@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from app.settings import families
 from app.settings.config import ConfigError, RunConfig
-from app.settings.families import BUILT_IN, PLUGINS_VARIABLE
+from app.settings.families import BUILT_IN, DEFAULT_BRAIN, PLUGINS_VARIABLE
 from app.store import RunSummary
 from app.store.controller_file import Controller, ControllerFormat, read_controller
 
@@ -94,10 +94,11 @@ def family_of(config: RunConfig, io: BrainIO | None = None) -> BrainFamily:
 
 def run_kind(summary: RunSummary) -> str:
     """A run list's words for a run: its family's description (`CS fuzzy`, `cmaes: Elman net,
-    8 hidden`), `task CartPole-v1 (cmaes)` of a task run (its family's name), or the name of a
-    family not registered here."""
+    8 hidden`), `task CartPole-v1` of a task run (`task CartPole-v1 (cmaes)` of a family other
+    than the default, GNP), or the name of a family not registered here."""
     if summary.task:
-        return f"task {summary.task} ({summary.task_family})"
+        family = summary.task_family
+        return f"task {summary.task}" + (f" ({family})" if family != DEFAULT_BRAIN else "")
     if summary.config is None:  # unreadable: the list says so itself
         return ""
     try:

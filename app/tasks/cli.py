@@ -16,7 +16,7 @@ from app.settings.config import ConfigError, RunConfig
 from app.store import RunFileError, resolve_run
 from app.store.controller_file import save_document
 from app.system.exit_codes import EXIT_INTERRUPTED
-from app.tasks.common import EpisodeProtocol, TaskError
+from app.tasks.common import EpisodeProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings
 from app.tasks.faults import ObservationFault
 from app.tasks.store import read_task_run
@@ -122,7 +122,7 @@ def inspect(path: Path) -> int:
     done, total = run.generation_done, run.config.training.generations
     print(f"task run {path.name}: {run.config.task.id}, seed {run.config.seed}, "
           f"gnp-lab {run.package_version}")  # fmt: skip
-    print(f"brain: {_description(run.config)}")
+    print(f"brain: {run.config.description}")
     print(f"generations {done}/{total}, {'finished' if done == total else 'interrupted'}")
     for g in sorted({0, done // 2, done - 1} if done else set()):
         returns = run.fitness[g]
@@ -166,14 +166,6 @@ def replay(args: argparse.Namespace) -> int:
             f"min {lives.returns.min():.1f}, max {lives.returns.max():.1f}"
         )
     return 0
-
-
-def _description(config: TaskRunConfig) -> str:
-    """The family's line (`cmaes: Elman net, 8 hidden`), or why it cannot be bound here."""
-    try:
-        return config.family.description
-    except TaskError:
-        return f"{config.brain.family} (not registered)"
 
 
 def export(path: Path, out: Path, generation: int | None) -> int:

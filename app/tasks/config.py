@@ -194,6 +194,16 @@ class TaskRunConfig(_Frozen):
         except ConfigError as error:
             raise TaskError(f"{self.task.id}: {error}") from None
 
+    @property
+    def description(self) -> str:
+        """The brain family's line (`CS fuzzy`, `cmaes: Elman net, 8 hidden`), without making
+        the task's env (the family described as bound to the robot's io: its words do not
+        depend on it); `NAME (not registered)` for a family not registered here."""
+        try:
+            return family_of(self.run_config()).description
+        except ConfigError:
+            return f"{self.brain.family} (not registered)"
+
     def gnp_settings(self) -> GnpSettings:
         """The brain's settings of a GNP run.
 
