@@ -17,15 +17,13 @@ end a terminated one with the terminal Sarsa update, and on CartPole, MountainCa
 the lab's twins of their envs (bit for bit Gymnasium's, tested step for step), 4-60 times
 faster (bench/tasks.py).
 
-The environments: any task without a compiled twin, and a batch with observation faults, goes
-through Gymnasium: the batch steps through the task's own vector env
-(`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
+The environments: any task without a compiled twin, any family without lives of its own, and
+a batch with observation faults go through Gymnasium: the batch steps through the task's own
+vector env (`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
 environments from its own seed (`START_STATES`: CartPole, whose vector env draws every start
 state from one stream otherwise), else through `SyncVectorEnv` reset with one seed per
-environment. An individual whose episode ended stops acting (the vector env's autoreset of its
-environment is ignored); the batch ends when every episode has. An episode that terminates (not
-one truncated by a time limit or the cap) ends with the terminal Sarsa update
-(`gnp.end_episode`).
+environment. The vector env's autoreset of an environment whose episode ended is ignored; the
+batch ends when every episode has.
 """
 
 from __future__ import annotations
@@ -39,6 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 from app.brains.contract import BrainFamily
+from app.brains.gnp_brain import GnpFamily
 from app.loop.rollout import OnlineLearner
 from app.tasks import dynamics
 from app.tasks.faults import ObservationFault, ObservationFaults
@@ -175,7 +174,7 @@ class FamilyLives(Protocol):
     ) -> TaskLives: ...
 
 
-FAMILY_LIVES: dict[str, str] = {"gnp": "app.tasks.gnp_lives:family_lives"}
+FAMILY_LIVES: dict[str, str] = {GnpFamily.name: "app.tasks.gnp_lives:family_lives"}
 """Families with lives of their own on tasks: name → "module:function" (a `FamilyLives`),
 imported on first use."""
 

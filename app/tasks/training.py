@@ -61,12 +61,13 @@ class TaskEvolution:
     does not (as robot runs record them)."""
 
     def __init__(self, config: TaskRunConfig, evolution: Evolution) -> None:
-        self._config, self._evolution = config, evolution
+        self._training, self._evolution = config.training, evolution
+        self._learns = config.family.learns_online
 
     def epsilon_alpha(self, generation: int) -> tuple[float, float]:
-        if not self._config.family.learns_online:
+        if not self._learns:
             return float("nan"), float("nan")
-        return self._config.training.epsilon_alpha(generation)
+        return self._training.epsilon_alpha(generation)
 
     def individuals(self) -> Any:
         return self._evolution.individuals()
