@@ -242,3 +242,15 @@ def test_a_task_experiment_trains_and_tests_a_net_arm(tmp_path: Path) -> None:
     np.testing.assert_array_equal(greedy, results.scalar("test_return_as_trained", "GNP"))
     run = read_task_run(next(tmp_path.rglob("GNP-seed40.h5")))
     assert run.config.brain.family == "cmaes" and np.isnan(run.epsilon).all()
+
+
+def test_a_best_individual_not_of_the_familys_layout_is_one_run_file_error(tmp_path: Path) -> None:
+    from app.store import RunFileError
+
+    path = train_task(_config("cmaes", generations=1, population=4, steps=10), tmp_path / "c.h5")
+    with h5py.File(path, "r+") as handle:
+        del handle["history/best/w_in"]
+        handle["history/best/w_in"] = np.zeros((1, 3, 3))
+    with pytest.raises(RunFileError, match=r"genome array w_in must be \(1, 8, 4\)") as raised:
+        read_task_run(path).best_individual()
+    assert "\n" not in str(raised.value)
