@@ -95,7 +95,7 @@ def gnp_run(cfg: TaskRunConfig) -> tuple[int, float, float]:
             steps += int(lives.lengths.sum())
             pop = gnp.evolve(
                 gcfg, lives.learned, lives.returns, g, training.generations,
-                evolution_rng(cfg.seed, g), cfg.brain.evolution,
+                evolution_rng(cfg.seed, g), cfg.gnp_settings().evolution,
             )  # fmt: skip
     finally:
         env.close()

@@ -56,7 +56,7 @@ def _lab() -> SimpleNamespace:
         from app.implementation import run_implementation  # type: ignore[no-redef]
         from app.training import initial_population, train  # type: ignore[no-redef]
 
-        def brain(config: Any) -> Any:
+        def brain(config: Any, io: Any = None) -> Any:  # noqa: ARG001
             return config.controller.gnp_config()
 
     return SimpleNamespace(

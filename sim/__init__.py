@@ -26,6 +26,7 @@ if TYPE_CHECKING:
         LIFE_STEPS,
         MAX_COMMAND,
         N_SENSORS,
+        N_WHEELS,
     )
     from sim.kinds import (
         DEFAULT_NOISE_STREAM,
@@ -54,6 +55,7 @@ __all__ = [
     "NOISE_STREAMS",
     "N_SENSORS",
     "N_START_POSES",
+    "N_WHEELS",
     "PHYSICS",
     "TERM_NAMES",
     "Arena",
@@ -85,6 +87,7 @@ _HOMES = {
         "LIFE_STEPS",
         "MAX_COMMAND",
         "N_SENSORS",
+        "N_WHEELS",
     ),
     "kinds": (
         "DEFAULT_NOISE_STREAM",

@@ -11,6 +11,8 @@ AXLE_MM = 52.0
 
 MAX_COMMAND = 10.0
 """Wheel commands are wheel angular speeds in rad/s, clipped to ±MAX_COMMAND."""
+N_WHEELS = 2
+"""A step's commands are (N, N_WHEELS): (left, right)."""
 
 N_SENSORS = 8
 IR_RANGE_MM = 50.0

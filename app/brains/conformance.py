@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 import sim
-from app.brains.contract import BrainFamily, checked_arrays
+from app.brains.contract import BrainFamily, BrainIO, checked_arrays
 from app.settings import families
 from app.settings.config import RunConfig
 
@@ -27,6 +27,8 @@ STEPS = 5
 """Steps the controllers take in each check of theirs."""
 ROBOTS = 2
 """Robots the controllers' checks drive: the fewest a population has."""
+TASK_IO = BrainIO(n_inputs=3, n_outputs=1, n_actions=2)
+"""The inputs and outputs an `any_io` family is checked on beside the robot's: a small task's."""
 
 
 class FamilyCheckError(AssertionError):
@@ -56,7 +58,8 @@ def same(a: Arrays, b: Arrays) -> bool:
 
 def check_family(family: type[BrainFamily], config: RunConfig | None = None) -> None:
     """Check `family` (a class) against the contract, bound to `config` (default: a tiny one,
-    `tiny_config`).
+    `tiny_config`) with the robot's inputs and outputs, and, a family that declares `any_io`,
+    with a task's too (`TASK_IO`: its checks named "on TASK_IO: ...").
 
     Raises:
         FamilyCheckError: every problem found, each named by its check.
@@ -72,13 +75,14 @@ def check_family(family: type[BrainFamily], config: RunConfig | None = None) -> 
             problems.append(f"{name}: {problem}")
 
     check("names agree", lambda: names_problem(family))
-    try:
-        bound = family(config or tiny_config(family))
-    except Exception as error:
-        raise FamilyCheckError(family.name, [*problems, f"binds to a config: {error}"]) from None
-    checks = Checks(bound)
-    for name, test in checks.all().items():
-        check(name, test)
+    for io, prefix in ((None, ""), (TASK_IO, "on TASK_IO: "))[: 2 if family.any_io else 1]:
+        try:
+            bound = family(config or tiny_config(family), *(() if io is None else (io,)))
+        except Exception as error:
+            problems.append(f"{prefix}binds to a config: {error}")
+            continue
+        for name, test in Checks(bound).all().items():
+            check(prefix + name, test)
     if problems:
         raise FamilyCheckError(family.name, problems)
 
@@ -118,7 +122,8 @@ class Checks:
             "arrays -> from_arrays round trip": self.round_trip,
             "take/concat keep rows": self.rows_kept,
             "run_template builds": self.template,
-            "act: (N, 2) finite commands in range": self.commands,
+            "act: (N, n_outputs) finite commands in range": self.commands,
+            "size counts the individuals": self.counted,
             "act: rows independent": self.rows_independent,
             "reset_episode works": self.reset,
             "a traced step matches trace_layout": self.traced,
@@ -163,6 +168,12 @@ class Checks:
             return "copies(one, 3) are not three of it"
         return None
 
+    def counted(self) -> str | None:
+        evolution = self.family.first()
+        n = len(next(iter(evolution.arrays(evolution.individuals()).values())))
+        size = self.family.size(evolution.individuals())
+        return None if size == n else f"size() gives {size} for {n} individuals"
+
     def template(self) -> str | None:
         self.family.run_template()
         return None
@@ -179,12 +190,13 @@ class Checks:
         return controllers
 
     def observations(self, n: int) -> np.ndarray:
-        return self.rng.uniform(0.0, sim.IR_MAX, (n, sim.N_SENSORS))
+        return self.rng.uniform(0.0, sim.IR_MAX, (n, self.family.io.n_inputs))
 
     def wrong_commands(self, commands: Any, n: int) -> str | None:
         commands = np.asarray(commands)
-        if commands.shape != (n, 2):
-            return f"commands are {commands.shape}, not ({n}, 2)"
+        outputs = self.family.io.n_outputs
+        if commands.shape != (n, outputs):
+            return f"commands are {commands.shape}, not ({n}, {outputs})"
         if not np.all(np.isfinite(commands)):
             return "non-finite commands"
         if np.any(np.abs(commands) > sim.MAX_COMMAND):

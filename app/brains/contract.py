@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
@@ -26,6 +27,7 @@ from pydantic import ValidationError
 
 import gnp
 import neuro
+import sim
 from app.loop.recording import TraceLayout
 from app.settings.config import ConfigError, RunConfig
 from app.settings.families import BrainSettings
@@ -67,6 +69,29 @@ class SecondStage(Protocol):
 
 ArrayLayout = TraceLayout
 """One individual's (or one controller step's) arrays: name -> (shape, dtype)."""
+
+
+@dataclass(frozen=True)
+class BrainIO:
+    """What a family's brains read and emit, one step of one controller: `n_inputs` readings in
+    0..`sim.IR_MAX`, `n_outputs` commands in ±`sim.MAX_COMMAND`. The robot's (`ROBOT_IO`) are
+    its sensors and wheels; a Gymnasium task's are its adapter's (`app.tasks.spaces`: features
+    scaled to readings, commands scaled to a Box action or, for Discrete(n), output 0 read in
+    n bins). `n_actions` is that n (0: no Discrete action), for a family that can emit a
+    Discrete action otherwise (GNP's `processing_output` "function": one output per action).
+    """
+
+    n_inputs: int = sim.N_SENSORS
+    n_outputs: int = sim.N_WHEELS
+    n_actions: int = 0
+
+    def __post_init__(self) -> None:
+        if self.n_inputs < 1 or self.n_outputs < 1 or self.n_actions < 0:
+            raise ValueError(f"a brain reads ≥ 1 input and emits ≥ 1 output, got {self}")
+
+
+ROBOT_IO = BrainIO()
+"""The robot's: `sim.N_SENSORS` IR readings in, `sim.N_WHEELS` wheel commands out."""
 
 
 def checked_arrays(layout: ArrayLayout, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -118,7 +143,8 @@ class BrainFamily(ABC):
     of individuals for dicts of arrays: override them for other individuals).
 
     Capabilities are declared, not asked by type: `learns_online` (ε/α and Sarsa matter: its
-    controllers are an `app.loop.rollout.OnlineLearner`), `graph_config` (a GNP node graph the
+    controllers are an `app.loop.rollout.OnlineLearner`), `any_io` (it sizes its brains by
+    `self.io`, so it runs on any Gymnasium task too), `graph_config` (a GNP node graph the
     views draw), `network_config` (a net the dashboard draws as a network). A family with none
     of them still trains, adapts, exports and shows.
     """
@@ -132,15 +158,27 @@ class BrainFamily(ABC):
     learns_online: ClassVar[bool] = False
     """Whether lives learn online (ε, α reach its controllers); else the file records NaN for
     them."""
+    any_io: ClassVar[bool] = False
+    """Whether its brains take their inputs and outputs from `self.io` (any `BrainIO`: the
+    robot's or a task's); a family that does not runs on the robot only."""
 
-    def __init__(self, config: RunConfig) -> None:
-        """Bind the family to `config`.
+    def __init__(self, config: RunConfig, io: BrainIO | None = None) -> None:
+        """Bind the family to `config`, its brains reading and emitting `io` (the robot's when
+        None).
 
         Raises:
             ConfigError: the `brain` section does not fit `settings_model` (named, on one line):
-                a config read before the family was registered.
+                a config read before the family was registered; or an `io` other than the
+                robot's for a family that is not `any_io`.
         """
         self.config = config
+        self.io = ROBOT_IO if io is None else io
+        if self.io != ROBOT_IO and not self.any_io:
+            raise ConfigError(
+                f"brain family {self.name!r} runs on the robot only: its brains do not size "
+                f"themselves to {self.io.n_inputs} inputs and {self.io.n_outputs} outputs "
+                "(a family that does declares any_io, docs/brains.md)"
+            )
         self.settings: Any = config.brain
         if not isinstance(self.settings, self.settings_model):
             try:
@@ -220,6 +258,10 @@ class BrainFamily(ABC):
         the generations before it. Raises `app.store.RunFileError` when it cannot be rebuilt."""
 
     # --- individuals --------------------------------------------------------------------------
+
+    def size(self, individuals: Any) -> int:
+        """How many individuals `individuals` holds (the leading axis)."""
+        return len(next(iter(individuals.values())))
 
     def take(self, individuals: Any, rows: np.ndarray | list[int]) -> Any:
         """The individuals at `rows` (copies)."""

@@ -14,13 +14,13 @@ from typing import TYPE_CHECKING, Any, override
 import numpy as np
 
 import gnp
-from app.brains.contract import ArrayLayout, BrainFamily
+from app.brains.contract import ROBOT_IO, ArrayLayout, BrainFamily, BrainIO
 from app.brains.gnp_file import GnpController
 from app.brains.gnp_settings import ControllerSettings, GnpSettings, gnp_settings
 from app.brains.learning import schedules
 from app.loop.recording import TraceLayout
 from app.loop.seeds import evolution_rng, init_rng
-from app.settings.config import RunConfig, TrainingSettings
+from app.settings.config import ConfigError, RunConfig, TrainingSettings
 from app.settings.families import DEFAULT_BRAIN
 from app.store import RunFileError, RunReader
 
@@ -28,13 +28,36 @@ if TYPE_CHECKING:
     from app.brains.gnp_controllers import GnpControllers
 
 
-def initial_population(config: RunConfig) -> gnp.Population:
-    """Generation 0, drawn from (seed, init)."""
+def initial_population(config: RunConfig, cfg: gnp.GnpConfig | None = None) -> gnp.Population:
+    """Generation 0 of `cfg` (default: the robot's of `config`), drawn from (seed, init)."""
     return gnp.init_population(
-        gnp_settings(config).controller.gnp_config(),
+        gnp_settings(config).controller.gnp_config() if cfg is None else cfg,
         config.training.population,
         init_rng(config.seed),
     )
+
+
+def sized_gnp_config(controller: ControllerSettings, io: BrainIO) -> gnp.GnpConfig:
+    """The GNP config of `controller` for brains of `io`: the robot's as the settings give it;
+    else `io`'s inputs and outputs, and with `processing_output` "function" a Discrete(n)
+    action's n outputs, one processing function per action (output 0 read in n bins: the
+    function is the action).
+
+    Raises:
+        ConfigError: `processing_output` "function" on a task whose action is not Discrete.
+    """
+    base = controller.gnp_config()
+    if io == ROBOT_IO:
+        return base
+    outputs = io.n_outputs
+    if controller.processing_output == "function":
+        if not io.n_actions:
+            raise ConfigError(
+                "processing_output = 'function' needs a Discrete action; a Box action takes "
+                "the processing node's parameter ('parameter')"
+            )
+        outputs = io.n_actions
+    return gnp.GnpConfig(**{**base.model_dump(), "n_inputs": io.n_inputs, "n_outputs": outputs})
 
 
 def gnp_trace(cfg: gnp.GnpConfig) -> TraceLayout:
@@ -138,10 +161,11 @@ class GnpFamily(BrainFamily):
     settings_model = GnpSettings
     settings: GnpSettings
     learns_online = True
+    any_io = True
 
-    def __init__(self, config: RunConfig) -> None:
-        super().__init__(config)
-        self.cfg = self.settings.controller.gnp_config()
+    def __init__(self, config: RunConfig, io: BrainIO | None = None) -> None:
+        super().__init__(config, io)
+        self.cfg = sized_gnp_config(self.settings.controller, self.io)
 
     @classmethod
     def of(cls, cfg: gnp.GnpConfig) -> GnpFamily:
@@ -208,7 +232,7 @@ class GnpFamily(BrainFamily):
         )
 
     def first(self) -> GnpEvolution:
-        return self.evolution(initial_population(self.config))
+        return self.evolution(initial_population(self.config, self.cfg))
 
     @override
     def rebuild(
@@ -217,6 +241,9 @@ class GnpFamily(BrainFamily):
         return self.evolution(self.from_arrays(arrays))  # its state is its population
 
     # Individuals are a `gnp.Population`, not a dict of arrays.
+    def size(self, individuals: gnp.Population) -> int:
+        return individuals.size
+
     def take(self, individuals: gnp.Population, rows: np.ndarray | list[int]) -> gnp.Population:
         return gnp.take(individuals, rows)
 

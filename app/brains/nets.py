@@ -22,7 +22,7 @@ import numpy as np
 
 import neuro
 import sim
-from app.brains.contract import ArrayLayout, BrainFamily, Evolution
+from app.brains.contract import ArrayLayout, BrainFamily, BrainIO, Evolution
 from app.brains.net_file import NetController
 from app.brains.net_settings import NetSettings
 from app.loop.recording import TraceLayout
@@ -97,11 +97,11 @@ class Optimiser(Protocol):
 
 
 class _CmaesOptimiser:
-    def __init__(self, settings: NetSettings, population: int, seed: int) -> None:
+    def __init__(self, net: neuro.ElmanConfig, sigma0: float, population: int, seed: int) -> None:
         from neuro.cmaes import Cmaes  # pycma: imported when a run evolves, not when it is listed
 
-        self.net = neuro.ElmanConfig(hidden=settings.hidden)
-        self.es = Cmaes(self.net.n_params, settings.sigma0, population, optimiser_seed(seed))
+        self.net = net
+        self.es = Cmaes(self.net.n_params, sigma0, population, optimiser_seed(seed))
 
     def arrays(self) -> dict[str, np.ndarray]:
         return neuro.from_flat(self.net, self.es.ask())
@@ -144,9 +144,10 @@ class NetFamily(BrainFamily):
 
     settings_model = NetSettings
     settings: NetSettings
+    any_io = True
 
-    def __init__(self, config: RunConfig) -> None:
-        super().__init__(config)
+    def __init__(self, config: RunConfig, io: BrainIO | None = None) -> None:
+        super().__init__(config, io)
         if self.settings.family != self.name:
             raise ValueError(f"a {self.name} family needs a brain section of that family")
         self.net = self.net_config()
@@ -154,13 +155,15 @@ class NetFamily(BrainFamily):
     @staticmethod
     def of(net: neuro.NetConfig) -> NetFamily:
         """The family of a bare net (a run's other settings at their defaults): for a
-        controller file's net, or one built by hand, on show."""
+        controller file's net, or one built by hand, on show; its inputs and outputs the
+        net's (a task's net's too)."""
+        io = BrainIO(net.n_inputs, net.n_outputs)
         if isinstance(net, neuro.ElmanConfig):
             settings = NetSettings(family="cmaes", hidden=net.hidden)
-            family: NetFamily = CmaesFamily(RunConfig(brain=settings))
+            family: NetFamily = CmaesFamily(RunConfig(brain=settings), io)
         else:
             neat = NeatParams(max_hidden=net.max_hidden)
-            family = NeatFamily(RunConfig(brain=NetSettings(family="neat", neat=neat)))
+            family = NeatFamily(RunConfig(brain=NetSettings(family="neat", neat=neat)), io)
         assert family.net == net
         return family
 
@@ -237,7 +240,10 @@ class CmaesFamily(NetFamily):
     name = "cmaes"
 
     def net_config(self) -> neuro.ElmanConfig:
-        return neuro.ElmanConfig(hidden=self.settings.hidden)
+        io = self.io
+        return neuro.ElmanConfig(
+            hidden=self.settings.hidden, n_inputs=io.n_inputs, n_outputs=io.n_outputs
+        )
 
     @property
     def label(self) -> str:
@@ -248,8 +254,8 @@ class CmaesFamily(NetFamily):
         return f"{self.name}: Elman net, {self.settings.hidden} hidden"
 
     def make_optimiser(self) -> Optimiser:
-        training = self.config.training
-        return _CmaesOptimiser(self.settings, training.population, self.config.seed)
+        training, sigma0 = self.config.training, self.settings.sigma0
+        return _CmaesOptimiser(self.net_config(), sigma0, training.population, self.config.seed)
 
 
 class NeatFamily(NetFamily):
@@ -258,7 +264,7 @@ class NeatFamily(NetFamily):
     name = "neat"
 
     def net_config(self) -> neuro.NetConfig:
-        return self.settings.neat.net_config()
+        return self.settings.neat.net_config(self.io.n_inputs, self.io.n_outputs)
 
     @property
     def label(self) -> str:
@@ -271,5 +277,6 @@ class NeatFamily(NetFamily):
     def make_optimiser(self) -> Optimiser:
         from neuro.neat_evolution import NeatSearch  # neat-python: imported when a run evolves
 
-        population = self.config.training.population
-        return NeatSearch(self.settings.neat, population, optimiser_seed(self.config.seed))
+        population, seed = self.config.training.population, optimiser_seed(self.config.seed)
+        io = self.io
+        return NeatSearch(self.settings.neat, population, seed, io.n_inputs, io.n_outputs)

@@ -17,12 +17,12 @@ from typing import TYPE_CHECKING
 
 from app.settings import families
 from app.settings.config import ConfigError, RunConfig
-from app.settings.families import BUILT_IN, PLUGINS_VARIABLE
+from app.settings.families import BUILT_IN, DEFAULT_BRAIN, PLUGINS_VARIABLE
 from app.store import RunSummary
 from app.store.controller_file import Controller, ControllerFormat, read_controller
 
 if TYPE_CHECKING:
-    from app.brains.contract import BrainFamily
+    from app.brains.contract import BrainFamily, BrainIO
 
 __all__ = [
     "BUILT_IN",
@@ -79,20 +79,26 @@ def family_class(name: str) -> type[BrainFamily]:
     return found
 
 
-def family_of(config: RunConfig) -> BrainFamily:
-    """The family of `config` (`config.brain.family`), bound to it.
+def family_of(config: RunConfig, io: BrainIO | None = None) -> BrainFamily:
+    """The family of `config` (`config.brain.family`), bound to it, its brains reading and
+    emitting `io` (`app.brains.contract.BrainIO`; the robot's when None: a family written
+    before `io` existed is bound as it was).
 
     Raises:
-        ConfigError: an unknown family, or settings its family refuses.
+        ConfigError: an unknown family, settings its family refuses, or an `io` it cannot
+            take (one line).
     """
-    return family_class(config.brain.family)(config)
+    cls = family_class(config.brain.family)
+    return cls(config) if io is None else cls(config, io)
 
 
 def run_kind(summary: RunSummary) -> str:
     """A run list's words for a run: its family's description (`CS fuzzy`, `cmaes: Elman net,
-    8 hidden`), `task CartPole-v1` of a task run, or the name of a family not registered here."""
+    8 hidden`), `task CartPole-v1` of a task run (`task CartPole-v1 (cmaes)` of a family other
+    than the default, GNP), or the name of a family not registered here."""
     if summary.task:
-        return f"task {summary.task}"
+        family = summary.task_family
+        return f"task {summary.task}" + (f" ({family})" if family != DEFAULT_BRAIN else "")
     if summary.config is None:  # unreadable: the list says so itself
         return ""
     try:

@@ -93,8 +93,7 @@ class TaskPanel:
         config = run.config
         self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1), name)
         self.summary.content = (
-            f"**{name}**: task **{config.task.id}**, {config.brain.controller.method} "
-            f"{'fuzzy' if config.brain.controller.fuzzy else 'crisp'}, population "
+            f"**{name}**: task **{config.task.id}**, {config.description}, population "
             f"{config.training.population}, {run.generation_done}/"
             f"{config.training.generations} generations, ≤ {config.training.steps} steps, "
             f"seed {config.seed}  \nbest return {fitness.max():.1f}  \n" + ROBOT_NOTE

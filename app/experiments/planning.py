@@ -118,12 +118,11 @@ def _later_defaults(run: TaskRunConfig) -> dict[str, Any]:
         fields = type(model).model_fields
         return {n for n in names if getattr(model, n) == fields[n].default}
 
-    return {
-        "run": {
-            "brain": {"controller": unset(run.brain.controller, TASK_SETTINGS)},
-            "training": unset(run.training, PROTOCOL_FIELDS),
-        }
-    }
+    brain = getattr(run.brain, "controller", None)  # GNP's (a net has no TASK_SETTINGS)
+    later: dict[str, Any] = {"training": unset(run.training, PROTOCOL_FIELDS)}
+    if isinstance(brain, BaseModel):
+        later["brain"] = {"controller": unset(brain, TASK_SETTINGS)}
+    return {"run": later}
 
 
 def _task_run(spec: ExperimentSpec, arm: str, seed: int, config: RunConfig, folder: Path) -> Task:

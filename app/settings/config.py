@@ -278,6 +278,17 @@ def _default_brain() -> dict[str, Any]:
     return {"family": DEFAULT_BRAIN}  # checked with GNP's model when a config is made
 
 
+def brain_field() -> Any:
+    """The `brain` field of a run's config (a robot run's, a task run's): the family's section,
+    checked with its model by `app.settings.families.brain_section` (a model that has this
+    field validates it with that, `mode="before"`), GNP's by default."""
+    return Field(
+        default_factory=_default_brain,
+        validate_default=True,
+        description="the brain family that runs and its own settings",
+    )
+
+
 class RunConfig(_Frozen):
     """Everything a run's results depend on (worker count excluded: results do not depend on it).
 
@@ -287,11 +298,7 @@ class RunConfig(_Frozen):
     """
 
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
-    brain: SerializeAsAny[BrainSettings] = Field(
-        default_factory=_default_brain,
-        validate_default=True,
-        description="the brain family that runs and its own settings",
-    )
+    brain: SerializeAsAny[BrainSettings] = brain_field()
     training: TrainingSettings = TrainingSettings()
     implementation: ImplementationSettings = ImplementationSettings()
     reward: RewardSettings = RewardSettings()

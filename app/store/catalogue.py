@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 
 from app.settings.config import RunConfig
+from app.settings.families import DEFAULT_BRAIN
 from app.settings.user_files import check_regular, loads_json
 from app.store.files import TASK_RUN_FORMAT, RunFileError
 from app.store.reader import RunReader
@@ -88,11 +89,13 @@ class RunSummary:
     implementations: tuple[str, ...] = ()
     error: str | None = None
     task: str = ""  # a task run's Gymnasium id (app.tasks); "" for the robot's runs
+    task_family: str = ""  # a task run's brain family (its config's `brain.family`)
 
     @property
     def brain(self) -> str:
-        """The name of the run's brain family (`RunConfig.brain.family`); "" for a task run."""
-        return self.config.brain.family if self.config is not None else ""
+        """The name of the run's brain family (`RunConfig.brain.family`, a task run's config's);
+        "" for an unreadable run."""
+        return self.config.brain.family if self.config is not None else self.task_family
 
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:
@@ -152,6 +155,10 @@ def _task_summary(path: Path, name: str) -> RunSummary | None:
                 raise RunFileError(f"history/fitness is {fitness.shape} {fitness.dtype}")
             rows = fitness[:done]
             best = float(rows.max()) if rows.size else float("nan")
+            brain = config.get("brain")  # none in layout 1 (GNP's, before #46)
+            family = (
+                brain.get("family", DEFAULT_BRAIN) if isinstance(brain, dict) else DEFAULT_BRAIN
+            )
         except (RunFileError, KeyError, ValueError, TypeError, OverflowError, OSError) as error:
             return RunSummary(name=name, path=path, task=task, error=f"task run: {error}")
         return RunSummary(
@@ -162,4 +169,5 @@ def _task_summary(path: Path, name: str) -> RunSummary | None:
             finished=done >= generations,
             best_fitness=best,
             task=task,
+            task_family=str(family),
         )

@@ -1,8 +1,9 @@
-"""GNP brains on any Gymnasium task with a Box observation and a Discrete or Box action.
+"""Any brain family on any Gymnasium task with a Box observation and a Discrete or Box action.
 
-`spaces` reads a task's spaces (features scaled to 0..1023, outputs to actions), `faults` breaks
-observation features, `lives` steps a population through a vector env or, for CartPole,
-MountainCar and Acrobot, through the lab's compiled twins of their envs (`dynamics`), `training`
+`spaces` reads a task's spaces (features scaled to 0..1023, outputs to actions), `config` binds
+a family to the task (`TaskRunConfig.family`), `faults` breaks observation features, `lives`
+steps a family's population through a vector env, `gnp_lives` GNP's own lives (for CartPole,
+MountainCar and Acrobot through the lab's compiled twins of their envs, `dynamics`), `training`
 trains, resumes and replays, `store` writes the run file, `common` is what the lab needs without
 Gymnasium. The names below load their module (and Gymnasium) on first use, so importing
 `app.tasks.common` leaves Gymnasium unimported.

@@ -1,19 +1,20 @@
-"""The command line of task runs: `gnp-lab train --task ID`, `--resume` of a task run,
-`gnp-lab replay`, and `gnp-lab export` of a task run's controller (hooked in app/cli.py)."""
+"""The command line of task runs of any brain family: `gnp-lab train --task ID [--brain NAME]`,
+`--resume` of a task run, `gnp-lab replay`, `gnp-lab runs NAME` and `gnp-lab export` of a task
+run's controller (hooked in app/cli.py)."""
 
 from __future__ import annotations
 
 import argparse
 import csv
+import math
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from app.brains.gnp_file import GnpController
 from app.settings.config import ConfigError, RunConfig
 from app.store import RunFileError, resolve_run
-from app.store.controller_file import save_controller
+from app.store.controller_file import save_document
 from app.system.exit_codes import EXIT_INTERRUPTED
 from app.tasks.common import EpisodeProtocol
 from app.tasks.config import TaskRunConfig, TaskSettings
@@ -70,7 +71,7 @@ def train(
     """`gnp-lab train --task ...`: a task run file from the lab's settings (and a tuned
     preset's episode protocol)."""
     task_config = TaskRunConfig.from_run_config(config, settings, protocol)
-    task_config.gnp_config()  # an unusable task: one line, before any file
+    family = task_config.family  # an unusable task or brain: one line, before any file
     if args.print_config:
         sys.stdout.write(task_config.model_dump_json(indent=2) + "\n")
         return 0
@@ -79,7 +80,7 @@ def train(
     else:
         stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
         name = settings.id.replace("/", "_")  # "ALE/Pong-v5": a file name, not a folder
-        path = Path(args.runs_dir) / f"{name}-{task_config.brain.controller.method}-{stamp}.h5"
+        path = Path(args.runs_dir) / f"{name}-{family.label}-{stamp}.h5"
     try:
         train_task(task_config, path, _progress(args.quiet))
     except (KeyboardInterrupt, Interrupted):
@@ -121,12 +122,15 @@ def inspect(path: Path) -> int:
     done, total = run.generation_done, run.config.training.generations
     print(f"task run {path.name}: {run.config.task.id}, seed {run.config.seed}, "
           f"gnp-lab {run.package_version}")  # fmt: skip
+    print(f"brain: {run.config.description}")
     print(f"generations {done}/{total}, {'finished' if done == total else 'interrupted'}")
     for g in sorted({0, done // 2, done - 1} if done else set()):
         returns = run.fitness[g]
+        learned = not math.isnan(run.epsilon[g])  # NaN: a family that does not learn online
+        rates = f"  ε {run.epsilon[g]:.3f}  α {run.alpha[g]:.3f}" if learned else ""
         print(
             f"  generation {g:5d}: best return {returns.max():.1f}  mean {returns.mean():.1f}"
-            f" ± {returns.std():.1f}  ε {run.epsilon[g]:.3f}  α {run.alpha[g]:.3f}"
+            f" ± {returns.std():.1f}{rates}"
         )
     print("\n# config")
     print(run.config.model_dump_json(indent=2))
@@ -165,26 +169,28 @@ def replay(args: argparse.Namespace) -> int:
 
 
 def export(path: Path, out: Path, generation: int | None) -> int:
-    """`gnp-lab export` of a task run: controller.json (the task in its settings), fitness.csv."""
+    """`gnp-lab export` of a task run: controller.json (the family's controller document, the
+    task in its settings), fitness.csv."""
     run = read_task_run(path)
     g = run.generation_done - 1 if generation is None else generation
-    cfg, individual = run.best_genome(g)
+    family = run.config.family
+    individual = run.best_individual(g)
     if out.exists() and any(out.iterdir()):
         raise RunFileError(f"{out} is not empty")
-    out.mkdir(parents=True, exist_ok=True)
+    rates = {"epsilon": float(run.epsilon[g]), "alpha": float(run.alpha[g])}
     about = {
         "run": path.stem,
         "generation": g,
         "task": run.config.task.model_dump(),
-        "method": cfg.method,
-        "fuzzy": cfg.fuzzy,
+        **family.export_settings(),
         "seed": run.config.seed,
-        "epsilon": float(run.epsilon[g]),
-        "alpha": float(run.alpha[g]),
+        **(rates if family.learns_online else {}),
         "fitness": float(run.fitness[g].max()),
         "gnp_lab_version": run.package_version,
     }
-    save_controller(out / "controller.json", GnpController(cfg, individual, about))
+    document = family.controller_document(individual, about)
+    out.mkdir(parents=True, exist_ok=True)
+    save_document(out / "controller.json", document)
     with (out / "fitness.csv").open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["generation", "best_return", "mean_return"])

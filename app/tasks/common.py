@@ -21,7 +21,8 @@ FORMAT = TASK_RUN_FORMAT
 
 
 class TaskError(ValueError):
-    """A task GNP cannot run (unknown id, a space it cannot judge or emit, bad bounds)."""
+    """A task the lab cannot run (unknown id, a space it cannot judge or emit, bad bounds), or a
+    brain family that cannot run on it."""
 
 
 #: How a task run's final elite lives its test (and validation) episodes: "as-trained" (its

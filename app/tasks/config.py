@@ -1,10 +1,13 @@
-"""Settings of a GNP run on a Gymnasium task: the task, and the lab's own GNP settings.
+"""Settings of a run on a Gymnasium task: the task, the brain family's settings, the training.
 
-A `TaskRunConfig` names its brain as a robot run's config does: a `brain` section holding the
-family's own settings (GNP's `GnpSettings`: `controller`, `evolution`; GNP is the only family
-that runs on tasks for now) and, of the training phase, what a task uses: population,
-generations, a life's cap in steps and the ε/α schedules (built from the lab's
-`TrainingSettings`, so `gnp-lab train`'s options set them). A task config stored in layout 1
+A `TaskRunConfig` names its brain as a robot run's config does: a `brain` section holding any
+registered family's own settings (GNP's `GnpSettings`: `controller`, `evolution`; a net's
+`NetSettings`; a family registered from outside), checked with the family's model as a robot
+run's is, and, of the training phase, what a task uses: population, generations, a life's cap
+in steps and the ε/α schedules (built from the lab's `TrainingSettings`, so `gnp-lab train`'s
+options set them). `family` binds the brain family to the task: to a `RunConfig` of the run's
+seed, brain and training sizes, its brains reading the task's features and emitting its
+actions (`BrainIO` of the task's adapter). A task config stored in layout 1
 (`controller`, `evolution` at the top; every task run and preset before issue #46) is moved to
 layout 2 when read (`app.settings.layouts.layout_2`); `task_layout_1` maps a dumped one back,
 for a task experiment's identity (`app.experiments.ledger`).
@@ -17,13 +20,23 @@ from functools import cached_property
 from typing import Any
 
 import gymnasium as gym
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializeAsAny,
+    field_validator,
+    model_validator,
+)
 
 import gnp
+from app.brains.contract import BrainFamily, BrainIO
+from app.brains.gnp_brain import sized_gnp_config
 from app.brains.gnp_settings import GnpSettings
 from app.brains.learning import schedules
-from app.settings.config import RunConfig
-from app.settings.families import DEFAULT_BRAIN, BrainSettings
+from app.brains.registry import family_of
+from app.settings.config import ConfigError, RunConfig, TrainingSettings, brain_field
+from app.settings.families import DEFAULT_BRAIN, BrainSettings, brain_section
 from app.settings.layouts import GNP_SECTIONS, layout_1, layout_2
 from app.tasks.common import TEST_PROTOCOLS, EpisodeProtocol, TaskError, TestProtocol
 from app.tasks.spaces import TaskAdapter, task_adapter
@@ -114,14 +127,6 @@ PROTOCOL_FIELDS = tuple(EpisodeProtocol.model_fields)
 """`EpisodeProtocol`'s settings, which `TaskTraining` holds and a `[task]` section sets."""
 
 
-def not_on_tasks(family: str) -> TaskError:
-    """The refusal of a brain family other than GNP on a task."""
-    return TaskError(
-        f"brain family {family!r} does not run on Gymnasium tasks; a task run "
-        f"trains {DEFAULT_BRAIN} (drop --brain, or train {family} in the arena)"
-    )
-
-
 TASK_LAYOUT_1 = ("seed", "task", *GNP_SECTIONS, "training")
 """A task config's sections in layout 1, in the order its JSON held them."""
 
@@ -130,7 +135,9 @@ def task_layout_1(data: Mapping[str, Any]) -> dict[str, Any]:
     """A dumped task config (`TaskRunConfig.model_dump(mode="json")`, some fields left out or
     not) in layout 1, its sections in the order layout 1 wrote them: a task run's identity as
     every committed ledger holds it."""
-    out = layout_1(data, DEFAULT_BRAIN)
+    brain = data.get("brain")
+    family = brain.get("family", DEFAULT_BRAIN) if isinstance(brain, Mapping) else DEFAULT_BRAIN
+    out = layout_1(data, family)
     return {key: out[key] for key in TASK_LAYOUT_1 if key in out} | {
         key: value for key, value in out.items() if key not in TASK_LAYOUT_1
     }
@@ -141,69 +148,93 @@ class TaskRunConfig(_Frozen):
 
     seed: int = Field(default=0, ge=0, le=2**63 - 1, description="random seed of the run")
     task: TaskSettings
-    brain: GnpSettings = Field(
-        default=GnpSettings(), description="the brain: GNP's settings (controller, evolution)"
-    )
+    brain: SerializeAsAny[BrainSettings] = brain_field()
     training: TaskTraining = TaskTraining()
 
     @model_validator(mode="before")
     @classmethod
     def _in_layout_2(cls, data: Any) -> Any:
-        """A stored task config of layout 1 moved to layout 2; a brain of another family
-        refused (`TaskError`)."""
-        if not isinstance(data, Mapping):
-            return data
-        data = layout_2(data)
-        brain = data.get("brain")
-        family = (
-            brain.family
-            if isinstance(brain, BrainSettings)
-            else brain.get("family", DEFAULT_BRAIN)
-            if isinstance(brain, Mapping)
-            else DEFAULT_BRAIN
-        )
-        if family != DEFAULT_BRAIN:
-            raise not_on_tasks(str(family))
-        return data
+        """A stored task config of layout 1 moved to layout 2."""
+        return layout_2(data) if isinstance(data, Mapping) else data
+
+    _brain_section = field_validator("brain", mode="before")(brain_section)
 
     @cached_property
     def adapter(self) -> TaskAdapter:
         return self.task.adapter()
 
-    def gnp_config(self) -> gnp.GnpConfig:
-        """The brain: the lab's controller settings, inputs and outputs the task's; with
-        `processing_output` "function" a Discrete(n) task's brain has n outputs, one processing
-        function per action (output 0 read in n bins: the function is the action).
+    @property
+    def io(self) -> BrainIO:
+        """What a brain reads and emits on the task: its features, its commands (one for
+        Discrete(n), read in n bins; d for Box(d)), n of a Discrete(n) action."""
+        adapter = self.adapter
+        return BrainIO(adapter.n_inputs, adapter.n_outputs, adapter.n_actions)
+
+    def run_config(self) -> RunConfig:
+        """The robot run's config a family is bound with: the run's seed and brain, its
+        population, generations and a life's cap (the arena's settings at their defaults,
+        unused). A generation's ε and α are the task's (`TaskTraining.epsilon_alpha`)."""
+        training = self.training
+        sizes = TrainingSettings(
+            population=training.population, generations=training.generations, steps=training.steps
+        )
+        return RunConfig(seed=self.seed, brain=self.brain, training=sizes)
+
+    @property
+    def family(self) -> BrainFamily:
+        """The brain family bound to the task (`run_config`, `io`): bound anew at each call
+        (a tenth of a millisecond), so a copy of the config with other settings
+        (`model_copy`) never holds its original's family.
 
         Raises:
-            TaskError: `processing_output` "function" on a task whose action is not Discrete.
+            TaskError: the family is not registered, or cannot run on this task (one line).
         """
-        adapter = self.adapter
-        settings = self.brain.controller.gnp_config().model_dump()
-        outputs = adapter.n_outputs
-        if self.brain.controller.processing_output == "function":
-            if adapter.kind != "discrete":
-                raise TaskError(
-                    f"{self.task.id}: processing_output = 'function' needs a Discrete action; "
-                    "a Box action takes the processing node's parameter ('parameter')"
-                )
-            outputs = adapter.n_actions
-        return gnp.GnpConfig(**{**settings, "n_inputs": adapter.n_inputs, "n_outputs": outputs})
+        try:
+            return family_of(self.run_config(), self.io)
+        except ConfigError as error:
+            raise TaskError(f"{self.task.id}: {error}") from None
+
+    @property
+    def description(self) -> str:
+        """The brain family's line (`CS fuzzy`, `cmaes: Elman net, 8 hidden`), without making
+        the task's env (the family described as bound to the robot's io: its words do not
+        depend on it); `NAME (not registered)` for a family not registered here."""
+        try:
+            return family_of(self.run_config()).description
+        except ConfigError:
+            return f"{self.brain.family} (not registered)"
+
+    def gnp_settings(self) -> GnpSettings:
+        """The brain's settings of a GNP run.
+
+        Raises:
+            TaskError: the run's brain is of another family.
+        """
+        if not isinstance(self.brain, GnpSettings):
+            raise TaskError(f"a GNP task run's config is needed, not one of {self.brain.family!r}")
+        return self.brain
+
+    def gnp_config(self) -> gnp.GnpConfig:
+        """A GNP run's brain (`app.brains.gnp_brain.sized_gnp_config`): the lab's controller
+        settings, inputs and outputs the task's; with `processing_output` "function" a
+        Discrete(n) task's brain has n outputs, one processing function per action.
+
+        Raises:
+            TaskError: not a GNP run, or `processing_output` "function" on a task whose action
+                is not Discrete.
+        """
+        try:
+            return sized_gnp_config(self.gnp_settings().controller, self.io)
+        except ConfigError as error:
+            raise TaskError(f"{self.task.id}: {error}") from None
 
     @classmethod
     def from_run_config(
         cls, config: RunConfig, task: TaskSettings, protocol: EpisodeProtocol | None = None
     ) -> TaskRunConfig:
-        """The task run of the lab's settings (seed, brain, population,
+        """The task run of the lab's settings (seed, brain of any family, population,
         generations, steps, ε/α schedules) and of `protocol` (its episodes and test; the
-        defaults when None); the arena, noise and physics do not apply.
-
-        Raises:
-            TaskError: the config's brain is not GNP (the only family that runs on tasks).
-        """
-        brain = config.brain
-        if not isinstance(brain, GnpSettings):
-            raise not_on_tasks(brain.family)
+        defaults when None); the arena, noise and physics do not apply."""
         eps, alpha = schedules(config.training)
         training = TaskTraining(
             population=config.training.population,
@@ -214,7 +245,7 @@ class TaskRunConfig(_Frozen):
             schedule_progress=config.training.schedule_progress,
             **{name: getattr(protocol or EpisodeProtocol(), name) for name in PROTOCOL_FIELDS},
         )
-        return cls(seed=config.seed, task=task, brain=brain, training=training)
+        return cls(seed=config.seed, task=task, brain=config.brain, training=training)
 
 
 __all__ = [

@@ -1,35 +1,44 @@
-"""Lives of GNP individuals on a Gymnasium task, all of a batch stepping together.
+"""Lives of any brain family's individuals on a Gymnasium task, all of a batch stepping together.
 
 Each individual lives one episode (capped at a number of steps) in its own environment of a
-vector env, learning online by Sarsa as its method says; its fitness is the episode's return.
-Its environment starts from its own seed, and its controller draws from its own stream, so its
-life is the same whatever else is in the batch: a batch equals one-by-one lives with the single
-environment (`gymnasium.make(task)` reset with the same seed; tested).
+vector env, driven by its family's controllers (`BrainFamily.controllers`) through the task's
+adapter (features scaled to readings, commands to actions; `app.tasks.spaces`); its fitness is
+the episode's return. Its environment starts from its own seed, and its controller draws from
+its own stream, so its life is the same whatever else is in the batch.
 
-CartPole-v1, MountainCar-v0 and Acrobot-v1 (`app.tasks.dynamics.FAST_TASKS`) live without
-Gymnasium's envs: the lab's compiled twins of their envs (bit for bit Gymnasium's, tested step
-for step) and GNP's kernel run every individual's whole episode in one compiled call, the same
-lives as through Gymnasium, 4-60 times faster (bench/tasks.py). Any other task, and a batch with
-observation faults, goes through Gymnasium: the batch steps through the task's own vector env
-(`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
+`live` is the one path of every family: the controllers step the whole batch each step; an
+individual whose episode ended stops counting (its return and length are kept, its actions are
+ignored, its reward is 0), and one that learns online (`app.loop.rollout.OnlineLearner`, given
+ε, α and `learn`) is kept as it was when its episode ended (a copy taken then). A family may
+have lives of its own on tasks, keyed by its name in `FAMILY_LIVES` and reached through
+`live`: GNP's (`app.tasks.gnp_lives`), which step only the individuals still in their episode,
+end a terminated one with the terminal Sarsa update, and on CartPole, MountainCar and Acrobot
+(`app.tasks.dynamics.FAST_TASKS`) run every individual's whole episode in one compiled call on
+the lab's twins of their envs (bit for bit Gymnasium's, tested step for step), 4-60 times
+faster (bench/tasks.py).
+
+The environments: any task without a compiled twin, any family without lives of its own, and
+a batch with observation faults go through Gymnasium: the batch steps through the task's own
+vector env (`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
 environments from its own seed (`START_STATES`: CartPole, whose vector env draws every start
 state from one stream otherwise), else through `SyncVectorEnv` reset with one seed per
-environment. An individual whose episode ended stops acting (the vector env's autoreset of its
-environment is ignored); the batch ends when every episode has. An episode that terminates (not
-one truncated by a time limit or the cap) ends with the terminal Sarsa update
-(`gnp.end_episode`).
+environment. The vector env's autoreset of an environment whose episode ended is ignored; the
+batch ends when every episode has.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
 
-import gnp
+from app.brains.contract import BrainFamily
+from app.brains.gnp_brain import GnpFamily
+from app.loop.rollout import OnlineLearner
 from app.tasks import dynamics
 from app.tasks.faults import ObservationFault, ObservationFaults
 from app.tasks.spaces import TaskAdapter
@@ -63,15 +72,20 @@ class FaultPlan:
 
 class BatchEnv:
     """n environments of `task` stepping together (see the module docstring): `mode` "fast"
-    (the lab's compiled twin of the env: `fast`; no Gymnasium env is made), else
-    "vector_entry_point" or "sync" (`env`)."""
+    (the lab's compiled twin of the env: `fast`; no Gymnasium env is made; only with `twins`,
+    for lives that step twins, GNP's), else "vector_entry_point" or "sync" (`env`)."""
 
     def __init__(
-        self, task: str, n: int, adapter: TaskAdapter, faults: FaultPlan | None = None
+        self,
+        task: str,
+        n: int,
+        adapter: TaskAdapter,
+        faults: FaultPlan | None = None,
+        twins: bool = True,
     ) -> None:
         spec = gym.spec(task)
         self.n = n
-        self.fast = dynamics.FAST_TASKS.get(task) if faults is None else None
+        self.fast = dynamics.FAST_TASKS.get(task) if faults is None and twins else None
         self._start = START_STATES.get(task) if faults is None else None
         self.env: gym.vector.VectorEnv | None = None
         self._sync: gym.vector.SyncVectorEnv | None = None
@@ -127,25 +141,67 @@ def _maker(
 
 @dataclass(frozen=True)
 class TaskLives:
-    """What a batch of lives gave: each individual's return and length, and the population
-    after its lives (Q tables learned)."""
+    """What a batch of lives gave: each individual's return and length, and the individuals
+    after their lives (the family's; what online learners learned in their episode)."""
 
     returns: np.ndarray
     lengths: np.ndarray
-    learned: gnp.Population
+    learned: Any
 
 
-def _idle_actions(adapter: TaskAdapter, n: int) -> np.ndarray:
+def idle_actions(adapter: TaskAdapter, n: int) -> np.ndarray:
+    """Actions of n individuals before they act (of those whose episode has ended)."""
     if adapter.kind == "discrete":
         return np.full(n, adapter.action_start, dtype=adapter.action_dtype)
     return np.tile(adapter.act_low, (n, 1)).astype(adapter.action_dtype)
 
 
+class FamilyLives(Protocol):
+    """A family's own lives on a task, with `live`'s arguments and result."""
+
+    def __call__(
+        self,
+        family: BrainFamily,
+        adapter: TaskAdapter,
+        env: BatchEnv,
+        individuals: Any,
+        env_seeds: np.ndarray,
+        engine_seeds: np.ndarray,
+        epsilon: float,
+        alpha: float,
+        max_steps: int,
+        learn: bool,
+    ) -> TaskLives: ...
+
+
+FAMILY_LIVES: dict[str, str] = {GnpFamily.name: "app.tasks.gnp_lives:family_lives"}
+"""Families with lives of their own on tasks: name → "module:function" (a `FamilyLives`),
+imported on first use."""
+
+
+def family_lives(name: str) -> FamilyLives | None:
+    """The lives of family `name` on tasks, if it has its own."""
+    entry = FAMILY_LIVES.get(name)
+    if entry is None:
+        return None
+    module, _, function = entry.partition(":")
+    found: FamilyLives = getattr(importlib.import_module(module), function)
+    return found
+
+
+def batch_env(
+    family: BrainFamily, task: str, n: int, adapter: TaskAdapter, faults: FaultPlan | None = None
+) -> BatchEnv:
+    """The batch env of `family`'s lives: compiled twins only for a family with lives of its
+    own (`FAMILY_LIVES`: GNP's step them), else Gymnasium's."""
+    return BatchEnv(task, n, adapter, faults, twins=family.name in FAMILY_LIVES)
+
+
 def live(
-    cfg: gnp.GnpConfig,
+    family: BrainFamily,
     adapter: TaskAdapter,
     env: BatchEnv,
-    pop: gnp.Population,
+    individuals: Any,
     env_seeds: Sequence[int] | np.ndarray,
     engine_seeds: Sequence[int] | np.ndarray,
     epsilon: float,
@@ -153,47 +209,74 @@ def live(
     max_steps: int,
     learn: bool = True,
 ) -> TaskLives:
-    """One episode per individual of `pop` (left unchanged), at most `max_steps` steps each."""
-    n = pop.size
-    if env.n != n:
-        raise ValueError(f"the batch has {env.n} environments for {n} individuals")
-    learned = gnp.take(pop, np.arange(n))  # learns in place; `pop` stays as it was
-    state = gnp.init_state(cfg, n, np.asarray(engine_seeds, dtype=np.uint64))
-    if env.fast is not None:
-        returns, lengths = dynamics.lives(
-            env.fast, cfg, adapter, learned, state, np.asarray(env_seeds), epsilon, alpha,
+    """One episode per individual of `individuals` (left unchanged; the family's, bound to the
+    task's `BrainIO`), at most `max_steps` steps each (see the module docstring)."""
+    env_seeds, engine_seeds = np.asarray(env_seeds), np.asarray(engine_seeds, dtype=np.uint64)
+    own = family_lives(family.name)
+    if own is not None:
+        return own(
+            family, adapter, env, individuals, env_seeds, engine_seeds, epsilon, alpha,
             max_steps, learn,
         )  # fmt: skip
-        return TaskLives(returns=returns, lengths=lengths, learned=learned)
-    obs = env.reset(np.asarray(env_seeds))
+    return generic_lives(
+        family, adapter, env, individuals, env_seeds, engine_seeds, epsilon, alpha, max_steps,
+        learn,
+    )  # fmt: skip
+
+
+def generic_lives(
+    family: BrainFamily,
+    adapter: TaskAdapter,
+    env: BatchEnv,
+    individuals: Any,
+    env_seeds: np.ndarray,
+    engine_seeds: np.ndarray,
+    epsilon: float,
+    alpha: float,
+    max_steps: int,
+    learn: bool = True,
+) -> TaskLives:
+    """`live` through the contract alone: any family's controllers over the batch env."""
+    n = env.n
+    if len(engine_seeds) != n:
+        raise ValueError(f"the batch has {n} environments for {len(engine_seeds)} individuals")
+    lived = family.for_life(individuals)  # a copy if they learn: `individuals` stay as they were
+    controllers = family.controllers(lived, engine_seeds)
+    if controllers.size != n:
+        raise ValueError(f"the batch has {n} environments for {controllers.size} individuals")
+    if isinstance(controllers, OnlineLearner):
+        controllers.set_rates(epsilon, alpha, learn)
+    learner = family.learns_online
+    if env.mode == "fast":
+        raise ValueError("a batch of compiled twins steps a family's own lives only")
+    obs = env.reset(env_seeds)
     returns = np.zeros(n)
     lengths = np.zeros(n, np.int64)
-    alive = np.arange(n)  # individuals still in their episode
-    part, part_state = learned, state  # their population and engine state
+    alive = np.ones(n, bool)
+    ended_as: dict[int, Any] = {}  # a learner as its episode ended
     reward = np.zeros(n)
-    actions = _idle_actions(adapter, n)
+    actions = idle_actions(adapter, n)
     for _ in range(max_steps):
-        readings = adapter.observe(obs[alive])
-        commands, _ = gnp.step(cfg, part, part_state, readings, reward, epsilon, alpha, learn)
-        actions[alive] = adapter.act(commands)
-        obs, rewards, terminated, done = env.step(actions)
+        commands, _ = controllers.act(adapter.observe(obs), reward, trace=False)
+        commands = np.asarray(commands, dtype=np.float64)
+        if commands.shape != (n, adapter.n_outputs):
+            raise ValueError(
+                f"brain family {family.name!r} gave commands of shape {commands.shape}; the "
+                f"task takes ({n}, {adapter.n_outputs})"
+            )
+        actions[alive] = adapter.act(commands[alive])
+        obs, rewards, _, done = env.step(actions)
         returns[alive] += rewards[alive]
         lengths[alive] += 1
-        ended = done[alive]
-        if learn and terminated[alive].any():  # a terminal state: Sarsa without a successor
-            gnp.end_episode(cfg, part, part_state, rewards[alive], alpha, terminated[alive])
-        reward = rewards[alive][~ended]
-        if ended.any():
-            if part is not learned:
-                learned.records[alive[ended]] = part.records[ended]
-            keep = np.flatnonzero(~ended)
-            alive = alive[keep]
-            if alive.size == 0:
-                break
-            part = gnp.take(part, keep)  # the rest go on in a population of their own
-            part_state = gnp.EngineState(
-                walk=part_state.walk[keep], wheels=part_state.wheels[keep], rng=part_state.rng[keep]
-            )
-    if alive.size and part is not learned:
-        learned.records[alive] = part.records
-    return TaskLives(returns=returns, lengths=lengths, learned=learned)
+        ended = alive & done
+        if learner:
+            for i in np.flatnonzero(ended):
+                ended_as[int(i)] = family.take(lived, [int(i)])
+        alive &= ~done
+        if not alive.any():
+            break
+        reward = np.where(alive, rewards, 0.0)
+    if learner and ended_as:
+        rows = [ended_as.get(i) or family.take(lived, [i]) for i in range(n)]
+        lived = family.concat(rows)
+    return TaskLives(returns=returns, lengths=lengths, learned=lived)

@@ -1,5 +1,6 @@
-"""A Gymnasium task as a GNP brain sees it: observation features scaled to the judgment range
-0..1023, processing-node outputs (−10..10) read as actions.
+"""A Gymnasium task as a brain sees it (GNP's, a net's, any family's): observation features scaled
+to the readings' range 0..1023 (GNP's judgment range, the robot's IR), commands (−10..10, GNP's
+processing-node outputs, the robot's wheel range) read as actions.
 
 Observation feature j in [low_j, high_j] maps linearly to 0..1023 and is clipped there. The
 bounds are the observation space's, or those given in the settings, or, for a feature the space

@@ -1,21 +1,24 @@
-"""Task run files: one HDF5 file per run, with the lab's run-file conventions.
+"""Task run files: one HDF5 file per run of any brain family, with the lab's run-file conventions.
 
 Root attributes `format` ("gnp-lab-task-run"), `schema_version`, `package_version`, `seed`,
 `config` (the `TaskRunConfig` as JSON), `task` (the Gymnasium id) and `generations_done`;
 `history/fitness` (G, N) returns, `history/epsilon`, `history/alpha` (G,), `history/env_steps`
 (G,) int64 the env-steps each generation's episodes took (the sum of their lengths; a file
 written before #45 has none, and a run resumed from one writes none), `history/best/<field>`
-(G, ...) the genome and Q tables of each generation's best after its life, and
-`checkpoint/<field>` (N, ...) the population the next generation (`checkpoint.attrs
-["generation"]`) starts from. Plain h5py, no pickled objects; rows past `generations_done` are
-not yet valid. Written generation by generation (flushed), so a crash loses at most the
-generation in flight, and `resume` goes on from the checkpoint.
+(G, ...) each generation's best after its life, and `checkpoint/<field>` (N, ...) the
+population the next generation (`checkpoint.attrs["generation"]`) starts from, both in the
+arrays of the family's `genome_layout` (GNP: genome and Q tables; a net: its weights). The
+family is the config's `brain.family` (a file written before #46 item 2 is GNP's); ε and α are
+NaN for a family that does not learn online. Plain h5py, no pickled objects; rows past
+`generations_done` are not yet valid. Written generation by generation (flushed), so a crash
+loses at most the generation in flight, and `resume` goes on from the checkpoint.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -71,10 +74,9 @@ class TaskRunWriter:
             history.create_dataset(name, (0,), np.float64, maxshape=(None,))
         steps = history.create_dataset("env_steps", (0,), np.int64, maxshape=(None,))
         steps.attrs["unit"] = "env steps"
-        cfg = config.gnp_config()
         best = history.create_group("best")
-        for name, shape in gnp.field_shapes(cfg).items():
-            best.create_dataset(name, (0, *shape), gnp.field_dtype(name), maxshape=(None, *shape))
+        for name, (shape, dtype) in config.family.genome_layout.items():
+            best.create_dataset(name, (0, *shape), dtype, maxshape=(None, *shape))
         return cls(path, handle, config)
 
     @classmethod
@@ -150,17 +152,33 @@ class TaskRun:
     #: (generations_done,) env-steps per generation; None for a file written before #45
     env_steps: np.ndarray | None = None
 
-    def best_genome(self, generation: int | None = None) -> tuple[gnp.GnpConfig, gnp.Population]:
-        """(brain config, 1-individual population) of a generation's best (default: last)."""
+    def best_arrays(self, generation: int | None = None) -> dict[str, np.ndarray]:
+        """A generation's best (default: the last) as the file stores it: its family's arrays,
+        with a leading axis of 1."""
         done = self.generation_done
         g = done - 1 if generation is None else generation
         if not 0 <= g < done:
             raise RunFileError(f"{self.path.name} has generations 0..{done - 1}, not {g}")
-        cfg = self.config.gnp_config()
         with h5py.File(self.path, "r", locking=False) as handle:
             best = handle["history/best"]
-            arrays = {name: best[name][g : g + 1] for name in best}
-        return cfg, gnp.population_from_arrays(cfg, arrays)
+            return {name: best[name][g : g + 1] for name in best}
+
+    def best_individual(self, generation: int | None = None) -> Any:
+        """A generation's best (default: the last) as its family's individuals (one).
+
+        Raises:
+            RunFileError: no such generation, or arrays the family does not read (one line).
+            TaskError: the run's family is not registered here, or cannot run on its task.
+        """
+        family, arrays = self.config.family, self.best_arrays(generation)
+        try:
+            return family.from_arrays(arrays)
+        except ValueError as error:  # a family's own check (GNP's `gnp.GnpError`)
+            raise RunFileError(f"{self.path.name}: an invalid best individual: {error}") from None
+
+    def best_genome(self, generation: int | None = None) -> tuple[gnp.GnpConfig, gnp.Population]:
+        """(brain config, 1-individual population) of a GNP run's best (`best_individual`)."""
+        return self.config.gnp_config(), self.best_individual(generation)
 
 
 def read_task_run(path: str | Path) -> TaskRun:

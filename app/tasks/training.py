@@ -1,14 +1,15 @@
-"""Training GNP on a Gymnasium task, and replaying a trained individual.
+"""Training any brain family on a Gymnasium task, and replaying a trained individual.
 
 Built on the lab's own pieces: the generation loop is the robot's
 (`app.phases.generations.run_generations`, with `TaskLab` as the lab: lives in the task's
-environments, generations in a task run file) and the population evolves as the GNP family's
-(`app.brains.gnp_brain.GnpEvolution`): generation 0 drawn from (seed, init), lives that learn
-online with ε and α fixed or scheduled, the learned population evolved by `gnp.evolve` with the
-Generator of (seed, generation), every life's random inputs keyed by (seed, generation,
-individual) (`app.loop.seeds.life_seeds`; with `shared_episodes` every individual of a
-generation lives individual 0's episode). A run is a function of its config and seed, and a
-resumed run matches one never interrupted.
+environments, generations in a task run file) and the population evolves as its family's
+(`TaskRunConfig.family`: `first`, `advance`, `rebuild` of the brain contract; GNP's generation 0
+drawn from (seed, init), evolved by `gnp.evolve` with the Generator of (seed, generation); a
+net's optimiser drawing from its own stream): lives that learn online do so with the task's ε
+and α, fixed or scheduled (NaN in the file for a family that does not learn online), and every
+life's random inputs are keyed by (seed, generation, individual) (`app.loop.seeds.life_seeds`;
+with `shared_episodes` every individual of a generation lives individual 0's episode). A run is
+a function of its config and seed, and a resumed run matches one never interrupted.
 
 The final elite (`elite_generation`) is the last generation's best, or with K =
 `validation_episodes` > 1 the generation best (of every generation) whose mean return over K
@@ -21,12 +22,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-import gnp
-from app.brains.gnp_brain import GnpEvolution
-from app.loop.seeds import init_rng, life_seeds
+from app.brains.contract import Evolution
+from app.loop.seeds import life_seeds
 from app.phases.generations import (
     Control,
     GenerationSummary,
@@ -40,7 +41,7 @@ from app.system.memory import COPIES, check_memory
 from app.tasks.common import TaskError
 from app.tasks.config import TaskRunConfig, TestProtocol
 from app.tasks.faults import ObservationFault
-from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, live
+from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, batch_env, live
 from app.tasks.store import TaskRunWriter, read_task_run
 
 # What callers of task training meet, imported from their rooms.
@@ -54,43 +55,53 @@ __all__ = [
 ]
 
 
-def first_population(config: TaskRunConfig) -> gnp.Population:
-    """Generation 0, drawn from (seed, init)."""
-    return gnp.init_population(
-        config.gnp_config(), config.training.population, init_rng(config.seed)
-    )
+class TaskEvolution:
+    """A family's evolution on a task: its own (`first`, `rebuild`), a generation's ε and α the
+    task's (`TaskTraining.epsilon_alpha`) for a family that learns online, NaN for one that
+    does not (as robot runs record them)."""
+
+    def __init__(self, config: TaskRunConfig, evolution: Evolution) -> None:
+        self._training, self._evolution = config.training, evolution
+        self._learns = config.family.learns_online
+
+    def epsilon_alpha(self, generation: int) -> tuple[float, float]:
+        if not self._learns:
+            return float("nan"), float("nan")
+        return self._training.epsilon_alpha(generation)
+
+    def individuals(self) -> Any:
+        return self._evolution.individuals()
+
+    def arrays(self, individuals: Any) -> dict[str, np.ndarray]:
+        return self._evolution.arrays(individuals)
+
+    def advance(self, learned: Any, fitness: np.ndarray, generation: int) -> dict[str, np.ndarray]:
+        return self._evolution.advance(learned, fitness, generation)
 
 
-def task_evolution(config: TaskRunConfig, pop: gnp.Population) -> GnpEvolution:
-    """`pop` as a task run's population, evolving as the GNP family's does."""
-    training = config.training
-    return GnpEvolution(
-        config.gnp_config(),
-        pop,
-        seed=config.seed,
-        generations=training.generations,
-        evolution=config.brain.evolution,
-        rates=training.epsilon_alpha,
-    )
+def first_population(config: TaskRunConfig) -> Any:
+    """Generation 0's individuals (the family's `first`)."""
+    return config.family.first().individuals()
 
 
 def generation_lives(
     config: TaskRunConfig,
-    pop: gnp.Population,
+    individuals: Any,
     generation: int,
     epsilon: float,
     alpha: float,
     env: BatchEnv | None = None,
 ) -> TaskLives:
-    """The lives of `pop` (generation `generation`) on the task."""
-    n = pop.size
+    """The lives of `individuals` (generation `generation`) on the task."""
+    family = config.family
+    n = family.size(individuals)
     seeds = life_seeds(config.seed, generation, np.arange(n), 1, 1)
     world = np.full(n, seeds.world[0]) if config.training.shared_episodes else seeds.world
     own = env is None
-    batch = BatchEnv(config.task.id, n, config.adapter) if env is None else env
+    batch = batch_env(family, config.task.id, n, config.adapter) if env is None else env
     try:
         return live(
-            config.gnp_config(), config.adapter, batch, pop, world, seeds.engine,
+            family, config.adapter, batch, individuals, world, seeds.engine,
             epsilon, alpha, config.training.steps,
         )  # fmt: skip
     finally:
@@ -105,13 +116,12 @@ class TaskLab:
     def __init__(self, writer: TaskRunWriter) -> None:
         self.writer, self.config = writer, writer.config
         self.generations = self.config.training.generations
-        self._env = BatchEnv(
-            self.config.task.id, self.config.training.population, self.config.adapter
+        config = self.config
+        self._env = batch_env(
+            config.family, config.task.id, config.training.population, config.adapter
         )
 
-    def live(
-        self, individuals: gnp.Population, generation: int, epsilon: float, alpha: float
-    ) -> Lived:
+    def live(self, individuals: Any, generation: int, epsilon: float, alpha: float) -> Lived:
         lives = generation_lives(self.config, individuals, generation, epsilon, alpha, self._env)
         return Lived(fitness=lives.returns, after=lives.learned, steps=int(lives.lengths.sum()))
 
@@ -130,7 +140,7 @@ class TaskLab:
     def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
         self.writer.write_checkpoint(next_generation, arrays)
 
-    def last(self, individuals: gnp.Population, lived: Lived, epsilon: float, alpha: float) -> None:
+    def last(self, individuals: Any, lived: Lived, epsilon: float, alpha: float) -> None:
         pass  # a task run keeps no elite's life
 
     def done(self, generations_done: int) -> None:
@@ -152,18 +162,18 @@ def train_task(
     """Train `config` into a new task run file `out`.
 
     Raises:
-        TaskError: the task cannot be run by GNP.
+        TaskError: the task cannot be run by the brain family.
         RunFileError: `out` exists or cannot be created.
         Interrupted: Ctrl-C / SIGTERM / a stop; the file holds every complete generation.
     """
-    config.gnp_config()  # a bad task fails before any file is made
+    family = config.family  # a bad task or brain fails before any file is made
     population = config.training.population
     check_memory(
         population * COPIES * individual_bytes(config), f"{population} individuals", TaskError
     )
     control = control or Control()
     with stop_on_signals(control):  # a stop before generation 0's checkpoint leaves no file
-        evolution = task_evolution(config, first_population(config))
+        evolution = TaskEvolution(config, family.first())
         writer = TaskRunWriter.create(out, config)
         try:
             writer.write_checkpoint(0, evolution.arrays(evolution.individuals()))
@@ -181,8 +191,13 @@ def resume_task(
 ) -> Path:
     """Continue an interrupted task run from its checkpoint (as `train_task`)."""
     writer, generation, arrays = TaskRunWriter.resume(path)
-    pop = gnp.population_from_arrays(writer.config.gnp_config(), arrays)
-    evolution = task_evolution(writer.config, pop)
+    config = writer.config
+    try:
+        fitness = read_task_run(path).fitness[:generation]
+        evolution = TaskEvolution(config, config.family.rebuild(generation, arrays, fitness))
+    except BaseException:
+        writer.close()
+        raise
     run_generations(TaskLab(writer), evolution, generation, progress, control or Control())
     return writer.path
 
@@ -206,20 +221,21 @@ def replay_episodes(
     """Live a generation's best individual (default: the last) again, one episode per seed, all
     at once (a clone per seed): episode i starts from `seeds[i]`, which also seeds its
     controller's stream and its faults' `random` draws. ε and α are the generation's unless
-    `epsilon` is given (0: greedy). Each episode is the one `replay_task` lives from its seed."""
+    `epsilon` is given (0: greedy; both unused by a family that does not learn online). Each
+    episode is the one `replay_task` lives from its seed."""
     run = read_task_run(path)
-    cfg, individual = run.best_genome(generation)
+    individual = run.best_individual(generation)
     g = run.generation_done - 1 if generation is None else generation
     config = run.config
-    adapter = config.adapter
+    family, adapter = config.family, config.adapter
     n = len(seeds)
     plan = FaultPlan(faults, tuple(int(s) for s in seeds)) if faults else None
-    env = BatchEnv(config.task.id, n, adapter, plan)
+    env = batch_env(family, config.task.id, n, adapter, plan)
     eps = float(run.epsilon[g]) if epsilon is None else epsilon
-    clones = gnp.take(individual, np.zeros(n, np.intp))
+    clones = family.copies(individual, n)
     try:
         return live(
-            cfg, adapter, env, clones, seeds, seeds, eps, float(run.alpha[g]),
+            family, adapter, env, clones, seeds, seeds, eps, float(run.alpha[g]),
             config.training.steps, learn,
         )  # fmt: skip
     finally:
@@ -230,7 +246,8 @@ def protocol_episodes(
     path: str | Path, seeds: Sequence[int], generation: int | None, protocol: TestProtocol
 ) -> TaskLives:
     """`replay_episodes` of a generation's best under a test protocol: "as-trained" (its
-    generation's ε and α, Sarsa on) or "greedy" (ε = 0, Sarsa frozen, so α does nothing)."""
+    generation's ε and α, Sarsa on) or "greedy" (ε = 0, Sarsa frozen, so α does nothing); the
+    same lives for a family that does not learn online."""
     if protocol == "greedy":
         return replay_episodes(path, seeds, generation, learn=False, epsilon=0.0)
     return replay_episodes(path, seeds, generation)
@@ -283,12 +300,10 @@ EPISODE_BYTES = 64 * 1024
 
 
 def individual_bytes(config: TaskRunConfig) -> int:
-    """Bytes of one individual's arrays (genome and Q tables) for the run's GNP settings."""
-    cfg = config.gnp_config()
-    return sum(
-        int(np.prod(shape)) * np.dtype(gnp.field_dtype(name)).itemsize
-        for name, shape in gnp.field_shapes(cfg).items()
-    )
+    """Bytes of one individual's arrays (its family's `genome_layout`: GNP's genome and Q
+    tables, a net's weights)."""
+    layout = config.family.genome_layout
+    return sum(int(np.prod(shape)) * np.dtype(dtype).itemsize for shape, dtype in layout.values())
 
 
 def check_episodes_memory(config: TaskRunConfig, episodes: int) -> None:

@@ -49,7 +49,7 @@ def preset_settings(
         return {"fracnetics": settings, "training": sizes}
     run = gnp_config(declared, task, values, run_seeds(1)[0])
     run.gnp_config()
-    controller = run.brain.controller
+    controller = run.gnp_settings().controller
     brain = {"method": controller.method, "fuzzy": controller.fuzzy}  # named always
     merged = nested({f"controller.{k}": v for k, v in brain.items()} | declared.run_settings())
     for section, table in nested(values).items():

@@ -3,9 +3,11 @@
 The family below is all there is of it: a settings model, controllers, an evolution strategy and
 the contract's members (`app.brains.BrainFamily`; its individuals are dicts of arrays, so
 `take`, `concat` and `from_arrays` are the contract's), registered under its `name`. Nothing under
-app/ names it. The tests take it through everything the lab does with a brain: train (in worker
-processes, started by `gnp-lab`), resume a cut run to the same bits, implement with a broken
-sensor, export, a smoke experiment on a real Dask cluster, and the dashboard in Chromium.
+app/ names it. Its vehicles size themselves by the contract's `io` (`any_io`): 8 sensors and 2
+wheels on the robot, a task's features and commands on a Gymnasium task. The tests take it
+through everything the lab does with a brain: train (in worker processes, started by
+`gnp-lab`), resume a cut run to the same bits, implement with a broken sensor, export, a smoke
+experiment on a real Dask cluster, the dashboard in Chromium, and a Gymnasium task.
 
 Other processes (the CLI, its workers, Dask's) find the family the way a user's would: the
 module is named in `GNP_LAB_BRAINS` and importable from `PYTHONPATH`.
@@ -65,7 +67,8 @@ class Drive:
 
 
 class Vehicles:
-    """N vehicles: wheel = clip(bias + gains · readings / IR_MAX, ±1) × MAX_COMMAND."""
+    """N vehicles: wheel = clip(bias + gains · readings / IR_MAX, ±1) × MAX_COMMAND (a "wheel"
+    is one of the brain's outputs: the robot's wheels, a task's commands)."""
 
     def __init__(self, arrays: dict[str, np.ndarray]) -> None:
         self.gains, self.bias = arrays["gains"], arrays["bias"]
@@ -124,11 +127,13 @@ class VehicleEvolution(Evolution):
 
 
 class Braitenberg(BrainFamily):
-    """A Braitenberg vehicle: 16 sensor-to-wheel gains and 2 biases, evolved; no learning."""
+    """A Braitenberg vehicle: a gain from each input to each output (16 on the robot) and a
+    bias per output, evolved; no learning."""
 
     name = "braitenberg"
     settings_model = VehicleSettings
     settings: VehicleSettings
+    any_io = True  # sized by `self.io`: the robot's 8 sensors and 2 wheels, or a task's
 
     @property
     def description(self) -> str:
@@ -136,18 +141,22 @@ class Braitenberg(BrainFamily):
 
     @property
     def genome_layout(self) -> dict[str, tuple[tuple[int, ...], Any]]:
-        return {"gains": ((2, sim.N_SENSORS), np.float64), "bias": ((2,), np.float64)}
+        io = self.io
+        return {
+            "gains": ((io.n_outputs, io.n_inputs), np.float64),
+            "bias": ((io.n_outputs,), np.float64),
+        }
 
     @property
     def trace_layout(self) -> dict[str, tuple[tuple[int, ...], Any]]:
-        return {"drive": ((2,), np.float64)}
+        return {"drive": ((self.io.n_outputs,), np.float64)}
 
     def first(self) -> VehicleEvolution:
         rng = np.random.default_rng([self.config.seed, 0xB7])
-        n = self.config.training.population
+        n, io = self.config.training.population, self.io
         arrays = {
-            "gains": rng.normal(0.0, 1.0, (n, 2, sim.N_SENSORS)),
-            "bias": rng.uniform(0.0, 0.5, (n, 2)),
+            "gains": rng.normal(0.0, 1.0, (n, io.n_outputs, io.n_inputs)),
+            "bias": rng.uniform(0.0, 0.5, (n, io.n_outputs)),
         }
         return VehicleEvolution(self, arrays)
 
@@ -332,6 +341,55 @@ def test_export_writes_its_controller_file_and_tables_without_a_graph(
     assert document["settings"]["brain"] == "braitenberg"
     assert document["settings"]["fitness"] == fitness and "epsilon" not in document["settings"]
     assert (out / "fitness.csv").read_text(encoding="utf-8").count("\n") == 4 + 1
+
+
+def _datasets(path: Path) -> dict[str, np.ndarray]:
+    import h5py
+
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as handle:
+        handle.visititems(
+            lambda name, obj: out.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None
+        )
+    return out
+
+
+def test_it_trains_resumes_and_replays_on_a_gymnasium_task(tmp_path: Path) -> None:
+    from app.loop.seeds import life_seeds
+    from app.phases.generations import Control, Interrupted
+    from app.tasks.store import read_task_run
+    from app.tasks.training import train_task
+
+    whole, cut = tmp_path / "whole.h5", tmp_path / "cut.h5"
+    sizes = ("--population", "8", "--generations", "3", "--steps", "60", "--seed", "3")
+    argv = ("train", "--task", "CartPole-v1", "--brain", "braitenberg", *sizes)
+    done = gnp_lab(*argv, "--out", whole, "--quiet")
+    assert done.returncode == 0, done.stderr
+    run = read_task_run(whole)
+    assert run.config.brain == VehicleSettings() and np.isnan(run.epsilon).all()
+    assert run.best_arrays()["gains"].shape == (1, 1, 4)  # CartPole: 4 features, 1 command
+    control = Control()
+
+    def stop_after_the_first(summary: Any) -> None:
+        if summary.generation == 0:
+            control.stop()
+
+    with pytest.raises(Interrupted):
+        train_task(run.config, cut, progress=stop_after_the_first, control=control)
+    resumed = gnp_lab("train", "--resume", cut, "--quiet")
+    assert resumed.returncode == 0, resumed.stderr
+    a, b = _datasets(whole), _datasets(cut)
+    assert sorted(a) == sorted(b)
+    for name in a:  # every dataset, bit for bit (ε and α: NaN)
+        assert np.array_equal(a[name], b[name], equal_nan=a[name].dtype.kind == "f"), name
+    g = run.generation_done - 1
+    best = int(np.argmax(run.fitness[g]))
+    episode = int(life_seeds(run.config.seed, g, np.array([best]), 1, 1).world[0])
+    replay = gnp_lab("replay", "whole", "--runs-dir", tmp_path, "--seed", episode)
+    assert replay.returncode == 0, replay.stderr
+    assert replay.stdout.startswith(f"return {run.fitness[g, best]:.1f} in ")
+    listing = gnp_lab("runs", "whole", "--runs-dir", tmp_path).stdout
+    assert "brain: braitenberg vehicle, sigma 0.3" in listing
 
 
 EXPERIMENT = """

@@ -137,9 +137,8 @@ def test_wrong_commands_and_coupled_robots_are_named() -> None:
             del engine_seeds
             return Coupled(individuals["gain"])
 
-    assert "act: (N, 2) finite commands in range: commands are (2, 3), not (2, 2)" in problems_of(
-        WrongShape
-    )
+    wrong = "act: (N, n_outputs) finite commands in range: commands are (2, 3), not (2, 2)"
+    assert wrong in problems_of(WrongShape)
     assert "act: rows independent: robot 0's commands depend" in problems_of(Meddling)
 
 
@@ -179,3 +178,38 @@ def test_arrays_not_of_the_genome_layout_are_refused_on_one_line() -> None:
         family.from_arrays({"gain": np.zeros((3, 2), np.float32)})
     with pytest.raises(RunFileError, match=r"^genome arrays must be \['gain'\], got \['bias'\]$"):
         family.from_arrays({"bias": np.zeros((3, 2))})
+
+
+def test_a_family_that_declares_any_io_is_checked_on_a_tasks_inputs_and_outputs() -> None:
+    class Claims(Wanderer):  # two gains whatever `io` says
+        any_io = True
+
+    found = problems_of(Claims)
+    assert "on TASK_IO: act: (N, n_outputs) finite commands in range: commands are (2, 2), " in (
+        found
+    )
+    assert "not (2, 1)" in found
+    # Its names aside (a subclass registered under none), the robot's checks all pass.
+    assert found.count("\n- ") == found.count("\n- on TASK_IO: ") + found.count("names agree")
+
+    class Sized(Wanderer):  # one gain per output
+        any_io = True
+
+        @property
+        def genome_layout(self) -> Any:
+            return {"gain": ((self.io.n_outputs,), np.float64)}
+
+        @property
+        def trace_layout(self) -> Any:
+            return {"commands": ((self.io.n_outputs,), np.float64)}
+
+        def first(self) -> Evolving:
+            rng = np.random.default_rng(self.config.seed)
+            shape = (self.config.training.population, self.io.n_outputs)
+            return Evolving({"gain": rng.uniform(-1, 1, shape)})
+
+    register(Sized)  # under Wanderer's name, as the checks need; Wanderer again after
+    try:
+        check_family(Sized, tiny_config(Wanderer))
+    finally:
+        register(Wanderer)

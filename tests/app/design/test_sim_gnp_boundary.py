@@ -18,7 +18,7 @@ def test_constants_on_both_sides_of_the_boundary_agree() -> None:
     assert brain.SENSOR_MAX == sim.IR_MAX  # β, α span the readings' range 0..1023
     # ...and what a processing node sets is a wheel command the world takes.
     assert brain.SPEED_MAX == sim.MAX_COMMAND
-    assert brain.N_WHEELS == 2  # the world steps (N, 2) commands: (left, right)
+    assert brain.N_WHEELS == sim.N_WHEELS == 2  # the world steps (N, 2) commands: (left, right)
     # A net's inputs are the same readings, its outputs the same two wheels.
     assert neuro.N_INPUTS == sim.N_SENSORS
     assert neuro.N_OUTPUTS == brain.N_WHEELS

@@ -12,6 +12,7 @@ import pytest
 from pydantic import ValidationError
 
 from app.brains.gnp_settings import ControllerSettings, GnpSettings
+from app.brains.net_settings import NetSettings
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, read_task_run, train_task
 from app.tasks.config import task_layout_1
 from app.tasks.peer import read_peer
@@ -66,8 +67,15 @@ def test_a_task_run_file_of_layout_1_reads_back_equal(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "brain", [{"brain": {"family": "cmaes"}}, {"neuro": {"optimiser": "neat"}}]
+    ("brain", "family"),
+    [({"brain": {"family": "cmaes"}}, "cmaes"), ({"neuro": {"optimiser": "neat"}}, "neat")],
 )
-def test_a_task_config_of_another_family_is_refused(brain: dict[str, object]) -> None:
-    with pytest.raises(ValidationError, match="does not run on Gymnasium tasks"):
-        TaskRunConfig.model_validate({"task": {"id": "CartPole-v1"}, **brain})
+def test_a_task_config_of_another_family_holds_its_settings(
+    brain: dict[str, object], family: str
+) -> None:
+    config = TaskRunConfig.model_validate({"task": {"id": "CartPole-v1"}, **brain})
+    assert config.brain == NetSettings(family=family)  # type: ignore[arg-type]
+    with pytest.raises(ValidationError, match=r"brain\.hidden"):
+        TaskRunConfig.model_validate(
+            {"task": {"id": "CartPole-v1"}, "brain": {"family": family, "hidden": 0}}
+        )

@@ -24,7 +24,6 @@ from app.tasks import (
     TaskRunConfig,
     TaskSettings,
     TaskTraining,
-    live,
     read_task_run,
     replay_episodes,
     replay_task,
@@ -32,6 +31,7 @@ from app.tasks import (
     task_adapter,
     train_task,
 )
+from app.tasks.gnp_lives import live
 from app.tasks.training import first_population
 from gnp import Schedule
 
@@ -346,7 +346,7 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
         ("Blackjack-v1", [], "GNP judges a flat Box of features"),
         ("CartPole-v1", ["--set", "task.obs_low=[1.0]"], "obs_low gives 1 bounds"),
         ("CartPole-v1", ["--set", "task.speed=[1.0]"], "task.speed: unknown"),
-        ("CartPole-v1", ["--brain", "cmaes"], "brain family 'cmaes' does not run on Gymnasium"),
+        ("CartPole-v1", ["--brain", "nope"], "unknown brain family 'nope'"),
     ],
 )
 def test_cli_bad_tasks_are_one_line(
