@@ -12,7 +12,14 @@ family registered from outside (docs/brains.md).
 """
 
 from app.brains.conformance import FamilyCheckError, check_family
-from app.brains.contract import BrainFamily, Evolution, NoTracer, SecondStage, Tracer
+from app.brains.contract import (
+    BrainFamily,
+    Evolution,
+    NoTracer,
+    SecondStage,
+    TerminalLearner,
+    Tracer,
+)
 from app.brains.registry import (
     BUILT_IN,
     PLUGINS_VARIABLE,
@@ -35,6 +42,7 @@ __all__ = [
     "FamilyCheckError",
     "NoTracer",
     "SecondStage",
+    "TerminalLearner",
     "Tracer",
     "check_family",
     "family_class",

@@ -67,6 +67,18 @@ class SecondStage(Protocol):
     second_stage: bool
 
 
+@runtime_checkable
+class TerminalLearner(Protocol):
+    """Controllers that end an episode a task terminates with an update of their own (GNP's
+    Sarsa without a successor, `gnp.end_episode`). A task's replay calls it when the episode
+    terminates, not when a time limit cuts it; the robot's episodes never terminate."""
+
+    def end_episode(self, reward: np.ndarray, terminated: np.ndarray) -> None:
+        """The update after the last step, of the controllers where `terminated` ((N,) bool),
+        given each one's (N,) last reward; nothing while learning is off."""
+        ...
+
+
 ArrayLayout = TraceLayout
 """One individual's (or one controller step's) arrays: name -> (shape, dtype)."""
 

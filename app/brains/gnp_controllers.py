@@ -56,6 +56,11 @@ class GnpControllers:
     def reset_episode(self) -> None:
         gnp.reset_episode(self.state)
 
+    def end_episode(self, reward: np.ndarray, terminated: np.ndarray) -> None:
+        """`app.brains.contract.TerminalLearner`: Sarsa's terminal update (`gnp.end_episode`)."""
+        if self.learn:
+            gnp.end_episode(self.cfg, self.population, self.state, reward, self.alpha, terminated)
+
     @property
     def fused(self) -> FusedSteps:
         """The compiled steps the loop may take: these controllers' own (`fits`, `steps`)."""

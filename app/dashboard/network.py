@@ -54,10 +54,24 @@ class NetworkLayout:
         return int(np.count_nonzero(self.kinds == kind))
 
 
+def _robots(cfg: neuro.NetConfig) -> bool:
+    """Whether the net is sized to the robot (its sensors in, its wheels out)."""
+    return (cfg.n_inputs, cfg.n_outputs) == (neuro.N_INPUTS, len(WHEELS))
+
+
 def _output_names(cfg: neuro.NetConfig) -> tuple[str, ...]:
     """The robot's wheels, or y0, y1, … for a net of other sizes (a task's)."""
-    robot = (cfg.n_inputs, cfg.n_outputs) == (neuro.N_INPUTS, len(WHEELS))
-    return WHEELS if robot else tuple(f"y{o}" for o in range(cfg.n_outputs))
+    return WHEELS if _robots(cfg) else tuple(f"y{o}" for o in range(cfg.n_outputs))
+
+
+def io_captions(cfg: neuro.NetConfig) -> tuple[str, str]:
+    """Captions of the input and output columns: the robot's (`IR in s0–s7`, `wheels (left,
+    right)`), or a task's (`inputs s0–s3`, `outputs y0`)."""
+    last = f"s{cfg.n_inputs - 1}"
+    if _robots(cfg):
+        return f"IR in s0–{last}", f"wheels ({', '.join(WHEELS)})"
+    inputs = "input s0" if cfg.n_inputs == 1 else f"inputs s0–{last}"
+    return inputs, "outputs " + ", ".join(_output_names(cfg))
 
 
 def _unit_name(cfg: neuro.NetConfig, unit: int) -> str:

@@ -21,6 +21,7 @@ from app.dashboard.network import (
     NetworkLayout,
     activation_colors,
     describe_layers,
+    io_captions,
     network_layout,
     node_values,
     weight_colors,
@@ -125,17 +126,14 @@ class NetworkView:
             self._colors = activation_colors(np.zeros(len(positions)))
             self._nodes.batched_colors = self._colors
             self._title.text = f"network: {describe_layers(layout)}"
-            self._place_captions(layout)
+            self._place_captions(layout, io_captions(cfg))
 
-    def _place_captions(self, layout: NetworkLayout) -> None:
-        """`IR in` and `context t−1` left of their groups, `hidden` and `wheels` below."""
+    def _place_captions(self, layout: NetworkLayout, io: tuple[str, str]) -> None:
+        """The inputs (`IR in`, a task's `inputs f0–f3`) and `context t−1` left of their
+        groups, `hidden` and the outputs (`wheels`, a task's `outputs y0–y1`) below."""
         gap = 0.04 * self._size
-        texts = (
-            (INPUT, "IR in s0–s7"),
-            (CONTEXT, "context t−1"),
-            (HIDDEN, "hidden"),
-            (OUTPUT, "wheels (left, right)"),
-        )
+        inputs, outputs = io
+        texts = ((INPUT, inputs), (CONTEXT, "context t−1"), (HIDDEN, "hidden"), (OUTPUT, outputs))
         for caption, (kind, text) in zip(self._captions, texts, strict=True):
             members = layout.positions[layout.kinds == kind]
             caption.visible = len(members) > 0

@@ -144,17 +144,21 @@ class TaskPanel:
         return (ObservationFault(step, tuple(sorted({int(t) for t in tokens})), mode),)  # type: ignore[arg-type]
 
     def _show(self, replay: TaskReplay) -> None:
-        """The task on show: its frame where the arena was, its brain's graph."""
+        """The task on show: its frame where the arena was, its brain's graph (GNP) or network
+        (a net); a family with neither shows the frame and the readout."""
         from app.dashboard.task_replay import captions, feature_captions
 
         adapter = replay.adapter
-        inputs = feature_captions(replay.task, adapter.n_inputs)
-        outputs = captions(replay.cfg, adapter, replay.task)
         with self.server.atomic():
             self.arena.set_visible(False)
-            self.network.visible = False
-            self.graph.visible = True
-            self.graph.set_genome(genome_view(replay.cfg, replay.population, inputs, outputs))
+            self.graph.visible = replay.cfg is not None
+            self.network.visible = replay.cfg is None and replay.net is not None
+            if replay.cfg is not None:  # GNP's node graph, its columns the task's
+                inputs = feature_captions(replay.task, adapter.n_inputs)
+                outputs = captions(replay.cfg, adapter, replay.task)
+                self.graph.set_genome(genome_view(replay.cfg, replay.population, inputs, outputs))
+            elif replay.net is not None:  # a net, drawn at the task's sizes
+                self.network.set_network(replay.net, replay.population)
             self.image.visible = self.caption.visible = True
         _robot_controls(self.robot_controls, on=False)
         self.draw()
@@ -183,7 +187,11 @@ class TaskPanel:
                 self.image.image = np.ascontiguousarray(frame[::-1])  # viser: row 0 at the bottom
                 self._last_frame = frame
                 self.frames += 1
-            self.graph.update(replay.snapshot())
+            snapshot = replay.snapshot()
+            if replay.cfg is not None:
+                self.graph.update(snapshot)
+            elif replay.net is not None:
+                self.network.update(snapshot)
             self.caption.text = (
                 f"{status.task} · episode {status.episode} (seed {status.seed}) · step {status.t}"
                 f" · return {status.episode_return:g}"

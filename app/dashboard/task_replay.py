@@ -1,12 +1,14 @@
 """A task run's best individual living its task again, step by step, for the dashboard (no viser).
 
-`TaskReplay` is `app.tasks.replay_task` one step at a time: the generation's best from the run
-file, its controller seeded with the episode's seed, the episode reset with that seed, learning
-online with the generation's ε and α (ε = 0 when greedy), the terminal Sarsa update when the
-episode terminates, at most the run's `steps` per episode; its first episode is the one
-`replay_task(path, seed)` lives (tested). When an episode ends the next starts at once from
-seed + 1, Q tables kept. It records what the views draw: the episode's return so far, the last
-returns, the visits of the node-transition graph, and the task's frame on demand.
+`TaskReplay` is `app.tasks.replay_task` one step at a time, for any brain family (through the
+contract): the generation's best from the run file, its controller seeded with the episode's
+seed, the episode reset with that seed, learning online with the generation's ε and α (ε = 0
+when greedy) if its family does, the terminal update when the episode terminates (GNP's Sarsa),
+at most the run's `steps` per episode; its first episode is the one `replay_task(path, seed)`
+lives (tested for GNP and a net). When an episode ends the next starts at once from seed + 1,
+what the controller learned kept. It records what the views draw: the episode's return so far,
+the last returns, what the family's tracer keeps (GNP's visits of the node-transition graph, a
+net's activations), and the task's frame on demand.
 """
 
 from __future__ import annotations
@@ -19,17 +21,17 @@ from typing import Any
 import numpy as np
 
 import gnp
+from app.brains import TerminalLearner
 from app.dashboard.stage import MAX_STEPS_PER_ADVANCE
 from app.dashboard.task_frame import task_frame
-from app.phases.live import Ring, RobotSnapshot
+from app.loop.rollout import OnlineLearner
+from app.phases.live import RobotSnapshot
 from app.tasks.common import TaskError
 from app.tasks.config import make_env
 from app.tasks.faults import ObservationFault, ObservationFaults
 from app.tasks.spaces import TaskAdapter
 from app.tasks.store import read_task_run
 from gnp.config import JUDGMENT, START
-
-VISITS = 256
 
 #: Short names of the observation features and actions of tasks the lab knows (captions of
 #: the graph's columns); any other task's are `f0`, `f1`, ... and `action` / `a0`, `a1`, ...
@@ -114,11 +116,15 @@ def _render_env(
 
 
 class TaskReplay:
-    """The replay of `request` (see the module docstring).
+    """The replay of `request` (see the module docstring), through the brain contract: any
+    family's controllers (`BrainFamily.controllers`, rates set if they learn online, the
+    terminal update of a `TerminalLearner`), its tracer feeding the views (GNP's graph:
+    `cfg`, `population`; a net's network: `net`).
 
     Raises:
         RunFileError: the file is missing, not a task run, or has no such generation.
-        TaskError: the task cannot be made here (an extra missing) or a fault is out of range.
+        TaskError: the task cannot be made here (an extra missing), a fault is out of range,
+            or the run's family is not registered here.
     """
 
     def __init__(self, request: TaskReplayRequest) -> None:
@@ -128,22 +134,27 @@ class TaskReplay:
         g = run.generation_done - 1 if request.generation is None else request.generation
         if g < 0:
             g += run.generation_done
-        self.cfg, individual = run.best_genome(g)
+        individual = run.best_individual(g)
         self.config = run.config
+        self.family = self.config.family
+        self.cfg = self.family.graph_config  # GNP's node graph (None: no graph to draw)
+        self.net = self.family.network_config  # a net's network (None: no net)
         self.adapter = self.config.adapter
         self.request = request
         self.task = self.config.task.id
         self.generation = g
         self.epsilon = 0.0 if request.greedy else float(run.epsilon[g])
         self.alpha = float(run.alpha[g])
-        self.population = gnp.take(individual, np.zeros(1, np.intp))  # learns; the file's stays
+        self.population = self.family.copies(individual, 1)  # learns; the file's stays
         self.env = _render_env(self.task, request.faults, self.adapter, request.seed)
-        self.state = gnp.init_state(self.cfg, 1, np.array([request.seed], np.uint64))
+        seeds = np.array([request.seed], np.uint64)
+        self.controllers = self.family.controllers(self.population, seeds)
+        if isinstance(self.controllers, OnlineLearner):
+            self.controllers.set_rates(self.epsilon, self.alpha, request.learn)
         self.speed = 30.0  # steps per second of wall time
         self.playing = True
         self.episode = -1
         self.returns: list[float] = []
-        self._visits = Ring(VISITS, (len(gnp.VISIT_FIELDS),), np.int64)
         self._owed = 0.0
         self._action = "—"
         self._begin()
@@ -154,17 +165,24 @@ class TaskReplay:
         return self.request.seed + self.episode
 
     def _begin(self) -> None:
-        """A new episode from the next seed; the controller back at its start node."""
+        """A new episode from the next seed; the controller back at its start (GNP's start
+        node, a net's zero context), its tracer anew (the views show this episode)."""
         self.episode += 1
         if self.episode:
-            gnp.reset_episode(self.state)
+            self.controllers.reset_episode()
         obs, _ = self.env.reset(seed=self.seed)
         self._obs = np.asarray(obs)
+        self._readings = self.adapter.observe(self._obs[None])[0]
+        self._commands = np.zeros(self.adapter.n_outputs)
         self._reward = np.zeros(1)
+        self._tracer = self.family.tracer()
         self.t = 0
         self.episode_return = 0.0
-        self.node_visits = np.zeros(self.cfg.n_nodes, np.int64)
-        self.current_node = 0
+
+    @property
+    def current_node(self) -> int:
+        """The node GNP's walk is at (0, the start, for a family without a graph)."""
+        return int(self._tracer.view().get("current_node", 0))
 
     def step(self, steps: int = 1) -> None:
         """`steps` steps of the task (a new episode after one ends)."""
@@ -173,12 +191,9 @@ class TaskReplay:
 
     def _step(self) -> None:
         readings = self.adapter.observe(self._obs[None])
-        commands, trace = gnp.step(
-            self.cfg, self.population, self.state, readings, self._reward,
-            self.epsilon, self.alpha, self.request.learn, trace=True,
-        )  # fmt: skip
-        assert trace is not None
-        self._record(trace)
+        commands, trace = self.controllers.act(readings, self._reward, trace=True)
+        self._tracer.record(trace)
+        self._readings, self._commands = readings[0], np.asarray(commands, np.float64)[0]
         action = self.adapter.act(commands)[0]
         self._action = str(np.round(action, 2)) if np.ndim(action) else str(int(action))
         obs, reward, terminated, truncated, _ = self.env.step(action)
@@ -186,20 +201,11 @@ class TaskReplay:
         self.t += 1
         self.episode_return += float(reward)
         self._reward = np.array([float(reward)])
-        if terminated and self.request.learn:  # a terminal state: Sarsa without a successor
-            gnp.end_episode(self.cfg, self.population, self.state, self._reward, self.alpha)
+        if terminated and isinstance(self.controllers, TerminalLearner):
+            self.controllers.end_episode(self._reward, np.ones(1, bool))
         if terminated or truncated or self.t >= self.config.training.steps:
             self.returns = [*self.returns[-19:], self.episode_return]
             self._begin()
-
-    def _record(self, trace: gnp.StepTrace) -> None:
-        count = int(trace.count[0])
-        columns = [getattr(trace, f) for f in gnp.VISIT_FIELDS]
-        for k in range(count):
-            self._visits.append([int(column[0, k]) for column in columns])
-        if count:
-            self.current_node = int(trace.node[0, count - 1])
-            np.add.at(self.node_visits, trace.node[0, :count], 1)
 
     def advance(self, seconds: float) -> int:
         """Step for `seconds` of wall time at `speed` (at most 50 steps); the steps taken."""
@@ -236,7 +242,11 @@ class TaskReplay:
 
     def node_words(self, node: int) -> str:
         """`node 12 · J f2 pole θ/f0 cart x` / `node 47 · P action −5/action +9`: what a node's
-        sub nodes judge or set."""
+        sub nodes judge or set; for a family without a graph, its description and last outputs
+        (`cmaes: Elman net, 8 hidden · outputs +0.31`)."""
+        if self.cfg is None:
+            given = " ".join(f"{v:+.2f}" for v in self._commands)
+            return f"{self.family.description} · outputs {given}"
         kind = int(self.cfg.node_type[node])
         functions = self.population.function[0, node]
         if kind == JUDGMENT:
@@ -252,17 +262,18 @@ class TaskReplay:
         return f"node {node} · P " + "/".join(sets)
 
     def snapshot(self) -> RobotSnapshot:
-        """The graph's view of the controller (the robot's fields at rest)."""
-        zeros8 = np.zeros(8)
+        """The views' picture of the controller: what its family's tracer keeps (GNP's visits,
+        a net's activations), the readings it took and the commands it gave (the robot's
+        other fields at rest)."""
         return RobotSnapshot(
             label=self.task,
-            method=self.cfg.method,
-            fuzzy=self.cfg.fuzzy,
+            method=self.family.label,
+            fuzzy=self.family.fuzzy,
             t=self.t,
             pose=np.zeros(3),
-            true_readings=zeros8,
-            seen_readings=zeros8,
-            broken=np.zeros(8, bool),
+            true_readings=self._readings.copy(),
+            seen_readings=self._readings.copy(),
+            broken=np.isin(np.arange(self.adapter.n_inputs), self.broken()),
             fault_mode=None,
             trajectory=np.zeros((0, 2)),
             trajectory_reward=np.zeros(0),
@@ -270,12 +281,12 @@ class TaskReplay:
             rewards=np.zeros(0),
             broken_counts=np.zeros(0, np.int64),
             fault_steps=(),
-            visits=self._visits.values(),
-            current_node=self.current_node,
             epsilon=self.epsilon,
             alpha=self.alpha,
             mean_reward=0.0,
-            node_visits=self.node_visits.copy(),
+            commands=self._commands.copy(),
+            learns_online=self.family.learns_online,
+            **self._tracer.view(),
         )
 
     def close(self) -> None:

@@ -9,7 +9,8 @@ its own stream, so its life is the same whatever else is in the batch.
 `live` is the one path of every family: the controllers step the whole batch each step; an
 individual whose episode ended stops counting (its return and length are kept, its actions are
 ignored, its reward is 0), and one that learns online (`app.loop.rollout.OnlineLearner`, given
-ε, α and `learn`) is kept as it was when its episode ended (a copy taken then). A family may
+ε, α and `learn`) is kept as it was when its episode ended (a copy taken then, after the
+terminal update of a `TerminalLearner`, GNP's Sarsa, if the task terminated it). A family may
 have lives of its own on tasks, keyed by its name in `FAMILY_LIVES` and reached through
 `live`: GNP's (`app.tasks.gnp_lives`), which step only the individuals still in their episode,
 end a terminated one with the terminal Sarsa update, and on CartPole, MountainCar and Acrobot
@@ -36,7 +37,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from app.brains.contract import BrainFamily
+from app.brains.contract import BrainFamily, TerminalLearner
 from app.brains.gnp_brain import GnpFamily
 from app.loop.rollout import OnlineLearner
 from app.tasks import dynamics
@@ -265,10 +266,12 @@ def generic_lives(
                 f"task takes ({n}, {adapter.n_outputs})"
             )
         actions[alive] = adapter.act(commands[alive])
-        obs, rewards, _, done = env.step(actions)
+        obs, rewards, terminated, done = env.step(actions)
         returns[alive] += rewards[alive]
         lengths[alive] += 1
         ended = alive & done
+        if learner and isinstance(controllers, TerminalLearner) and (alive & terminated).any():
+            controllers.end_episode(rewards, alive & terminated)  # e.g. Sarsa's terminal update
         if learner:
             for i in np.flatnonzero(ended):
                 ended_as[int(i)] = family.take(lived, [int(i)])

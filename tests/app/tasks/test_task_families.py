@@ -165,27 +165,32 @@ def replay_lives(config: TaskRunConfig, individuals: Any, seeds: list[int]) -> A
         env.close()
 
 
-def test_gnp_through_the_generic_lives_learns_as_through_its_own() -> None:
-    """On Pendulum no episode terminates and all end at the cap: GNP's own lives (a subset as
-    episodes end, the terminal update) and the contract's path are then the same lives."""
-    config = TaskRunConfig(seed=2, task=TaskSettings(id="Pendulum-v1"))
+@pytest.mark.parametrize(("task", "steps"), [("Pendulum-v1", 30), ("CartPole-v1", 200)])
+def test_gnp_through_the_generic_lives_learns_as_through_its_own(task: str, steps: int) -> None:
+    """GNP's own lives (a subset as episodes end, the terminal update) and the contract's path
+    (every controller every step, a learner kept as its episode ended, `TerminalLearner`'s
+    update) are the same lives: on Pendulum no episode terminates and all end at the cap, on
+    CartPole they terminate apart."""
+    config = TaskRunConfig(seed=2, task=TaskSettings(id=task))
     config = config.model_copy(
-        update={"training": config.training.model_copy(update={"steps": 30, "population": 6})}
+        update={"training": config.training.model_copy(update={"steps": steps, "population": 6})}
     )
     pop = first_population(config)
     seeds = np.arange(6) * 7 + 1
-    env = BatchEnv("Pendulum-v1", 6, config.adapter)
+    env = BatchEnv(task, 6, config.adapter, twins=False)
     try:
         own = gnp_live(
-            config.gnp_config(), config.adapter, env, pop, seeds, seeds + 1, 0.2, 0.3, 30
+            config.gnp_config(), config.adapter, env, pop, seeds, seeds + 1, 0.2, 0.3, steps
         )
         generic = generic_lives(
             config.family, config.adapter, env, pop, seeds, (seeds + 1).astype(np.uint64),
-            0.2, 0.3, 30,
+            0.2, 0.3, steps,
         )  # fmt: skip
     finally:
         env.close()
     np.testing.assert_array_equal(own.returns, generic.returns)
+    if task == "CartPole-v1":
+        assert len(set(own.lengths.tolist())) > 1 and own.lengths.max() < steps  # apart
     for name, value in gnp.population_to_arrays(own.learned).items():
         np.testing.assert_array_equal(getattr(generic.learned, name), value, err_msg=name)
     assert not np.array_equal(generic.learned.q_ss, pop.q_ss)  # it learned; pop left alone
