@@ -223,11 +223,6 @@ class BrainFamily(ABC):
         return self.name
 
     @property
-    def fuzzy(self) -> bool:
-        """Whether its judgments are fuzzy (GNP's setting; False elsewhere)."""
-        return False
-
-    @property
     def graph_config(self) -> gnp.GnpConfig | None:
         """The GNP config whose node graph the views draw, if the family has one."""
         return None

@@ -202,10 +202,6 @@ class GnpFamily(BrainFamily):
         return f"{self.cfg.method}-{gnp.judgment_name(self.cfg.fuzzy)}"
 
     @property
-    def fuzzy(self) -> bool:
-        return bool(self.cfg.fuzzy)
-
-    @property
     def graph_config(self) -> gnp.GnpConfig:
         return self.cfg
 

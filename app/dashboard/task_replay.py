@@ -268,7 +268,6 @@ class TaskReplay:
         return RobotSnapshot(
             label=self.task,
             method=self.family.label,
-            fuzzy=self.family.fuzzy,
             t=self.t,
             pose=np.zeros(3),
             true_readings=self._readings.copy(),

@@ -84,7 +84,6 @@ def _snapshot(life: Life, visits: _Visits, t: int) -> RobotSnapshot:
     return RobotSnapshot(
         label=life.caption,
         method=life.cfg.method,
-        fuzzy=bool(life.cfg.fuzzy),
         t=t + 1,
         pose=lives.poses[k, t],
         true_readings=lives.readings[k, t],

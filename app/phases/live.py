@@ -81,7 +81,6 @@ class RobotSnapshot:
 
     label: str
     method: str  # the family's label: GNP's method, `Elman`, `NEAT`, …
-    fuzzy: bool
     t: int
     pose: np.ndarray  # (3,) x mm, y mm, heading rad
     true_readings: np.ndarray  # (8,)
@@ -182,7 +181,6 @@ class LiveRobot:
         return RobotSnapshot(
             label=self.label,
             method=self.family.label,
-            fuzzy=self.family.fuzzy,
             t=self.t,
             pose=self.world.poses[0].copy(),
             true_readings=self.world.sense()[0].copy(),
