@@ -161,7 +161,9 @@ def test_implement_killed_at_ten_moments_leaves_the_run_intact(
             assert_same_data(out, reference)
             shutil.copy(pristine, out)  # back to the trained run for the next moment
             replaced += 1
-    assert kills == MOMENTS and replaced < tries // 2, (kills, tries, replaced)
+    # At least 3 kills cut an implementation before its rename (the file untouched): on a
+    # loaded machine the moments drift late, and half of them landing after it is no defect.
+    assert kills == MOMENTS and tries - replaced >= 3, (kills, tries, replaced)
     status, err = finish(gnp_lab(*implement_args))
     assert status == 0, err
     assert_same_data(out, reference)
