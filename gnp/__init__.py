@@ -131,7 +131,7 @@ _HOMES = {
 }
 """Each submodule → the public names it gives the package."""
 _HOME = {name: module for module, names in _HOMES.items() for name in names}
-_SUBMODULES = frozenset({*_HOMES, "kernel", "reference", "rng"})
+_SUBMODULES = frozenset({*_HOMES, "kernel", "reference", "rng", "structure"})
 
 if not TYPE_CHECKING:  # the type checker reads the imports above; an unknown name stays an error
 

@@ -191,6 +191,8 @@ class GnpConfig(BaseModel):
 TASK_SETTINGS = ("q0", "tie_break", "skip_reward", "threshold_init", "processing_output")
 """`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
 runs, documents and bits as before)."""
+EVOLUTION_TASK_SETTINGS = ("p_add_delete",)
+"""`EvolutionConfig` settings added for Gymnasium tasks (issue #45), off by default likewise."""
 
 
 class EvolutionConfig(BaseModel):
@@ -216,6 +218,14 @@ class EvolutionConfig(BaseModel):
         default="joint",
         description="judgment {β, α} mutates as one parameter (joint: P_m per sub node, one ζ "
         "and r) or as two (independent: P_m each)",
+    )
+    p_add_delete: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=1.0,
+        description="per mutant, the probability of adding or deleting a node (½ each, "
+        "fracnetics' growing graphs): delete redirects every connection into a reachable "
+        "node, add connects an unreachable one with fresh genes; 0: off (the robot's)",
     )
 
     @model_validator(mode="after")

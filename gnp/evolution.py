@@ -19,6 +19,7 @@ from gnp.config import (
     JudgmentPair,
 )
 from gnp.population import FIELDS, Population, concat, population_to_arrays, take
+from gnp.structure import add_delete_nodes
 
 
 def evolve(
@@ -30,7 +31,8 @@ def evolve(
     rng: np.random.Generator,
     evo: EvolutionConfig | None = None,
 ) -> Population:
-    """The next generation: elites, then crossover offspring, then mutants (same size as pop).
+    """The next generation: elites, then crossover offspring, then mutants (same size as pop);
+    the mutants also add or delete a node with `evo.p_add_delete` (`gnp.structure`).
 
     Args:
         cfg: the configuration of `pop`.
@@ -59,18 +61,19 @@ def evolve(
         parts.append(crossover(take(pop, mothers), take(pop, fathers), evo.p_crossover, rng))
     if n_mut:
         parents = tournament(fit, n_mut, evo.tournament_size, rng)
-        parts.append(
-            mutate(
-                cfg,
-                take(pop, parents),
-                generation,
-                n_generations,
-                rng,
-                evo.p_mutation,
-                evo.nonuniform_b,
-                evo.judgment_pair,
-            )
+        mutants = mutate(
+            cfg,
+            take(pop, parents),
+            generation,
+            n_generations,
+            rng,
+            evo.p_mutation,
+            evo.nonuniform_b,
+            evo.judgment_pair,
         )
+        if evo.p_add_delete > 0:  # no draw when off: the robot's stream as before
+            mutants = add_delete_nodes(cfg, mutants, evo.p_add_delete, rng).population
+        parts.append(mutants)
     return concat(parts)
 
 

@@ -108,20 +108,23 @@ def peer_run_json(spec: ExperimentSpec, arm: str, config: RunConfig) -> str:
 
 def _later_defaults(run: TaskRunConfig) -> dict[str, Any]:
     """The settings added to a task run after the first task experiments (issue #45: the
-    brain's `gnp.config.TASK_SETTINGS`, the episodes' `PROTOCOL_FIELDS`) that `run` leaves at
-    their defaults: left out of its JSON, so a run's identity (`ledger.fingerprint`) and every
-    committed ledger stay as they were."""
+    brain's `gnp.config.TASK_SETTINGS` and `EVOLUTION_TASK_SETTINGS`, the episodes'
+    `PROTOCOL_FIELDS`) that `run` leaves at their defaults: left out of its JSON, so a run's
+    identity (`ledger.fingerprint`) and every committed ledger stay as they were."""
     from app.tasks.config import PROTOCOL_FIELDS
-    from gnp.config import TASK_SETTINGS
+    from gnp.config import EVOLUTION_TASK_SETTINGS, TASK_SETTINGS, EvolutionConfig
 
     def unset(model: BaseModel, names: tuple[str, ...]) -> set[str]:
         fields = type(model).model_fields
         return {n for n in names if getattr(model, n) == fields[n].default}
 
     brain = getattr(run.brain, "controller", None)  # GNP's (a net has no TASK_SETTINGS)
+    evolution = getattr(run.brain, "evolution", None)
     later: dict[str, Any] = {"training": unset(run.training, PROTOCOL_FIELDS)}
     if isinstance(brain, BaseModel):
         later["brain"] = {"controller": unset(brain, TASK_SETTINGS)}
+        if isinstance(evolution, EvolutionConfig):
+            later["brain"]["evolution"] = unset(evolution, EVOLUTION_TASK_SETTINGS)
     return {"run": later}
 
 

@@ -42,6 +42,7 @@ from app.settings.config import RunConfig
 from app.system.workers import Count, Layout, SharedArrays
 from gnp.evolution import crossover, mutate, tournament
 from gnp.population import Population, concat
+from gnp.structure import add_delete_nodes
 
 
 @dataclass(frozen=True)
@@ -151,6 +152,8 @@ def evolve_part(
         evo.nonuniform_b,
         evo.judgment_pair,
     )
+    if evo.p_add_delete > 0:
+        mutants = add_delete_nodes(cfg, mutants, evo.p_add_delete, rng).population
     return first, mutants
 
 

@@ -105,6 +105,8 @@ GNP_SPACE: tuple[Param, ...] = (
           why="P_m: 0.01 is the robot's for 1000 generations; tasks ran 30 (#45: 0.05-0.10 won)"),
     Param("evolution.p_crossover", "float", 0.0, 0.5, why="P_c, per node gene swap"),
     Param("evolution.tournament_size", "int", 2, 10, why="selection pressure"),
+    Param("evolution.p_add_delete", "float", 0.0, 0.5,
+          why="add/delete-node mutation per mutant: fracnetics' growing graphs (#45 item 2)"),
     Param("controller.n_judgment", "int", 8, 80, log=True, why="judgment nodes"),
     Param("controller.n_processing", "int", 2, 40, log=True, why="processing nodes"),
     Param("controller.n_sub", "int", 1, 4, why="sub nodes: 1 is a plain GNP (no choice to learn)"),

@@ -51,6 +51,7 @@ def own_blocks() -> list[str]:
         ({"method": "BS"}, {"crossover_fraction": 0.0}, 5),
         ({"method": "RL"}, {"crossover_fraction": 0.9}, 9),
         ({"method": "RL"}, {}, 2),
+        ({"method": "CS"}, {"p_add_delete": 0.5}, 12),
     ],
 )
 def test_the_two_halves_of_evolution_are_gnp_evolve(

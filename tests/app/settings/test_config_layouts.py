@@ -110,6 +110,7 @@ def test_a_layout_1_preset_under_a_layout_2_arm_merges_by_precedence() -> None:
         ({"brain": {"controller": {"n_judgment": 3}}}, "brain.controller.n_judgment: Input should"),
         ({"controller": {"methd": "RL"}}, "brain.controller.methd: unknown setting"),
         ({"brain": {"evolution": {"p_mutation": 2}}}, "brain.evolution.p_mutation: Input should"),
+        ({"evolution": {"p_add_delete": -1}}, "brain.evolution.p_add_delete: Input should"),
         ({"brain": {"family": "neat", "sigma0": 0}}, "brain.sigma0: Input should be greater"),
         ({"brain": 3}, "brain: a table of settings"),
         ({"neuro": 3}, "neuro: unknown setting"),

@@ -180,6 +180,7 @@ NOT_FROM_THE_THESIS = {
     "brain.controller.tie_break",
     "brain.controller.threshold_init",
     "brain.controller.processing_output",
+    "brain.evolution.p_add_delete",  # an operator fracnetics has (#45 item 2): off, the thesis's
     # Schedule fields that only matter for `schedule = "changing"` (ch. 4 checks them).
     "training.epsilon",
     "training.alpha",

@@ -166,14 +166,19 @@ def test_a_runs_identity_names_the_new_settings_only_when_set() -> None:
 
     base = plan(parse(_spec(), "tiny"), "smoke", "runs")[2]  # RL, seed 40
     assert '"q0"' not in base.task_json and '"test_protocol"' not in base.task_json
+    assert '"p_add_delete"' not in base.task_json
     data = _spec()
     data["arms"][1]["config"]["controller"]["q0"] = -10.0
     tuned = plan(parse(data, "tiny"), "smoke", "runs")[2]
     data = _spec()
     data["task"]["validation_episodes"] = 3
     validated = plan(parse(data, "tiny"), "smoke", "runs")[2]
-    assert base.name == tuned.name == validated.name == "RL-seed40"
-    assert len({fingerprint(base), fingerprint(tuned), fingerprint(validated)}) == 3
+    data = _spec()
+    data["arms"][1]["config"]["evolution"] = {"p_add_delete": 0.1}
+    grown = plan(parse(data, "tiny"), "smoke", "runs")[2]
+    assert '"p_add_delete":0.1' in grown.task_json
+    assert base.name == tuned.name == validated.name == grown.name == "RL-seed40"
+    assert len({fingerprint(r) for r in (base, tuned, validated, grown)}) == 4
     assert PeerRun.model_validate_json(tuned.task_json).run.brain.controller.q0 == -10.0
 
 

@@ -268,6 +268,33 @@ def test_same_config_and_seed_give_the_same_run_and_a_resumed_run_matches(
     assert not np.array_equal(other.fitness, first.fitness)
 
 
+def test_a_run_with_add_delete_node_mutation_trains_and_resumes_to_the_bit(
+    tmp_path: Path,
+) -> None:
+    def config(p_add_delete: float) -> TaskRunConfig:
+        evolution = gnp.EvolutionConfig(p_mutation=0.05, p_add_delete=p_add_delete)
+        return _config(generations=4).model_copy(update={"brain": GnpSettings(evolution=evolution)})
+
+    whole = train_task(config(0.3), tmp_path / "whole.h5")
+
+    def stop_after_one(_summary: object) -> None:
+        raise KeyboardInterrupt
+
+    cut = tmp_path / "cut.h5"
+    with pytest.raises(Interrupted):
+        train_task(config(0.3), cut, stop_after_one)
+    resume_task(cut)
+    first, resumed = read_task_run(whole), read_task_run(cut)
+    assert resumed.config.brain.evolution.p_add_delete == 0.3
+    np.testing.assert_array_equal(resumed.fitness, first.fitness)
+    with h5py.File(whole, "r") as a, h5py.File(cut, "r") as b:
+        for name in a["checkpoint"]:  # the last population, every field, to the bit
+            np.testing.assert_array_equal(a["checkpoint"][name][()], b["checkpoint"][name][()])
+    off = read_task_run(train_task(config(0.0), tmp_path / "off.h5"))
+    np.testing.assert_array_equal(off.fitness[0], first.fitness[0])  # generation 0 is shared
+    assert not np.array_equal(off.fitness, first.fitness)  # the setting reaches evolution
+
+
 @pytest.mark.slow
 def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) -> None:
     # GNP-RL, crisp, ε = 0.01 (examples/gnp_cartpole.py): on seed 1 the best balances the

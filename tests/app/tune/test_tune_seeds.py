@@ -90,7 +90,7 @@ def test_help_imports_no_optuna() -> None:
 def test_the_space_is_its_table_less_what_the_study_fixes() -> None:
     full = {p.path for p in space("gnp")}
     assert {"evolution.p_mutation", "controller.q0", "controller.tie_break"} <= full
-    assert "controller.processing_output" in full
+    assert {"controller.processing_output", "evolution.p_add_delete"} <= full
     fixed = {"training.epsilon": 0.01, "controller.n_sub": 2}
     less = {p.path for p in space("gnp", fixed, population=4, method="RL")}
     assert less == full - {"controller.n_sub", "controller.skip_reward"} - {
