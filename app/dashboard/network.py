@@ -18,6 +18,8 @@ import sim
 
 INPUT, CONTEXT, HIDDEN, OUTPUT = 0, 1, 2, 3
 KIND_NAMES = ("IR in", "context t−1", "hidden", "wheels")
+TASK_KIND_NAMES = ("in", "context t−1", "hidden", "out")
+"""The kinds' words for a net sized to a task (its features in, its commands out)."""
 WHEELS = ("left", "right")
 POSITIVE = (215, 80, 20)  # orange-red: a positive weight or activation
 NEGATIVE = (30, 100, 215)  # blue: a negative one
@@ -217,8 +219,12 @@ def weight_colors(weights: np.ndarray, faintest: float = 0.1) -> np.ndarray:
 
 
 def describe_layers(layout: NetworkLayout) -> str:
-    """`Elman · 8 IR in · 8 context t−1 · 8 hidden · 2 wheels · 144 weights`."""
-    counts = " · ".join(f"{layout.count(kind)} {name}" for kind, name in enumerate(KIND_NAMES))
+    """`Elman · 8 IR in · 8 context t−1 · 8 hidden · 2 wheels · 144 weights` (a task's net:
+    `Elman · 4 in · 3 context t−1 · 3 hidden · 1 out · 24 weights`)."""
+    outputs = tuple(n for n, k in zip(layout.names, layout.kinds, strict=True) if k == OUTPUT)
+    robot = outputs == WHEELS and layout.count(INPUT) == neuro.N_INPUTS
+    words = KIND_NAMES if robot else TASK_KIND_NAMES
+    counts = " · ".join(f"{layout.count(kind)} {name}" for kind, name in enumerate(words))
     return f"{layout.net} · {counts} · {len(layout.weights)} weights"
 
 

@@ -3,8 +3,9 @@
 The dashboard runs in this process on a runs dir holding the demo (a robot run) and a tiny
 CartPole task run; the page lists the task run as one, loads it from the Runs tab, and shows
 its fitness plot, the task's frame where the arena was (changing as the cart moves) and the
-graph following the brain; loading the robot again brings the arena back. Saves
-`task-run.png` with the other screenshots (test-output/dashboard/).
+graph following the brain; loading the robot again brings the arena back. A CMA-ES net's task
+run shows its network instead, live. Saves `task-run.png` and `task-run-net.png` with the other
+screenshots (test-output/dashboard/).
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ from page_helpers import (
 )
 from test_task_replay import tiny_task_config
 
-from app.tasks import train_task
+from app.brains.net_settings import NetSettings
+from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, train_task
 
 pytestmark = [pytest.mark.browser, pytest.mark.xdist_group("dashboard-browser")]
 
@@ -39,6 +41,13 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     runs = tmp_path_factory.mktemp("task-dash-runs")
     shutil.copyfile(DEMO, runs / "demo.h5")
     train_task(tiny_task_config(), runs / "cartpole.h5")
+    elman = TaskRunConfig(
+        seed=2,
+        task=TaskSettings(id="CartPole-v1"),
+        brain=NetSettings(family="cmaes", hidden=3),
+        training=TaskTraining(population=8, generations=2, steps=120),
+    )
+    train_task(elman, runs / "elman.h5")
     with dashboard_in_process(runs, "demo") as dashboard:
         yield dashboard
 
@@ -101,4 +110,26 @@ def test_a_task_run_loads_and_replays_on_its_task(
     press(page, "Replay best individual")
     until(lambda: not dashboard.task.active and not dashboard.task.image.visible)
     wait_for_line(page, "on show: step", r"reward/step")
+    page.close()
+
+
+def test_a_nets_task_run_shows_its_network_live(
+    served: Any, browser: Any, screenshots: Path
+) -> None:
+    dashboard = served
+    url = f"http://127.0.0.1:{dashboard.server.get_port()}"
+    page = open_page(browser, url, {"width": 1600, "height": 900})
+    page.get_by_role("tab", name="Runs").click()
+    page.get_by_text("task CartPole-v1 (cmaes)").first.wait_for()
+    choose(page, "Run", "elman")
+    press(page, "Load")
+    wait_for_line(page, "on show: task CartPole-v1", r"cmaes: Elman net, 3 hidden · outputs [+-]")
+    assert dashboard.task.network.visible and not dashboard.task.graph.visible
+    colours = dashboard.task.network.node_colors.copy()
+    until(lambda: not np.array_equal(dashboard.task.network.node_colors, colours))
+    canvas = page.locator("canvas").first
+    shot = canvas.screenshot()
+    page.wait_for_timeout(1500)
+    assert canvas.screenshot() != shot  # the frame and the units moved on in the page
+    page.screenshot(path=str(screenshots / "task-run-net.png"))
     page.close()

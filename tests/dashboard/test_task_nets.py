@@ -79,7 +79,7 @@ def test_the_panel_draws_the_nets_network(board: Any) -> None:
     assert board.task.network.visible and not board.task.graph.visible
     drawn = board.task.network.drawn()
     assert drawn.nodes == 4 + HIDDEN + HIDDEN + 1  # inputs, context, hidden, output
-    assert drawn.layers.startswith("Elman")
+    assert drawn.layers == "Elman · 4 in · 3 context t−1 · 3 hidden · 1 out · 24 weights"
     colours = board.task.network.node_colors.copy()
     until(lambda: board.task.replay.t > 5 or board.task.replay.episode > 0)
     until(lambda: not np.array_equal(board.task.network.node_colors, colours))  # live units
