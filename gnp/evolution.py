@@ -61,20 +61,34 @@ def evolve(
         parts.append(crossover(take(pop, mothers), take(pop, fathers), evo.p_crossover, rng))
     if n_mut:
         parents = tournament(fit, n_mut, evo.tournament_size, rng)
-        mutants = mutate(
-            cfg,
-            take(pop, parents),
-            generation,
-            n_generations,
-            rng,
-            evo.p_mutation,
-            evo.nonuniform_b,
-            evo.judgment_pair,
-        )
-        if evo.p_add_delete > 0:  # no draw when off: the robot's stream as before
-            mutants = add_delete_nodes(cfg, mutants, evo.p_add_delete, rng).population
-        parts.append(mutants)
+        parts.append(mutants(cfg, take(pop, parents), generation, n_generations, rng, evo))
     return concat(parts)
+
+
+def mutants(
+    cfg: GnpConfig,
+    parents: Population,
+    generation: int,
+    n_generations: int,
+    rng: np.random.Generator,
+    evo: EvolutionConfig,
+) -> Population:
+    """`evolve`'s mutants of `parents` (copies): `mutate` at `evo`'s rates, then add/delete-node
+    mutation (`gnp.structure`) where `evo.p_add_delete` > 0 (no draw when off: the robot's
+    stream as before)."""
+    made = mutate(
+        cfg,
+        parents,
+        generation,
+        n_generations,
+        rng,
+        evo.p_mutation,
+        evo.nonuniform_b,
+        evo.judgment_pair,
+    )
+    if evo.p_add_delete > 0:
+        made = add_delete_nodes(cfg, made, evo.p_add_delete, rng).population
+    return made
 
 
 def tournament(fitness: np.ndarray, count: int, size: int, rng: np.random.Generator) -> np.ndarray:

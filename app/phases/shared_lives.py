@@ -40,9 +40,8 @@ from app.phases.lives import ShardLives, live, make_world
 from app.settings.arenas import arena_of
 from app.settings.config import RunConfig
 from app.system.workers import Count, Layout, SharedArrays
-from gnp.evolution import crossover, mutate, tournament
+from gnp.evolution import crossover, mutants, tournament
 from gnp.population import Population, concat
-from gnp.structure import add_delete_nodes
 
 
 @dataclass(frozen=True)
@@ -142,19 +141,7 @@ def evolve_part(
     if not n_mut:
         return first, None
     parents = tournament(fitness, n_mut, size, rng)
-    mutants = mutate(
-        cfg,
-        rows(parents),
-        generation,
-        n_generations,
-        rng,
-        evo.p_mutation,
-        evo.nonuniform_b,
-        evo.judgment_pair,
-    )
-    if evo.p_add_delete > 0:
-        mutants = add_delete_nodes(cfg, mutants, evo.p_add_delete, rng).population
-    return first, mutants
+    return first, mutants(cfg, rows(parents), generation, n_generations, rng, evo)
 
 
 class RowsWorker:
