@@ -33,6 +33,7 @@ ADDED_SINCE: dict[tuple[str, ...], object] = {
     ("controller", "skip_reward"): "zero",
     ("controller", "threshold_init"): "uniform",
     ("controller", "processing_output"): "parameter",
+    ("evolution", "p_add_delete"): 0.0,  # add/delete-node mutation (#45), off
 }
 
 
