@@ -3,7 +3,6 @@ condition × scale config built; a bad one raises `ExperimentError` with one lin
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -107,4 +106,4 @@ def load_shipped(name: str) -> ExperimentSpec:
             "or give --file"
         )
     text = resources.files(SHIPPED_PACKAGE).joinpath(f"{name}.toml").read_text(encoding="utf-8")
-    return parse(tomllib.loads(text), f"{name!r}")
+    return parse(loads_toml(text, ExperimentError, f"shipped experiment {name!r}"), f"{name!r}")

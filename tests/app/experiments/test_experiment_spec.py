@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 from experiment_fixtures import tiny_data, to_toml
 
+from app.experiments import spec_loading
 from app.experiments.results import METRICS
 from app.experiments.spec import ExperimentError
 from app.experiments.spec_loading import load_file, load_shipped, parse, shipped_names
@@ -212,3 +213,16 @@ def test_unreadable_file(tmp_path: Path, text: str | None, needle: str) -> None:
 def test_unknown_shipped_name() -> None:
     with pytest.raises(ExperimentError, match="no shipped experiment named 'ch9'"):
         load_shipped("ch9")
+
+
+def test_a_shipped_spec_that_is_not_toml_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "broken.toml").write_text('name = "broken" "a second string"\n')
+    monkeypatch.setattr(spec_loading.resources, "files", lambda _package: tmp_path)
+    assert shipped_names() == ("broken",)
+    with pytest.raises(ExperimentError, match=r"^shipped experiment 'broken' is not valid TOML"):
+        load_shipped("broken")
+    with pytest.raises(ExperimentError) as raised:
+        load_shipped("broken")
+    assert "\n" not in str(raised.value) and "(at line 1, column 17)" in str(raised.value)
