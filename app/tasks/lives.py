@@ -248,6 +248,7 @@ def generic_lives(
     if isinstance(controllers, OnlineLearner):
         controllers.set_rates(epsilon, alpha, learn)
     learner = family.learns_online
+    ender = controllers if learner and isinstance(controllers, TerminalLearner) else None
     if env.mode == "fast":
         raise ValueError("a batch of compiled twins steps a family's own lives only")
     obs = env.reset(env_seeds)
@@ -270,8 +271,9 @@ def generic_lives(
         returns[alive] += rewards[alive]
         lengths[alive] += 1
         ended = alive & done
-        if learner and isinstance(controllers, TerminalLearner) and (alive & terminated).any():
-            controllers.end_episode(rewards, alive & terminated)  # e.g. Sarsa's terminal update
+        finished = alive & terminated
+        if ender is not None and finished.any():
+            ender.end_episode(rewards, finished)  # e.g. Sarsa's terminal update
         if learner:
             for i in np.flatnonzero(ended):
                 ended_as[int(i)] = family.take(lived, [int(i)])
@@ -280,6 +282,7 @@ def generic_lives(
             break
         reward = np.where(alive, rewards, 0.0)
     if learner and ended_as:
-        rows = [ended_as.get(i) or family.take(lived, [i]) for i in range(n)]
+        # (not `get(i) or …`: a family's individuals need not have a truth value)
+        rows = [ended_as[i] if i in ended_as else family.take(lived, [i]) for i in range(n)]
         lived = family.concat(rows)
     return TaskLives(returns=returns, lengths=lengths, learned=lived)
