@@ -40,6 +40,7 @@ class NetworkLayout:
         weights: (E,) those weights.
         names: (V,) short name of each node: `s3`, `h2`, `h2(t−1)`, `left`.
         column_x: (3,) x of the input/context, hidden and wheel columns.
+        robot: the net is sized to the robot (its sensors in, its wheels out), not to a task.
     """
 
     net: str
@@ -50,6 +51,7 @@ class NetworkLayout:
     weights: np.ndarray
     names: tuple[str, ...]
     column_x: np.ndarray
+    robot: bool
 
     def count(self, kind: int) -> int:
         """Drawn nodes of `kind`."""
@@ -163,6 +165,7 @@ def network_layout(
         weights[keep][order],
         names,
         column_x,
+        _robots(cfg),
     )
 
 
@@ -221,9 +224,7 @@ def weight_colors(weights: np.ndarray, faintest: float = 0.1) -> np.ndarray:
 def describe_layers(layout: NetworkLayout) -> str:
     """`Elman · 8 IR in · 8 context t−1 · 8 hidden · 2 wheels · 144 weights` (a task's net:
     `Elman · 4 in · 3 context t−1 · 3 hidden · 1 out · 24 weights`)."""
-    outputs = tuple(n for n, k in zip(layout.names, layout.kinds, strict=True) if k == OUTPUT)
-    robot = outputs == WHEELS and layout.count(INPUT) == neuro.N_INPUTS
-    words = KIND_NAMES if robot else TASK_KIND_NAMES
+    words = KIND_NAMES if layout.robot else TASK_KIND_NAMES
     counts = " · ".join(f"{layout.count(kind)} {name}" for kind, name in enumerate(words))
     return f"{layout.net} · {counts} · {len(layout.weights)} weights"
 
