@@ -50,6 +50,10 @@ TINY = {
         "--populations 8 --steps 20 --generations 3 --rounds 1",
         [rf"2 / 1 worker: wall {RATIO}, on idle cores \(from CPU\) {RATIO}; CPU [-+][\d.]+%"],
     ),
+    "working_set": (
+        "--robots 8 --steps 20 --rounds 1 --pieces 4",
+        [rf"at once\s+\d+ ns/robot-step\s+at once / this 1\.00×", rf"pieces of 4\s+\d+ ns"],
+    ),
     "world": (
         "--robots 4 --steps 20 --naive-robots 2 --naive-steps 10 --repeats 1",
         [rf"iid: batched\s+{RATE} robot-steps/s.*ratio \d+×", rf"held: batched\s+{RATE}"],
