@@ -13,10 +13,11 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.settings.cli_options import add_run_name, add_runs_dir
 from app.settings.user_files import check_regular
-from app.store.files import TASK_RUN_FORMAT, RunFileError
+from app.store.files import RunFileError
+from app.store.legacy import LEGACY_TASK_FORMAT
 from sim import FAULT_MODES
 
-FORMAT = TASK_RUN_FORMAT
+FORMAT = LEGACY_TASK_FORMAT
 """The `format` attribute of a task run file (app.tasks.store)."""
 
 
