@@ -12,8 +12,8 @@ from app.settings.config import RunConfig
 from app.settings.user_files import check_regular
 from app.store.files import RunFileError
 from app.store.legacy import is_legacy_task_run, read_legacy_task_run
-from app.store.reader import RunReader
-from app.store.schema import RUN_KINDS
+from app.store.reader import RunReader, file_kind
+from app.store.schema import RUN_KINDS, RunKind
 
 SUFFIX = ".h5"
 
@@ -107,10 +107,12 @@ def list_runs(runs_dir: str | Path) -> list[RunSummary]:
 
 def _summary(path: Path) -> RunSummary:
     name = path.name[: -len(SUFFIX)]
+    kind: RunKind | None = None
     try:
         check_regular(path, RunFileError, "run file")  # a FIFO named *.h5 would hang h5py
         if is_legacy_task_run(path):
             return _legacy_summary(path, name)
+        kind = file_kind(path)
         with RunReader(path, RUN_KINDS) as run:
             history = run.history()
             best = float(history.best_fitness.max()) if len(history.best_fitness) else np.nan
@@ -127,7 +129,8 @@ def _summary(path: Path) -> RunSummary:
                 task_family=run.config.brain.family if run.kind == "task" else "",
             )
     except RunFileError as error:
-        return RunSummary(name=name, path=path, error=str(error))
+        said = f"task run: {error}" if kind == "task" else str(error)
+        return RunSummary(name=name, path=path, error=said)
 
 
 def _legacy_summary(path: Path, name: str) -> RunSummary:
