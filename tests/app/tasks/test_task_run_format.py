@@ -227,3 +227,23 @@ def test_a_damaged_task_run_is_one_line_everywhere(
     for argv in commands:
         assert main(argv) != 0, argv
         one_error_line(capsys, "bad.h5")
+
+
+def test_a_task_run_on_a_full_disk_stops_cleanly_and_resumes_to_the_bit(
+    whole: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from app.store import space
+
+    path = tmp_path / "full.h5"
+
+    def fill_the_disk(_summary: object) -> None:  # after generation 0 is done
+        monkeypatch.setattr(space, "free_bytes", lambda _folder: 0)
+
+    with pytest.raises(space.DiskFullError, match="no space left on the disk") as raised:
+        train_task(_config(), path, fill_the_disk)
+    assert f"gnp-lab train --resume {path}" in str(raised.value)
+    assert read_task_run(path).generation_done == 1
+    monkeypatch.undo()
+    resume_task(path)
+    np.testing.assert_array_equal(read_task_run(path).fitness, read_task_run(whole).fitness)
+    assert list(tmp_path.glob(".*")) == []
