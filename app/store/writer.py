@@ -97,10 +97,8 @@ class RunWriter:
         """
         path = Path(path)
         legacy = is_legacy_task_run(path)
-        if not legacy:
-            RunReader(
-                path, RUN_KINDS
-            ).close()  # a clear error for a missing, foreign or corrupt file
+        if not legacy:  # a clear error for a missing, foreign or corrupt file
+            RunReader(path, RUN_KINDS).close()
         lock = WriterLock(path)
         try:
             return cls._upgrade(path, lock) if legacy else cls._rebuild(path, lock)
@@ -143,7 +141,6 @@ class RunWriter:
         run = read_legacy_task_run(path)
         if run.generations_done >= run.config.training.generations:
             raise RunFileError(f"{path} is a finished run; there is nothing to resume")
-        require_space(path.parent, 2 * file_size(path), f"a resumed copy of {path.name}")
         generation, population = run.checkpoint()
         run = read_legacy_task_run(path, rows=generation)
         template = RunTemplate(
@@ -152,6 +149,9 @@ class RunWriter:
             trace={},
             task_config=run.task_config,
         )
+        # What the old file holds, in the new layout, and the checkpoint slot it fills now.
+        need = file_size(path) + run_growth(template).slot
+        require_space(path.parent, need, f"a resumed copy of {path.name}")
         try:
             handle = _publish(
                 path,
