@@ -206,7 +206,7 @@ class RunTemplate:
     """Shapes the file needs before training starts (SWMR cannot create objects later).
 
     A task run's `config` is the robot run's config its family is bound with (its seed, brain
-    and sizes: `task_run_sizes`); its whole config is `task_config`, stored as it is.
+    and sizes: `task_run_header`); its whole config is `task_config`, stored as it is.
     """
 
     config: RunConfig
@@ -329,7 +329,7 @@ def build_run_layout(handle: h5py.File, template: RunTemplate) -> None:
 
 
 TASK_SIZES = ("population", "generations", "steps")
-"""What of a task run's `training` its family is bound with (`task_run_sizes`)."""
+"""What of a task run's `training` its family is bound with (`task_run_header`)."""
 
 
 @dataclass(frozen=True)
