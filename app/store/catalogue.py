@@ -6,15 +6,14 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from app.settings.config import RunConfig
-from app.settings.families import DEFAULT_BRAIN
-from app.settings.user_files import check_regular, loads_json
-from app.store.files import TASK_RUN_FORMAT, RunFileError
-from app.store.reader import RunReader
-from app.store.validation import check_progress, plain_dataset
+from app.settings.user_files import check_regular
+from app.store.files import RunFileError
+from app.store.legacy import is_legacy_task_run, read_legacy_task_run
+from app.store.reader import RunReader, file_kind
+from app.store.schema import RUN_KINDS, RunKind
 
 SUFFIX = ".h5"
 
@@ -108,66 +107,46 @@ def list_runs(runs_dir: str | Path) -> list[RunSummary]:
 
 def _summary(path: Path) -> RunSummary:
     name = path.name[: -len(SUFFIX)]
+    kind: RunKind | None = None
     try:
         check_regular(path, RunFileError, "run file")  # a FIFO named *.h5 would hang h5py
-    except RunFileError as error:
-        return RunSummary(name=name, path=path, error=str(error))
-    task = _task_summary(path, name)
-    if task is not None:
-        return task
-    try:
-        with RunReader(path) as run:
+        if is_legacy_task_run(path):
+            return _legacy_summary(path, name)
+        kind = file_kind(path)
+        with RunReader(path, RUN_KINDS) as run:
             history = run.history()
             best = float(history.best_fitness.max()) if len(history.best_fitness) else np.nan
             return RunSummary(
                 name=name,
                 path=path,
-                config=run.config,
+                config=run.config if run.kind == "robot" else None,
                 generations_done=len(history.best_fitness),
                 generations=run.config.training.generations,
                 finished=run.finished,
                 best_fitness=best,
                 implementations=tuple(run.implementation_names()),
+                task=run.task,
+                task_family=run.config.brain.family if run.kind == "task" else "",
             )
     except RunFileError as error:
-        return RunSummary(name=name, path=path, error=str(error))
+        said = f"task run: {error}" if kind == "task" else str(error)
+        return RunSummary(name=name, path=path, error=said)
 
 
-def _task_summary(path: Path, name: str) -> RunSummary | None:
-    """The line of a task run file (`app.tasks.store`'s format, read here with h5py alone so
-    that listing runs needs no Gymnasium), or None for any other file."""
+def _legacy_summary(path: Path, name: str) -> RunSummary:
+    """The line of an old-format task run file (`app.store.legacy`)."""
     try:
-        handle = h5py.File(path, "r", locking=False)
-    except (OSError, ValueError):
-        return None
-    with handle:
-        if handle.attrs.get("format") != TASK_RUN_FORMAT:
-            return None
-        task = str(handle.attrs.get("task", "?"))
-        try:
-            config = loads_json(handle.attrs["config"], RunFileError, "its config")
-            generations = int(config["training"]["generations"])
-            done = check_progress(
-                "generations_done", handle.attrs["generations_done"], 0, generations, path
-            )
-            fitness = plain_dataset(handle, "history/fitness")
-            if fitness.ndim != 2 or fitness.shape[0] < done or fitness.dtype.kind != "f":
-                raise RunFileError(f"history/fitness is {fitness.shape} {fitness.dtype}")
-            rows = fitness[:done]
-            best = float(rows.max()) if rows.size else float("nan")
-            brain = config.get("brain")  # none in layout 1 (GNP's, before #46)
-            family = (
-                brain.get("family", DEFAULT_BRAIN) if isinstance(brain, dict) else DEFAULT_BRAIN
-            )
-        except (RunFileError, KeyError, ValueError, TypeError, OverflowError, OSError) as error:
-            return RunSummary(name=name, path=path, task=task, error=f"task run: {error}")
-        return RunSummary(
-            name=name,
-            path=path,
-            generations_done=done,
-            generations=generations,
-            finished=done >= generations,
-            best_fitness=best,
-            task=task,
-            task_family=str(family),
-        )
+        run = read_legacy_task_run(path)
+    except RunFileError as error:
+        return RunSummary(name=name, path=path, error=f"task run: {error}")
+    rows, generations = run.fitness, run.config.training.generations
+    return RunSummary(
+        name=name,
+        path=path,
+        generations_done=run.generations_done,
+        generations=generations,
+        finished=run.generations_done >= generations,
+        best_fitness=float(rows.max()) if rows.size else float("nan"),
+        task=run.task,
+        task_family=run.config.brain.family,
+    )

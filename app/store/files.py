@@ -30,10 +30,6 @@ LIBVER = ("v110", "v110")
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
-TASK_RUN_FORMAT = "gnp-lab-task-run"
-"""The `format` attribute of a task run file (`app.tasks.store`; the catalogue lists them)."""
-
-
 class RunFileError(Exception):
     """A run file or name is missing, foreign, corrupt, or cannot be used as asked."""
 

@@ -1,4 +1,5 @@
-"""Reading run files, also while a SWMR writer is still writing them."""
+"""Reading run files of any kind (a robot run, a task run), also while a SWMR writer is still
+writing them."""
 
 from __future__ import annotations
 
@@ -18,7 +19,17 @@ from app.settings.config import ImplementationSettings
 from app.settings.loading import describe_problems, stored_config
 from app.settings.user_files import loads_json
 from app.store.files import RunFileError, open_for_read
-from app.store.schema import FORMAT, SCHEMA_VERSION
+from app.store.legacy import LEGACY_TASK_FORMAT
+from app.store.schema import (
+    FORMAT,
+    KIND_ATTRIBUTE,
+    ROBOT,
+    RUN_KINDS,
+    SCHEMA_VERSION,
+    RunKind,
+    layout_of,
+    task_run_header,
+)
 from app.store.validation import check_implementation, check_progress, check_run_layout
 
 _T = TypeVar("_T")
@@ -42,8 +53,10 @@ class History:
     epsilon: np.ndarray  # (g,)
     alpha: np.ndarray  # (g,)
     fitness: np.ndarray  # (g, population)
-    best_terms: dict[str, np.ndarray]  # term name -> (g,), mean per step of the best
-    mean_terms: dict[str, np.ndarray]  # term name -> (g,), population mean
+    best_terms: dict[str, np.ndarray]  # term name -> (g,), mean per step of the best (robot)
+    mean_terms: dict[str, np.ndarray]  # term name -> (g,), population mean (robot)
+    #: (g,) a task run's env-steps per generation, −1 where not known (None: a robot run)
+    env_steps: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -69,12 +82,20 @@ class RunReader:
     Reads that catch a live writer mid-flush are retried (and the file reopened if need be), so
     callers see consistent data or, if the file stays unreadable, a RunFileError.
 
+    `kinds`: the kinds of run the caller reads (a robot run's by default); the file's own is
+    `kind`. A task run's `config` is the robot run's config its family is bound with (seed,
+    brain, sizes: `schema.task_run_header`), its whole config `task_config` (JSON, for
+    `app.tasks` to read), its Gymnasium id `task` ("" for a robot run); it has no reward terms
+    and no elite's life.
+
     Raises:
-        RunFileError: missing, foreign (not a gnp-lab run) or corrupt file.
+        RunFileError: missing, foreign (not a gnp-lab run), corrupt, or of a kind not in
+            `kinds`.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, kinds: tuple[RunKind, ...] = ROBOT) -> None:
         self.path = Path(path)
+        self._kinds = kinds
         self._file = open_for_read(self.path)
         try:
             self._load_header()
@@ -87,19 +108,28 @@ class RunReader:
 
     def _load_header(self) -> None:
         attrs = self._file.attrs
-        if attrs.get("format") == "gnp-lab-task-run":  # app.tasks.store.FORMAT
+        kind = _kind(self.path, attrs)
+        if kind not in self._kinds:
             raise RunFileError(
-                f"{self.path} is a run on the task {attrs.get('task')} (gnp-lab replay, export)"
+                f"{self.path} is a task run (gnp-lab replay, export)"
+                if kind == "task"
+                else f"{self.path} is a robot run, not a task run"
             )
-        if attrs.get("format") != FORMAT:
-            raise RunFileError(f"{self.path} is an HDF5 file but not a gnp-lab run")
         version = int(attrs["schema_version"])
         if version != SCHEMA_VERSION:
             raise RunFileError(
                 f"{self.path} has run-file schema {version}; this gnp-lab reads {SCHEMA_VERSION}"
             )
+        self.kind: RunKind = kind
+        self.task_config: str | None = None
+        self.task = ""
         try:
-            self.config = stored_config(attrs["config"])
+            if kind == "task":
+                self.task_config = str(attrs["config"])
+                header = task_run_header(self.task_config)
+                self.config, self.task = header.config, header.task
+            else:
+                self.config = stored_config(attrs["config"])
         except ValidationError as error:
             problems = describe_problems(error, limit=3)
             raise RunFileError(f"{self.path} holds an invalid config: {problems}") from None
@@ -109,9 +139,11 @@ class RunReader:
         if self.seed != self.config.seed:
             raise RunFileError(f"{self.path}: seed {self.seed}, its config's {self.config.seed}")
         self.package_version = str(attrs["package_version"])
-        self.term_names = tuple(str(t) for t in np.atleast_1d(attrs["reward_terms"]))
+        terms = attrs["reward_terms"] if kind == "robot" else ()
+        self.term_names = tuple(str(t) for t in np.atleast_1d(terms))
+        self._rows = {row.path for row in layout_of(kind)}
         try:
-            check_run_layout(self._file, self.config, self.term_names)
+            check_run_layout(self._file, self.config, self.term_names, kind)
         except RunFileError as error:
             raise RunFileError(f"{self.path}: {error}") from None
         # The inode of the open file (not of the path, which a rename may have moved on).
@@ -215,7 +247,10 @@ class RunReader:
             # Only complete rows: the rest may be mid-write.
             return np.asarray(self._dataset(f"generations/{name}")[:done])
 
-        best_terms, mean_terms = rows("best_terms"), rows("mean_terms")
+        terms = "generations/best_terms" in self._rows
+        best_terms = rows("best_terms") if terms else np.zeros((done, 0))
+        mean_terms = rows("mean_terms") if terms else np.zeros((done, 0))
+        steps = rows("env_steps") if "generations/env_steps" in self._rows else None
         return History(
             best_fitness=rows("best_fitness"),
             mean_fitness=rows("mean_fitness"),
@@ -226,6 +261,7 @@ class RunReader:
             fitness=rows("fitness"),
             best_terms={t: best_terms[:, i] for i, t in enumerate(self.term_names)},
             mean_terms={t: mean_terms[:, i] for i, t in enumerate(self.term_names)},
+            env_steps=steps,
         )
 
     def best_genome_arrays(self, generation: int = -1) -> dict[str, np.ndarray]:
@@ -269,8 +305,9 @@ class RunReader:
         return generation, {name: self._read(f"{group}/{name}") for name in self._file[group]}
 
     def elite(self) -> Trajectory | None:
-        """The final elite's recorded life (the evaluation that earned its fitness), if done."""
-        if not self.finished:
+        """The final elite's recorded life (the evaluation that earned its fitness), if done (a
+        task run records none)."""
+        if "elite/generation" not in self._rows or not self.finished:
             return None
         return self._steady(lambda: self._trajectory("elite"))
 
@@ -334,3 +371,36 @@ class RunReader:
             trials=self._trajectory(f"{base}/trials", recorded),
             recorded=self._read(f"{base}/recorded")[: None if recorded else 0],
         )
+
+
+def _kind(path: Path, attrs: h5py.AttributeManager) -> RunKind:
+    """The kind of run a file records (its `kind` attribute; none: a robot run's).
+
+    Raises:
+        RunFileError: not a gnp-lab run, or of an unknown kind.
+    """
+    if attrs.get("format") == LEGACY_TASK_FORMAT:
+        raise RunFileError(f"{path} is a task run (gnp-lab replay, export)")
+    if attrs.get("format") != FORMAT:
+        raise RunFileError(f"{path} is an HDF5 file but not a gnp-lab run")
+    kind = attrs.get(KIND_ATTRIBUTE, "robot")
+    for known in RUN_KINDS:
+        if kind == known:
+            return known
+    raise RunFileError(
+        f"{path} is a run of an unknown kind {kind!r}; this gnp-lab reads {RUN_KINDS}"
+    )
+
+
+def file_kind(path: str | Path) -> RunKind:
+    """The kind of run the file at `path` holds (an old-format task run's too: "task"), read
+    without checking the rest of it; also while a writer holds it.
+
+    Raises:
+        RunFileError: missing, not a gnp-lab run, or of an unknown kind.
+    """
+    path = Path(path)
+    with open_for_read(path) as handle:
+        if handle.attrs.get("format") == LEGACY_TASK_FORMAT:
+            return "task"
+        return _kind(path, handle.attrs)

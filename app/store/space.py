@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from app.store.files import RunFileError
-from app.store.schema import RUN_LAYOUT, Placed, RunTemplate, place
+from app.store.schema import Placed, RunTemplate, layout_of, place
 
 MARGIN = 64 * 1024
 """Bytes kept free beyond a write's data: HDF5 metadata (object headers, B-trees, heaps)."""
@@ -84,7 +84,7 @@ class RunGrowth:
 def run_growth(template: RunTemplate) -> RunGrowth:
     """The growth bounds of a run of `template` (see `RunGrowth`)."""
     dims = template.dims()
-    placed = place(RUN_LAYOUT, dims, template.arrays())
+    placed = place(layout_of(template.kind), dims, template.arrays())
     chunks = []
     for d in placed:
         if d.row.shape[:1] == ("generations",):

@@ -18,7 +18,14 @@ import numpy as np
 
 from app.settings.config import RunConfig
 from app.store.files import RunFileError
-from app.store.schema import IMPLEMENTATION_LAYOUT, RUN_LAYOUT, Dataset, implementation_dims, place
+from app.store.schema import (
+    IMPLEMENTATION_LAYOUT,
+    Dataset,
+    RunKind,
+    implementation_dims,
+    layout_of,
+    place,
+)
 
 _NUMERIC = "biuf"
 # Per-array rows (`{genome}`, `{trace}`) are checked on their leading axes: a 1-element sample
@@ -26,8 +33,10 @@ _NUMERIC = "biuf"
 _SAMPLE = {"genome": {"*": np.zeros(1)}, "trace": {"*": np.zeros(1)}}
 
 
-def check_run_layout(file: h5py.File, config: RunConfig, term_names: tuple[str, ...]) -> None:
-    """Every dataset of `RUN_LAYOUT` in `file`, as the config shapes it.
+def check_run_layout(
+    file: h5py.File, config: RunConfig, term_names: tuple[str, ...], kind: RunKind = "robot"
+) -> None:
+    """Every dataset of a run of `kind` (`layout_of`) in `file`, as the config shapes it.
 
     Raises:
         RunFileError: naming the first dataset missing, linked elsewhere, or of the wrong
@@ -41,7 +50,7 @@ def check_run_layout(file: h5py.File, config: RunConfig, term_names: tuple[str, 
         "lives": 1,
         "terms": len(term_names),
     }
-    _check_rows(file, RUN_LAYOUT, dims)
+    _check_rows(file, layout_of(kind), dims)
 
 
 def check_implementation(group: h5py.Group, term_names: tuple[str, ...]) -> None:

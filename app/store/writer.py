@@ -16,9 +16,11 @@ import numpy as np
 
 from app.loop.recording import Trajectory
 from app.store.files import RunFileError, WriterLock, atomic_file, create_file
+from app.store.legacy import fill_run_file, is_legacy_task_run, read_legacy_task_run
 from app.store.reader import Implementation, RunReader
 from app.store.schema import (
     IMPLEMENTATION_LAYOUT,
+    RUN_KINDS,
     RunTemplate,
     build_run_layout,
     create_datasets,
@@ -36,6 +38,7 @@ class RunWriter:
     ) -> None:
         self.path = path
         self.config = template.config
+        self.task_config = template.task_config  # a task run's whole config (JSON)
         self._file = handle
         self._lock = lock
         self._next_slot = 0
@@ -83,26 +86,29 @@ class RunWriter:
 
     @classmethod
     def resume(cls, path: str | Path) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
-        """Reopen an interrupted run for writing, from its last checkpoint.
+        """Reopen an interrupted run of any kind for writing, from its last checkpoint.
 
         The file is rebuilt from a (SWMR) read into a new file renamed over it, which clears the
-        consistency flags a killed writer leaves. Returns (writer, next generation, population).
+        consistency flags a killed writer leaves; an old-format task run (`app.store.legacy`) is
+        so rewritten into the run format. Returns (writer, next generation, population).
 
         Raises:
             RunFileError: not a resumable run (missing, foreign, finished, no checkpoint).
         """
         path = Path(path)
-        RunReader(path).close()  # a clear error for a missing, foreign or corrupt file
+        legacy = is_legacy_task_run(path)
+        if not legacy:  # a clear error for a missing, foreign or corrupt file
+            RunReader(path, RUN_KINDS).close()
         lock = WriterLock(path)
         try:
-            return cls._rebuild(path, lock)
+            return cls._upgrade(path, lock) if legacy else cls._rebuild(path, lock)
         except BaseException:
             lock.release()
             raise
 
     @classmethod
     def _rebuild(cls, path: Path, lock: WriterLock) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
-        with RunReader(path) as run:
+        with RunReader(path, RUN_KINDS) as run:
             if run.finished:
                 raise RunFileError(f"{path} is a finished run; there is nothing to resume")
             require_space(path.parent, file_size(path), f"a resumed copy of {path.name}")
@@ -110,10 +116,12 @@ class RunWriter:
             if point is None:
                 raise RunFileError(f"{path} has no checkpoint yet; start the run again")
             generation, population = point
+            elite = run.file.get("elite/trace", {})  # a task run has no elite
             template = RunTemplate(
                 config=run.config,
                 genome={k: v[:1] for k, v in population.items()},
-                trace={name: np.asarray(ds[0, :1]) for name, ds in run.file["elite/trace"].items()},
+                trace={name: np.asarray(ds[0, :1]) for name, ds in elite.items()},
+                task_config=run.task_config,
             )
 
             def restore(handle: h5py.File) -> None:
@@ -125,6 +133,42 @@ class RunWriter:
         slot = int(handle["progress/checkpoint"][0])
         writer._next_slot = 1 - slot
         return writer, generation, population
+
+    @classmethod
+    def _upgrade(cls, path: Path, lock: WriterLock) -> tuple[RunWriter, int, dict[str, np.ndarray]]:
+        """`_rebuild` of an old-format task run: its generations up to its checkpoint and the
+        checkpoint, in a task run of the run format."""
+        run = read_legacy_task_run(path)
+        if run.generations_done >= run.config.training.generations:
+            raise RunFileError(f"{path} is a finished run; there is nothing to resume")
+        generation, population = run.checkpoint()
+        run = read_legacy_task_run(path, rows=generation)
+        template = RunTemplate(
+            config=run.config,
+            genome={k: v[:1] for k, v in population.items()},
+            trace={},
+            task_config=run.task_config,
+        )
+        # What the old file holds, in the new layout, and the checkpoint slot it fills now.
+        need = file_size(path) + run_growth(template).slot
+        require_space(path.parent, need, f"a resumed copy of {path.name}")
+        try:
+            handle = _publish(
+                path,
+                template,
+                overwrite=True,
+                fill=lambda handle: fill_run_file(handle, run, generation, population),
+            )
+        except (KeyError, ValueError, TypeError) as error:
+            raise RunFileError(f"{path.name}: cannot be resumed: {error}") from None
+        writer = cls(path, handle, template, lock)
+        writer._next_slot = 1
+        return writer, generation, population
+
+    def fitness(self, generations: int) -> np.ndarray:
+        """(generations, P) fitness of the first `generations` generations in the file (a
+        resumed run's before its checkpoint)."""
+        return np.asarray(self._ds("generations/fitness")[:generations])
 
     def close(self) -> None:
         if self._file.id.valid:
@@ -143,13 +187,15 @@ class RunWriter:
         generation: int,
         *,
         fitness: np.ndarray,
-        best_terms: Mapping[str, float],
-        mean_terms: Mapping[str, float],
         epsilon: float,
         alpha: float,
         best_genome: Mapping[str, np.ndarray],
+        best_terms: Mapping[str, float] | None = None,
+        mean_terms: Mapping[str, float] | None = None,
+        env_steps: int | None = None,
     ) -> None:
-        """Record one evaluated generation (not yet counted as done).
+        """Record one evaluated generation (not yet counted as done): a robot run's with its
+        best's and mean reward terms, a task run's with the env-steps its episodes took.
 
         Raises:
             DiskFullError: the disk cannot hold this generation (nothing of it was written;
@@ -171,8 +217,11 @@ class RunWriter:
         ds("generations/best_index")[generation] = best
         ds("generations/epsilon")[generation] = epsilon
         ds("generations/alpha")[generation] = alpha
-        ds("generations/best_terms")[generation] = [best_terms[t] for t in TERM_NAMES]
-        ds("generations/mean_terms")[generation] = [mean_terms[t] for t in TERM_NAMES]
+        if best_terms is not None and mean_terms is not None:
+            ds("generations/best_terms")[generation] = [best_terms[t] for t in TERM_NAMES]
+            ds("generations/mean_terms")[generation] = [mean_terms[t] for t in TERM_NAMES]
+        if env_steps is not None:
+            ds("generations/env_steps")[generation] = env_steps
         for name, values in best_genome.items():
             ds(f"genomes/best/{name}")[generation] = values[0]
 
@@ -217,6 +266,10 @@ class RunWriter:
         _write_lives(elite, life)
         elite["generation"][()] = generation
         self._file.flush()
+        self.finish()
+
+    def finish(self) -> None:
+        """Mark the run finished (a robot run's once its elite is written: `write_elite`)."""
         self._file["progress/finished"][()] = 1
         self._file.flush()
 

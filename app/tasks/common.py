@@ -1,5 +1,5 @@
-"""What the lab knows of task runs without importing Gymnasium: the run file's format, the
-error a task raises, and `gnp-lab replay`'s options. `gnp-lab` imports this module alone and
+"""What the lab knows of task runs without importing Gymnasium: which run files are task runs,
+the error a task raises, and `gnp-lab replay`'s options. `gnp-lab` imports this module alone and
 the rest of `app.tasks` (and Gymnasium) only when a task is asked for."""
 
 from __future__ import annotations
@@ -8,16 +8,12 @@ import argparse
 from pathlib import Path
 from typing import Any, Literal, get_args
 
-import h5py
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.settings.cli_options import add_run_name, add_runs_dir
-from app.settings.user_files import check_regular
-from app.store.files import TASK_RUN_FORMAT, RunFileError
+from app.store.files import RunFileError
+from app.store.reader import file_kind
 from sim import FAULT_MODES
-
-FORMAT = TASK_RUN_FORMAT
-"""The `format` attribute of a task run file (app.tasks.store)."""
 
 
 class TaskError(ValueError):
@@ -61,16 +57,12 @@ class EpisodeProtocol(BaseModel):
 
 
 def is_task_run(path: str | Path) -> bool:
-    """Whether `path` is a task run file (False for anything else, a robot run included, and
-    for what is not a regular file: h5py would wait on a FIFO)."""
+    """Whether `path` is a task run file, as its kind says (`app.store.file_kind`; an old task
+    run file's format too): False for anything else, a robot run included, and for what is not
+    a regular file (h5py would wait on a FIFO)."""
     try:
-        check_regular(path, RunFileError, "run file")
+        return file_kind(path) == "task"
     except RunFileError:
-        return False
-    try:
-        with h5py.File(path, "r", locking=False) as handle:
-            return bool(handle.attrs.get("format") == FORMAT)
-    except (OSError, ValueError):
         return False
 
 

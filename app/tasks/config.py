@@ -38,6 +38,7 @@ from app.brains.registry import family_of
 from app.settings.config import ConfigError, RunConfig, TrainingSettings, brain_field
 from app.settings.families import DEFAULT_BRAIN, BrainSettings, brain_section
 from app.settings.layouts import GNP_SECTIONS, layout_1, layout_2
+from app.store.schema import TASK_SIZES
 from app.tasks.common import TEST_PROTOCOLS, EpisodeProtocol, TaskError, TestProtocol
 from app.tasks.spaces import TaskAdapter, task_adapter
 from gnp import Schedule
@@ -173,11 +174,9 @@ class TaskRunConfig(_Frozen):
     def run_config(self) -> RunConfig:
         """The robot run's config a family is bound with: the run's seed and brain, its
         population, generations and a life's cap (the arena's settings at their defaults,
-        unused). A generation's ε and α are the task's (`TaskTraining.epsilon_alpha`)."""
-        training = self.training
-        sizes = TrainingSettings(
-            population=training.population, generations=training.generations, steps=training.steps
-        )
+        unused; the store binds the same, `app.store.schema.task_run_header`). A generation's
+        ε and α are the task's (`TaskTraining.epsilon_alpha`)."""
+        sizes = TrainingSettings(**{name: getattr(self.training, name) for name in TASK_SIZES})
         return RunConfig(seed=self.seed, brain=self.brain, training=sizes)
 
     @property

@@ -1,7 +1,8 @@
 """One run of a task experiment: a brain (ours or fracnetics) trained on a Gymnasium task, then
 its final elite tested on K fixed episode seeds (the same for every arm).
 
-GNP runs are task run files (`app.tasks.store`), resumable, with a `test` group added when
+GNP runs are task run files (`app.tasks.store`: run files of kind "task", or of the old task
+run format), resumable, with a `test` group added when
 training is done: the final elite (the best of the last generation, or the generation best
 chosen on K validation episodes: `elite_generation`) lives one episode per test seed under each
 test protocol (`TEST_PROTOCOLS`: as trained, its generation's ε and α, Sarsa on, each episode
@@ -9,8 +10,9 @@ from the Q tables it ended training with; and greedy, ε = α = 0, Sarsa frozen)
 holds the returns of the run's own `test_protocol` (the metric `test_return`), and
 `test/returns_<protocol>` each protocol's (the metrics `test_return_<protocol>`; a file tested
 before #45 holds `returns` only, as trained). fracnetics' elite is a fixed policy (its library
-has no learning): its returns are every protocol's. Env-steps, for either brain:
-`history/env_steps` (G,) int64 the steps each generation's episodes took, and
+has no learning): its returns are every protocol's. Env-steps, for either brain: the steps
+each generation's episodes took (`generations/env_steps` of a task run, `history/env_steps` of
+a fracnetics run and of an old task run file), and
 `test/lengths_<protocol>` (K,) int64 each test episode's length (a file written before #45 holds
 neither: `PeerResult.env_steps` and `test_lengths` read None). fracnetics runs
 (`app.tasks.fracnetics_arm`) write a file of their own format with their results only. Both
@@ -29,12 +31,13 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.settings.user_files import check_regular, loads_json
-from app.store.files import LIBVER, RunFileError
-from app.store.schema import package_version
+from app.store.files import LIBVER, RunFileError, open_for_read
+from app.store.schema import ENV_STEPS_UNIT, EPISODE_RETURN, package_version
 from app.store.validation import check_progress, plain_dataset
-from app.tasks.common import FORMAT
+from app.tasks.common import is_task_run
 from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig
 from app.tasks.fracnetics_arm import FracneticsResult, FracneticsSettings
+from app.tasks.store import read_task_run
 
 FRACNETICS_FORMAT = "gnp-lab-fracnetics-run"
 PeerBrain = Literal["gnp", "fracnetics"]
@@ -79,29 +82,41 @@ class PeerResult:
 
 
 def read_peer(path: str | Path) -> PeerResult:
-    """A task experiment's run file, either brain.
+    """A task experiment's run file, either brain (a GNP run: a task run, read by
+    `read_task_run`, its `test` group beside).
 
     Raises:
         RunFileError: unreadable, or not a task experiment's run file.
     """
+    path = Path(path)
     check_regular(path, RunFileError, "run file")
-    try:
-        handle = h5py.File(path, "r", locking=False)
-    except OSError as error:
-        raise RunFileError(f"cannot read {path}: {error}") from None
+    gnp = read_task_run(path) if is_task_run(path) else None
+    handle = open_for_read(path)  # a killed GNP run's file needs a SWMR read
     with handle:
-        if handle.attrs.get("format") not in (FORMAT, FRACNETICS_FORMAT):
+        if gnp is None and handle.attrs.get("format") != FRACNETICS_FORMAT:
             raise RunFileError(f"{path} is not a task experiment's run file")
         try:
-            return _peer(Path(path), handle)
+            if gnp is None:
+                config, done, fitness, steps = _fracnetics_training(path, handle)
+            else:
+                config, done, fitness, steps = (
+                    gnp.config,
+                    gnp.generation_done,
+                    gnp.fitness,
+                    gnp.env_steps,
+                )
+            return _peer(handle, config, done, fitness, steps)
         except (ValidationError, KeyError, ValueError, TypeError, OverflowError, OSError) as error:
             text = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise RunFileError(f"corrupt task run file {path}: {text}") from None
 
 
-def _peer(path: Path, handle: h5py.File) -> PeerResult:
-    """`read_peer` of an open file, checked: its config, `generations_done` within the config's
-    generations and the rows held, a (rows, population) float fitness table."""
+def _fracnetics_training(
+    path: Path, handle: h5py.File
+) -> tuple[TaskRunConfig, int, np.ndarray, np.ndarray | None]:
+    """(config, generations done, fitness, env-steps) of a fracnetics run's file, checked: its
+    config, `generations_done` within the config's generations and the rows held, a (rows,
+    population) float fitness table."""
     config = TaskRunConfig.model_validate(
         loads_json(handle.attrs["config"], RunFileError, "config")
     )
@@ -112,7 +127,23 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
     table = plain_dataset(handle, "history/fitness")
     if table.ndim != 2 or table.shape[0] < done or table.dtype.kind not in "iuf":
         raise RunFileError(f"{path}: history/fitness is {table.shape} {table.dtype}")
-    fitness = table[:done]
+    steps = None
+    if "history/env_steps" in handle:
+        column = plain_dataset(handle, "history/env_steps")
+        if column.ndim != 1 or column.shape[0] < done or column.dtype.kind not in "iu":
+            raise RunFileError(f"{path}: history/env_steps is {column.shape} {column.dtype}")
+        steps = np.asarray(column[:done], np.int64)
+    return config, done, np.asarray(table[:done]), steps
+
+
+def _peer(
+    handle: h5py.File,
+    config: TaskRunConfig,
+    done: int,
+    fitness: np.ndarray,
+    steps: np.ndarray | None,
+) -> PeerResult:
+    """`read_peer` of an open file, its training read: its test group, if any."""
     test = (
         np.asarray(plain_dataset(handle, "test/returns")[()], float) if "test" in handle else None
     )
@@ -121,12 +152,6 @@ def _peer(path: Path, handle: h5py.File) -> PeerResult:
         for p in TEST_PROTOCOLS
         if _protocol_dataset(p) in handle
     }
-    steps = None
-    if "history/env_steps" in handle:
-        column = plain_dataset(handle, "history/env_steps")
-        if column.ndim != 1 or column.shape[0] < done or column.dtype.kind not in "iu":
-            raise RunFileError(f"{path}: history/env_steps is {column.shape} {column.dtype}")
-        steps = np.asarray(column[:done], np.int64)
     lengths: dict[str, np.ndarray] = {
         p: np.asarray(plain_dataset(handle, _protocol_dataset(p, "lengths"))[()], np.int64)
         for p in TEST_PROTOCOLS
@@ -158,7 +183,7 @@ def _write_protocols(
         group.create_dataset(_protocol_dataset(protocol).split("/")[1], data=values)
     for protocol, values in lengths.items():
         name = _protocol_dataset(protocol, "lengths").split("/")[1]
-        group.create_dataset(name, data=np.asarray(values, np.int64)).attrs["unit"] = "env steps"
+        group.create_dataset(name, data=np.asarray(values, np.int64)).attrs["unit"] = ENV_STEPS_UNIT
 
 
 def _write_test(
@@ -173,7 +198,7 @@ def _write_test(
         if "test" in handle:
             del handle["test"]
         group = handle.create_group("test")
-        group.attrs["unit"] = "episode return"
+        group.attrs["unit"] = EPISODE_RETURN
         group.attrs["protocol"] = peer.run.training.test_protocol
         group.attrs["elite_generation"] = elite_generation
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
@@ -195,11 +220,11 @@ def _write_fracnetics(path: Path, peer: PeerRun, result: FracneticsResult) -> No
         handle.attrs["peer"] = peer.model_dump_json()
         handle.attrs["generations_done"] = fitness.shape[0]
         history = handle.create_group("history")
-        history.create_dataset("fitness", data=fitness).attrs["unit"] = "episode return"
+        history.create_dataset("fitness", data=fitness).attrs["unit"] = EPISODE_RETURN
         steps = history.create_dataset("env_steps", data=np.asarray(result.env_steps, np.int64))
-        steps.attrs["unit"] = "env steps"
+        steps.attrs["unit"] = ENV_STEPS_UNIT
         group = handle.create_group("test")
-        group.attrs["unit"] = "episode return"
+        group.attrs["unit"] = EPISODE_RETURN
         group.create_dataset("seeds", data=np.asarray(peer.test_seeds, dtype=np.int64))
         group.create_dataset("returns", data=test)
         _write_protocols(

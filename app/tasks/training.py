@@ -20,7 +20,7 @@ validation episodes is the highest; it lives its episodes under the run's `test_
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -37,12 +37,13 @@ from app.phases.generations import (
     run_generations,
     stop_on_signals,
 )
+from app.store import RunFileError, RunWriter
 from app.system.memory import COPIES, check_memory
-from app.tasks.common import TaskError
+from app.tasks.common import TaskError, is_task_run
 from app.tasks.config import TaskRunConfig, TestProtocol
 from app.tasks.faults import ObservationFault
 from app.tasks.lives import BatchEnv, FaultPlan, TaskLives, batch_env, live
-from app.tasks.store import TaskRunWriter, read_task_run
+from app.tasks.store import read_task_run, task_run_config
 
 # What callers of task training meet, imported from their rooms.
 __all__ = [
@@ -111,12 +112,12 @@ def generation_lives(
 
 class TaskLab:
     """A task's lab for the one generation loop: lives in the task's environments (one batch
-    env for the whole run), generations in its task run file, a checkpoint every generation."""
+    env for the whole run), generations in its run file (a task run, `RunWriter`), a
+    checkpoint every generation."""
 
-    def __init__(self, writer: TaskRunWriter) -> None:
-        self.writer, self.config = writer, writer.config
-        self.generations = self.config.training.generations
-        config = self.config
+    def __init__(self, writer: RunWriter, config: TaskRunConfig) -> None:
+        self.writer, self.config = writer, config
+        self.generations = config.training.generations
         self._env = batch_env(
             config.family, config.task.id, config.training.population, config.adapter
         )
@@ -134,7 +135,12 @@ class TaskLab:
         best_genome: dict[str, np.ndarray],
     ) -> None:
         self.writer.write_generation(
-            generation, lived.fitness, epsilon, alpha, best_genome, env_steps=lived.steps
+            generation,
+            fitness=lived.fitness,
+            epsilon=epsilon,
+            alpha=alpha,
+            best_genome=best_genome,
+            env_steps=lived.steps,
         )
 
     def checkpoint(self, next_generation: int, arrays: dict[str, np.ndarray]) -> None:
@@ -145,6 +151,8 @@ class TaskLab:
 
     def done(self, generations_done: int) -> None:
         self.writer.mark_done(generations_done)
+        if generations_done == self.generations:
+            self.writer.finish()
 
     def close(self) -> None:
         try:
@@ -174,7 +182,8 @@ def train_task(
     control = control or Control()
     with stop_on_signals(control):  # a stop before generation 0's checkpoint leaves no file
         evolution = TaskEvolution(config, family.first())
-        writer = TaskRunWriter.create(out, config)
+        template = replace(family.run_template(), task_config=config.model_dump_json())
+        writer = RunWriter.create(out, template)
         try:
             writer.write_checkpoint(0, evolution.arrays(evolution.individuals()))
             writer.mark_done(0)
@@ -182,23 +191,32 @@ def train_task(
             writer.close()
             Path(out).unlink(missing_ok=True)
             raise
-        run_generations(TaskLab(writer), evolution, 0, progress, control)
+        run_generations(TaskLab(writer, config), evolution, 0, progress, control)
     return writer.path
 
 
 def resume_task(
     path: str | Path, progress: ProgressCallback | None = None, control: Control | None = None
 ) -> Path:
-    """Continue an interrupted task run from its checkpoint (as `train_task`)."""
-    writer, generation, arrays = TaskRunWriter.resume(path)
-    config = writer.config
+    """Continue an interrupted task run from its checkpoint (as `train_task`); a file of the old
+    task run format is rewritten into the run format first (`RunWriter.resume`).
+
+    Raises:
+        RunFileError: not a resumable task run (a robot run, finished, no checkpoint).
+    """
+    if not is_task_run(path):
+        raise RunFileError(f"{path} is not a task run")
+    writer, generation, arrays = RunWriter.resume(path)
     try:
-        fitness = read_task_run(path).fitness[:generation]
+        assert writer.task_config is not None  # a task run's writer has it
+        config = task_run_config(Path(path), writer.task_config)
+        fitness = writer.fitness(generation)
         evolution = TaskEvolution(config, config.family.rebuild(generation, arrays, fitness))
     except BaseException:
         writer.close()
         raise
-    run_generations(TaskLab(writer), evolution, generation, progress, control or Control())
+    lab = TaskLab(writer, config)
+    run_generations(lab, evolution, generation, progress, control or Control())
     return writer.path
 
 

@@ -12,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 from experiment_fixtures import in_process_client
+from legacy_task_files import write_old_task_run
 from test_peer import _spec
 
 from app.experiments.harvest import collect
@@ -20,6 +21,7 @@ from app.experiments.report_page import write_report
 from app.experiments.runner import RunOptions, run_experiment
 from app.experiments.spec_loading import parse
 from app.phases.generations import Interrupted
+from app.tasks.common import is_task_run
 from app.tasks.config import TEST_PROTOCOLS, TaskRunConfig, TaskSettings, TaskTraining
 from app.tasks.fracnetics_arm import StepCounter, documented
 from app.tasks.peer import PeerRun, read_peer, run_peer
@@ -40,8 +42,21 @@ def _peer(brain: str) -> PeerRun:
 
 
 def _fitness(path: Path) -> np.ndarray:
-    with h5py.File(path, "r") as handle:
+    if is_task_run(path):  # a GNP run
+        return read_task_run(path).fitness
+    with h5py.File(path, "r") as handle:  # a fracnetics run
         return np.asarray(handle["history/fitness"][()])
+
+
+def _before_env_steps(path: Path) -> None:
+    """Make `path` a file of before #45: an old-format task run without env-steps (a GNP
+    run), a fracnetics run without them."""
+    if is_task_run(path):
+        old = write_old_task_run(path, path.with_suffix(".old"), env_steps=False)
+        old.replace(path)
+        return
+    with h5py.File(path, "r+") as handle:
+        del handle["history/env_steps"]
 
 
 @pytest.mark.parametrize("brain", ["gnp", "fracnetics"])
@@ -81,8 +96,8 @@ def test_a_file_written_before_env_steps_still_reads(tmp_path: Path) -> None:
     for brain in ("gnp", "fracnetics"):
         path = tmp_path / f"{brain}.h5"
         result = run_peer(_peer(brain), path)
+        _before_env_steps(path)
         with h5py.File(path, "r+") as handle:
-            del handle["history/env_steps"]
             for protocol in TEST_PROTOCOLS:
                 del handle["test/lengths_" + protocol.replace("-", "_")]
         old = read_peer(path)
@@ -106,12 +121,13 @@ def test_a_resumed_run_records_the_same_env_steps_and_an_old_one_none(tmp_path: 
         cut = tmp_path / name
         with pytest.raises(Interrupted):
             train_task(config, cut, stop_after_one)
-        if old:  # begun before #45: no column to fill, none written on resume
-            with h5py.File(cut, "r+") as handle:
-                del handle["history/env_steps"]
+        if old:  # begun before #45, in the old format: its generations' env-steps unknown
+            _before_env_steps(cut)
+            assert read_task_run(cut).legacy
         resume_task(cut)
         run = read_task_run(cut)
         np.testing.assert_array_equal(run.fitness, whole.fitness)
+        assert not run.legacy  # resumed in the run format
         if old:
             assert run.env_steps is None
         else:
@@ -149,8 +165,7 @@ def test_a_task_experiment_harvests_reports_and_claims_training_env_steps(tmp_pa
     # files before #45 (no env-steps) and no claim naming it: no column, no section
     unclaimed = parse(_spec(), "tiny")
     for task in plan(unclaimed, "smoke", runs):
-        with h5py.File(task.path, "r+") as handle:
-            del handle["history/env_steps"]
+        _before_env_steps(Path(task.path))
     old = collect(unclaimed, "smoke", runs)
     assert not any(key[0] == "training_env_steps" for key in old.scalars)
     assert "env-steps" not in write_report(old, tmp_path / "old").read_text()

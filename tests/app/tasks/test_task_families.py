@@ -71,7 +71,7 @@ def test_a_cut_run_resumed_equals_one_never_cut_in_every_dataset(runs: Path) -> 
     assert np.isnan(run.epsilon).all() and np.isnan(run.alpha).all()  # no online learning
     family = run.config.family
     with h5py.File(runs / "cut.h5", "r") as handle:
-        stored = {name: handle["history/best"][name].shape[1:] for name in handle["history/best"]}
+        stored = {name: handle["genomes/best"][name].shape[1:] for name in handle["genomes/best"]}
     assert stored == {name: shape for name, (shape, _) in family.genome_layout.items()}
     assert family.network_config is not None
     assert (family.network_config.n_inputs, family.network_config.n_outputs) == (4, 1)
@@ -254,8 +254,8 @@ def test_a_best_individual_not_of_the_familys_layout_is_one_run_file_error(tmp_p
 
     path = train_task(_config("cmaes", generations=1, population=4, steps=10), tmp_path / "c.h5")
     with h5py.File(path, "r+") as handle:
-        del handle["history/best/w_in"]
-        handle["history/best/w_in"] = np.zeros((1, 3, 3))
+        del handle["genomes/best/w_in"]
+        handle["genomes/best/w_in"] = np.zeros((1, 3, 3))
     with pytest.raises(RunFileError, match=r"genome array w_in must be \(1, 8, 4\)") as raised:
         read_task_run(path).best_individual()
     assert "\n" not in str(raised.value)

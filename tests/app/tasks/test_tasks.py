@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,7 @@ import gnp
 from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.cli import main
 from app.phases.generations import Interrupted
+from app.store import TASK, RunReader
 from app.tasks import (
     BatchEnv,
     ObservationFault,
@@ -251,9 +253,9 @@ def test_same_config_and_seed_give_the_same_run_and_a_resumed_run_matches(
     first, second = read_task_run(a), read_task_run(b)
     np.testing.assert_array_equal(first.fitness, second.fitness)
     assert first.fitness.shape == (3, 20)
-    with h5py.File(a, "r") as handle:
-        assert handle.attrs["task"] == "CartPole-v1"
-        assert handle.attrs["format"] == "gnp-lab-task-run"
+    with h5py.File(a, "r") as handle:  # a run file of kind "task" (docs/run-format.md)
+        assert handle.attrs["format"] == "gnp-lab-run" and handle.attrs["kind"] == "task"
+        assert json.loads(handle.attrs["config"])["task"]["id"] == "CartPole-v1"
 
     def stop_after_one(_summary: object) -> None:
         raise KeyboardInterrupt
@@ -287,9 +289,11 @@ def test_a_run_with_add_delete_node_mutation_trains_and_resumes_to_the_bit(
     first, resumed = read_task_run(whole), read_task_run(cut)
     assert resumed.config.brain.evolution.p_add_delete == 0.3
     np.testing.assert_array_equal(resumed.fitness, first.fitness)
-    with h5py.File(whole, "r") as a, h5py.File(cut, "r") as b:
-        for name in a["checkpoint"]:  # the last population, every field, to the bit
-            np.testing.assert_array_equal(a["checkpoint"][name][()], b["checkpoint"][name][()])
+    with RunReader(whole, TASK) as a, RunReader(cut, TASK) as b:
+        last_a, last_b = a.checkpoint(), b.checkpoint()
+        assert last_a is not None and last_b is not None and last_a[0] == last_b[0]
+        for name, values in last_a[1].items():  # the last population, every field, to the bit
+            np.testing.assert_array_equal(values, last_b[1][name])
     off = read_task_run(train_task(config(0.0), tmp_path / "off.h5"))
     np.testing.assert_array_equal(off.fitness[0], first.fitness[0])  # generation 0 is shared
     assert not np.array_equal(off.fitness, first.fitness)  # the setting reaches evolution
@@ -363,7 +367,7 @@ def test_cli_trains_resumes_replays_and_exports_a_task_run(
     assert said.startswith("task run cp.h5: CartPole-v1, seed 3")
     assert f"best return {read_task_run(out).fitness[1].max():.1f}" in said
     assert main(["train", "--resume", str(out)]) == 1  # finished
-    assert "finished; nothing to resume" in capsys.readouterr().err
+    assert "finished run; there is nothing to resume" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
