@@ -52,7 +52,7 @@ TINY = {
     ),
     "working_set": (
         "--robots 8 --steps 20 --rounds 1 --pieces 4",
-        [rf"at once\s+\d+ ns/robot-step\s+at once / this 1\.00×", rf"pieces of 4\s+\d+ ns"],
+        [r"at once\s+\d+ ns/robot-step\s+at once / this 1\.00×", r"pieces of 4\s+\d+ ns"],
     ),
     "world": (
         "--robots 4 --steps 20 --naive-robots 2 --naive-steps 10 --repeats 1",
