@@ -54,6 +54,10 @@ MIDPOINT_BETA, MIDPOINT_ALPHA = SENSOR_MAX // 2, SENSOR_MAX // 2 + 1
 #: n_outputs equal bins of −10..10, its parameter unused: on a Discrete(n) task read in n bins,
 #: with n_outputs = n, the node's function is the action).
 ProcessingOutput = Literal["parameter", "function"]
+#: Branches a judgment node may have (`GnpConfig.judgment_branches`): 2 is the thesis's.
+MAX_JUDGMENT_BRANCHES = 8
+BRANCH_NAMES = "ABCDEFGH"
+"""Branch b's name (A = 0, the high side of a judgment), as files and pages write it."""
 #: Bound on an initial Q value (Q tables are float32).
 Q0_MAX = 1e6
 
@@ -65,6 +69,16 @@ class GnpError(ValueError):
 def judgment_name(fuzzy: bool) -> str:
     """How a controller judges, as runs, files and pages name it: "fuzzy" or "crisp"."""
     return "fuzzy" if fuzzy else "crisp"
+
+
+def check_judgment_branches(fuzzy: bool, judgment_branches: int) -> None:
+    """Raise ValueError for fuzzy judgment with more than 2 branches: the thesis's fuzzy
+    judgment (Eq. 2.1–2.2) draws between two branches only."""
+    if fuzzy and judgment_branches > 2:
+        raise ValueError(
+            f"judgment_branches = {judgment_branches} needs crisp judgment (fuzzy = false): "
+            "fuzzy judgment has two branches"
+        )
 
 
 class GnpConfig(BaseModel):
@@ -130,6 +144,19 @@ class GnpConfig(BaseModel):
         "−10..10 (function: on a Discrete(n) task the function is the action)",
     )
 
+    judgment_branches: int = Field(
+        default=2,
+        ge=2,
+        le=MAX_JUDGMENT_BRANCHES,
+        description="branches k of a judgment node: 2 (the thesis's A/B), or k > 2 (crisp only: "
+        "k equal bins of β..α, fracnetics' k-way judgment; the highest bin takes branch A)",
+    )
+
+    @model_validator(mode="after")
+    def _branches_judged(self) -> GnpConfig:
+        check_judgment_branches(self.fuzzy, self.judgment_branches)
+        return self
+
     @cached_property
     def n_nodes(self) -> int:
         """All nodes, the start node included."""
@@ -188,7 +215,14 @@ class GnpConfig(BaseModel):
         return 1 + STEP_BUDGET // min(NODE_COST[JUDGMENT], SKIP_COST)
 
 
-TASK_SETTINGS = ("q0", "tie_break", "skip_reward", "threshold_init", "processing_output")
+TASK_SETTINGS = (
+    "q0",
+    "tie_break",
+    "skip_reward",
+    "threshold_init",
+    "processing_output",
+    "judgment_branches",
+)
 """`GnpConfig` settings added for Gymnasium tasks (issue #45), each off by default (the robot's
 runs, documents and bits as before)."""
 EVOLUTION_TASK_SETTINGS = ("p_add_delete",)

@@ -12,24 +12,32 @@ from typing import Any
 
 import numpy as np
 
-from gnp.config import JUDGMENT, PROCESSING, START, TASK_SETTINGS, GnpConfig, GnpError
+from gnp.config import (
+    BRANCH_NAMES,
+    JUDGMENT,
+    PROCESSING,
+    START,
+    TASK_SETTINGS,
+    GnpConfig,
+    GnpError,
+)
 from gnp.population import Population, population_from_arrays
 
 _TYPE_NAMES = {START: "start", JUDGMENT: "judgment", PROCESSING: "processing"}
-_BRANCHES = ("A", "B")
 
 
 def _sub_node(pop: Population, node: int, sub: int) -> dict[str, Any]:
     conn, q_bs, q_cs = pop.conn[0, node, sub], pop.q_bs[0, node, sub], pop.q_cs[0, node, sub]
+    branches = BRANCH_NAMES[: conn.shape[0]]  # A, B (and C, … with judgment_branches > 2)
     return {
         "function": int(pop.function[0, node, sub]),
         "beta": int(pop.mu_beta[0, node, sub]),
         "alpha": int(pop.mu_alpha[0, node, sub]),
         "speed": int(pop.speed[0, node, sub]),
-        "next": {b: [int(j) for j in conn[i]] for i, b in enumerate(_BRANCHES)},
+        "next": {b: [int(j) for j in conn[i]] for i, b in enumerate(branches)},
         "credit": int(pop.credit[0, node, sub]),
         "q_ss": float(pop.q_ss[0, node, sub]),
-        "q_bs": {b: [float(q) for q in q_bs[i]] for i, b in enumerate(_BRANCHES)},
+        "q_bs": {b: [float(q) for q in q_bs[i]] for i, b in enumerate(branches)},
         "q_cs": {"normal": float(q_cs[0]), "credit": float(q_cs[1])},
     }
 
@@ -60,16 +68,16 @@ def controller_body(cfg: GnpConfig, individual: Population) -> tuple[dict[str, A
 
 
 def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray]:
-    v, m, u = cfg.n_nodes, cfg.n_sub, cfg.n_conn_branches
+    v, m, k, u = cfg.n_nodes, cfg.n_sub, cfg.judgment_branches, cfg.n_conn_branches
     arrays = {
         "function": np.zeros((1, v, m)),
         "mu_beta": np.zeros((1, v, m)),
         "mu_alpha": np.zeros((1, v, m)),
         "speed": np.zeros((1, v, m)),
-        "conn": np.zeros((1, v, m, 2, u)),
+        "conn": np.zeros((1, v, m, k, u)),
         "credit": np.zeros((1, v, m)),
         "q_ss": np.zeros((1, v, m)),
-        "q_bs": np.zeros((1, v, m, 2, u)),
+        "q_bs": np.zeros((1, v, m, k, u)),
         "q_cs": np.zeros((1, v, m, 2)),
     }
     if len(nodes) != v:
@@ -88,7 +96,7 @@ def _arrays(cfg: GnpConfig, nodes: list[dict[str, Any]]) -> dict[str, np.ndarray
                 _number(q_cs["normal"], f"{where}: q_cs.normal"),
                 _number(q_cs["credit"], f"{where}: q_cs.credit"),
             )
-            for b, branch in enumerate(_BRANCHES):
+            for b, branch in enumerate(BRANCH_NAMES[:k]):
                 arrays["conn"][0, i, p, b] = _numbers(sub["next"][branch], f"{where}: next", True)
                 arrays["q_bs"][0, i, p, b] = _numbers(sub["q_bs"][branch], f"{where}: q_bs")
     return arrays

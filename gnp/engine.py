@@ -234,7 +234,7 @@ def _rates(epsilon: float | np.ndarray, alpha: float | np.ndarray, n: int) -> np
 def _raise_mismatch(cfg: GnpConfig, pop: Population, n: int) -> NoReturn:
     if pop.size != n:
         raise GnpError(f"population has {pop.size} individuals, state {n} controllers")
-    expected = (cfg.n_nodes, cfg.n_sub, 2, cfg.n_conn_branches)
+    expected = (cfg.n_nodes, cfg.n_sub, cfg.judgment_branches, cfg.n_conn_branches)
     raise GnpError(
         f"population does not match the config: q_bs has shape {pop.q_bs.shape[1:]} per "
         f"individual, expected {expected} (nodes, sub nodes, branches, connections)"
@@ -354,7 +354,7 @@ def kernel_arguments(
         cfg.n_conn_branches,
         # One array for the whole population: every array argument costs the call time.
         pop.record_bytes,
-        record_layout(cfg.n_sub, cfg.n_conn_branches),
+        record_layout(cfg.n_sub, cfg.n_conn_branches, cfg.judgment_branches),
         state.walk,
         state.wheels,
         state.rng,
@@ -381,7 +381,7 @@ def check_population(cfg: GnpConfig, pop: Population, state: EngineState) -> Non
     """Raise GnpError unless `pop` is built for `cfg` and has one individual per controller."""
     n = state.walk.shape[0]
     records = pop.records
-    dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches)
+    dtype = record_dtype(cfg.n_sub, cfg.n_conn_branches, cfg.judgment_branches)
     if records.shape != (n, cfg.n_nodes) or (records.dtype is not dtype and records.dtype != dtype):
         _raise_mismatch(cfg, pop, n)
 

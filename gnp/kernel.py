@@ -2,7 +2,8 @@
 
 `gnp.engine` checks the arguments and calls `step_kernel`; everything here runs compiled. A
 population's records are one byte array (`gnp.population.record_dtype`), read through views
-of its float32, int16 and int8 words at the offsets `record_layout` gives.
+of its float32, int16 and int8 words at the offsets `record_layout` gives, which also gives
+the judgment nodes' branch count k (`GnpConfig.judgment_branches`).
 """
 
 from __future__ import annotations
@@ -54,14 +55,20 @@ _LAYOUT_FIELDS = (
 )  # fmt: skip
 
 
+#: Position of the branch count k in `record_layout`'s tuple (after the size and the offsets).
+LAYOUT_BRANCHES: Final = 1 + len(_LAYOUT_FIELDS)
+
+
 @functools.cache
-def record_layout(n_sub: int, n_conn_branches: int) -> Layout:
+def record_layout(n_sub: int, n_conn_branches: int, judgment_branches: int) -> Layout:
     """The record layout as the kernel reads it: the record's size in bytes, then where each
-    field of `_LAYOUT_FIELDS` starts, in words of the field's own size."""
-    fields = record_dtype(n_sub, n_conn_branches).fields
+    field of `_LAYOUT_FIELDS` starts, in words of the field's own size, then the size k of
+    the branch axis of `conn` and `q_bs` (`judgment_branches`)."""
+    dtype = record_dtype(n_sub, n_conn_branches, judgment_branches)
+    fields = dtype.fields
     assert fields is not None
     offsets = [fields[f][1] // fields[f][0].base.itemsize for f in _LAYOUT_FIELDS]
-    return (record_dtype(n_sub, n_conn_branches).itemsize, *offsets)
+    return (dtype.itemsize, *offsets, judgment_branches)
 
 
 # numba's option to compile without its reference-counting runtime (absent from its type
@@ -203,6 +210,21 @@ def read_observed(
 
 
 @njit(cache=True, inline="always")
+def judged_bin(x: float, lo: float, hi: float, k: int) -> int:  # pragma: no cover - compiled
+    """Which of k equal bins of [lo, hi] holds x: the number of inner edges lo + j(hi − lo)/k,
+    j = 1..k−1, at or below x, compared as k(x − lo) ≥ j(hi − lo). x ≤ lo (below every edge)
+    is bin 0 and x ≥ hi bin k − 1; an edge belongs to the bin above it, as the crisp two-way
+    judgment's midpoint does (k = 2 is that judgment, which the walk keeps as it was written)."""
+    scaled = k * (x - lo)
+    width = hi - lo
+    found = 0
+    for j in range(1, k):
+        if scaled >= j * width:
+            found = j
+    return found
+
+
+@njit(cache=True, inline="always")
 def _visit(
     c: int, used: int, k: int, run: Run, read: Reader, source: Any
 ) -> tuple[int, int]:  # pragma: no cover - compiled
@@ -217,7 +239,8 @@ def _visit(
     i = _ix(c)  # controller c's rows, indexed without numba's negative-index check
     record_bytes = layout[0]
     r32, r16 = record_bytes // 4, record_bytes // 2
-    ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:]
+    ss, bs, cs_, beta, alpha, cn, cr, fn_, sp = layout[1:LAYOUT_BRANCHES]
+    n_way = layout[LAYOUT_BRANCHES]  # branches k of a judgment sub node (its connections: k × U)
     trace = visits.shape[1] > 0
     rate_row = 0 if rates.shape[0] == 1 else c
     eps, lr = rates[rate_row, 0], rates[rate_row, 1]
@@ -255,8 +278,8 @@ def _visit(
             target = pend_r + gamma * words32[_ix(q + cs_ + 2 * p + cs)]
             words32[_ix(last_cs)] += lr * (target - words32[_ix(last_cs)])
         if method & _BS and bn >= 0:
-            last_bs = last_q + bs + (2 * pp + pb) * n_conn + pu
-            before_bs = (c * n_nodes + bn) * r32 + bs + (2 * bp + bb) * n_conn + bu
+            last_bs = last_q + bs + (n_way * pp + pb) * n_conn + pu
+            before_bs = (c * n_nodes + bn) * r32 + bs + (n_way * bp + bb) * n_conn + bu
             words32[_ix(before_bs)] += lr * (
                 pend_r + gamma * words32[_ix(last_bs)] - words32[_ix(before_bs)]
             )
@@ -281,8 +304,10 @@ def _visit(
                     mu = (x - lo) / (hi - lo)
                 s, v = next_uniform(s)
                 branch = 0 if v < mu else 1
-            else:
+            elif n_way == 2:
                 branch = 0 if x >= (lo + hi) / 2.0 else 1
+            else:
+                branch = n_way - 1 - judged_bin(x, lo, hi, n_way)
         else:
             used += _PROCESSING_COST
             # Function 0 is the right wheel (P0) and 1 the left (P1); wheels are stored as
@@ -295,8 +320,8 @@ def _visit(
             branch = 0
         u = 0
         if method & _BS:
-            s, u = _egreedy(words32, q + bs + (2 * p + branch) * n_conn, n_conn, eps, s, first)
-        nxt = words16[_ix(h + cn + (2 * p + branch) * n_conn + u)]
+            s, u = _egreedy(words32, q + bs + (n_way * p + branch) * n_conn, n_conn, eps, s, first)
+        nxt = words16[_ix(h + cn + (n_way * p + branch) * n_conn + u)]
     # The next record, loading while the other controller takes its turn.
     _prefetch_record(words32, (c * n_nodes + nxt) * r32, record_bytes // CACHE_LINE)
     if trace:

@@ -41,8 +41,9 @@ class Population:
     """N individuals of V nodes with m sub nodes each; every array has the leading axis N.
 
     Axes: V nodes (0 = start, then judgment, then processing; see `GnpConfig.node_type`),
-    m sub nodes, 2 branches (A = 0, B = 1; processing nodes use A only), U branch connections
-    (`GnpConfig.n_conn_branches`: U for BS, 1 otherwise). Parts a node type or method does not
+    m sub nodes, k branches (`GnpConfig.judgment_branches`, 2 by default: A = 0, B = 1, …;
+    processing nodes use A only), U branch connections (`GnpConfig.n_conn_branches`: U for BS,
+    1 otherwise). Parts a node type or method does not
     use hold valid but unused values, so every method shares one layout.
 
     Attributes:
@@ -51,11 +52,11 @@ class Population:
         mu_beta: (N, V, m) β of the judgment membership function, 0 ≤ β ≤ α.
         mu_alpha: (N, V, m) α of the judgment membership function, ≤ 1023.
         speed: (N, V, m) wheel speed −10..10 set by a processing sub node.
-        conn: (N, V, m, 2, U) next node per branch and branch connection; the start node uses
+        conn: (N, V, m, k, U) next node per branch and branch connection; the start node uses
             conn[:, 0, 0, 0, 0].
         credit: (N, V, m) next node through the credit branch (CS).
         q_ss: (N, V, m) Q_SS(i, ip), sub node selection.
-        q_bs: (N, V, m, 2, U) Q_BS(C_ip^A|B, b^(u)), branch connection selection (BS).
+        q_bs: (N, V, m, k, U) Q_BS(C_ip^A|B|…, b^(u)), branch connection selection (BS).
         q_cs: (N, V, m, 2) Q_CS(ip, b_N) at [..., 0] and Q_CS(ip, b_C) at [..., 1] (CS).
         records: (N, V) the memory behind every field above, one record a node (see
             `record_dtype`): the fields are views into it, so writing a field writes here.
@@ -125,24 +126,26 @@ Q_FIELDS = ("q_ss", "q_bs", "q_cs")
 CACHE_LINE = 64
 
 
-def field_shapes_per_node(n_sub: int, n_conn_branches: int) -> dict[str, tuple[int, ...]]:
+def field_shapes_per_node(
+    n_sub: int, n_conn_branches: int, judgment_branches: int
+) -> dict[str, tuple[int, ...]]:
     """Shape of every Population field within one node (without the leading N, V)."""
-    m, u = n_sub, n_conn_branches
+    m, u, k = n_sub, n_conn_branches, judgment_branches
     return {
         "function": (m,),
         "mu_beta": (m,),
         "mu_alpha": (m,),
         "speed": (m,),
-        "conn": (m, 2, u),
+        "conn": (m, k, u),
         "credit": (m,),
         "q_ss": (m,),
-        "q_bs": (m, 2, u),
+        "q_bs": (m, k, u),
         "q_cs": (m, 2),
     }
 
 
 @functools.cache  # one dtype object per shape: the engine checks it by identity first
-def record_dtype(n_sub: int, n_conn_branches: int) -> np.dtype:
+def record_dtype(n_sub: int, n_conn_branches: int, judgment_branches: int) -> np.dtype:
     """One node's genes and Q values side by side: the engine's unit of memory traffic.
 
     A visit reads the node's Q_SS values, then the chosen sub node's genes and its Q_BS or
@@ -151,7 +154,7 @@ def record_dtype(n_sub: int, n_conn_branches: int) -> np.dtype:
     shape. Widest fields first keep every field aligned, and the record is padded to whole
     cache lines so that no node straddles more lines than it must.
     """
-    shapes = field_shapes_per_node(n_sub, n_conn_branches)
+    shapes = field_shapes_per_node(n_sub, n_conn_branches, judgment_branches)
     names = sorted(FIELDS, key=lambda f: -np.dtype(field_dtype(f)).itemsize)  # stable sort
     offsets, offset = [], 0
     for name in names:
@@ -183,17 +186,17 @@ def _pack(arrays: dict[str, np.ndarray]) -> np.ndarray:
     function, conn = arrays["function"], arrays["conn"]
     if function.ndim != 3 or conn.ndim != 5:
         raise GnpError(
-            "population fields 'function' and 'conn' need shapes (N, V, m) and (N, V, m, 2, U), "
+            "population fields 'function' and 'conn' need shapes (N, V, m) and (N, V, m, k, U), "
             f"got {function.shape} and {conn.shape}"
         )
     n, v, m = function.shape
-    u = conn.shape[4]
-    for f, shape in field_shapes_per_node(m, u).items():
+    k, u = conn.shape[3:]
+    for f, shape in field_shapes_per_node(m, u, k).items():
         if arrays[f].shape != (n, v, *shape):
             raise GnpError(
                 f"population field {f!r} has shape {arrays[f].shape}, expected {(n, v, *shape)}"
             )
-    records = _aligned_records(record_dtype(m, u), n, v)
+    records = _aligned_records(record_dtype(m, u, k), n, v)
     for f in FIELDS:
         try:
             np.copyto(records[f], arrays[f], casting="same_kind")
@@ -207,7 +210,7 @@ def _pack(arrays: dict[str, np.ndarray]) -> np.ndarray:
 
 def field_shapes(cfg: GnpConfig) -> dict[str, tuple[int, ...]]:
     """Per-individual shape (without the leading N) of every Population array."""
-    per_node = field_shapes_per_node(cfg.n_sub, cfg.n_conn_branches)
+    per_node = field_shapes_per_node(cfg.n_sub, cfg.n_conn_branches, cfg.judgment_branches)
     return {f: (cfg.n_nodes, *shape) for f, shape in per_node.items()}
 
 

@@ -29,7 +29,7 @@ class Visit:
 
     node: int
     sub: int
-    branch: int  # A = 0, B = 1; −1 for a credit skip
+    branch: int  # A = 0, B = 1, … (`judgment_branches`); −1 for a credit skip
     u: int  # branch connection (BS), else 0; −1 for a credit skip
     credit: bool  # skipped through the credit branch (CS)
     reward: float = 0.0
@@ -140,7 +140,15 @@ class ReferenceController:
         return (self.left, self.right), made
 
     def judge(self, x: float, beta: int, alpha: int) -> int:
-        """Branch A (0) or B (1) of a judgment sub node (Eq. 2.1–2.2, or the crisp threshold)."""
+        """Branch A (0) or B (1) of a judgment sub node (Eq. 2.1–2.2, or the crisp threshold);
+        crisp with k = `judgment_branches` > 2, branch k − 1 − i of the i-th of k equal bins
+        of β..α (edges β + j(α − β)/k belong to the bin above; x ≤ β: bin 0, x ≥ α: bin k − 1).
+        """
+        k = self.cfg.judgment_branches
+        if not self.cfg.fuzzy and k > 2:
+            low, width = int(beta), int(alpha) - int(beta)
+            inner_edges_passed = sum(k * (x - low) >= j * width for j in range(1, k))
+            return k - 1 - inner_edges_passed
         if not self.cfg.fuzzy:
             return 0 if x >= (beta + alpha) / 2.0 else 1
         if x >= alpha:

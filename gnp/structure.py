@@ -29,11 +29,11 @@ class Edited(NamedTuple):
 
 
 def usable_slots(cfg: GnpConfig) -> np.ndarray:
-    """(V, K) bool: the connection slots a walk can follow, K = m·2·U conn slots (flattened in
+    """(V, K) bool: the connection slots a walk can follow, K = m·k·U conn slots (flattened in
     `conn`'s order) then m credit slots. The start node follows conn[0, 0, 0, 0] only; a
     judgment node every branch; a processing node branch A; credit branches under CS only."""
     m, u = cfg.n_sub, cfg.n_conn_branches
-    conn = np.zeros((cfg.n_nodes, m, 2, u), dtype=bool)
+    conn = np.zeros((cfg.n_nodes, m, cfg.judgment_branches, u), dtype=bool)
     types = cfg.node_type
     conn[types == JUDGMENT] = True
     conn[types == PROCESSING, :, 0, :] = True
@@ -93,7 +93,7 @@ def add_delete_nodes(
     adds = rng.random(n) < 0.5
     usable = usable_slots(cfg)
     reach = reachable(cfg, pop)
-    conn_slots = out["conn"].shape[2] * 2 * out["conn"].shape[4]
+    conn_slots = int(np.prod(out["conn"].shape[2:]))
     for i in np.flatnonzero(hit):
         if adds[i]:
             free = np.flatnonzero(~reach[i, 1:]) + 1

@@ -8,13 +8,19 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.settings.config import METHOD_PRESET, RunConfig, preset_layer
 from app.settings.families import BrainSettings
 from app.settings.fields import read_setting, setting
 from gnp import METHODS, TRAITS, EvolutionConfig, GnpConfig, Method
-from gnp.config import ProcessingOutput, SkipReward, ThresholdInit, TieBreak
+from gnp.config import (
+    ProcessingOutput,
+    SkipReward,
+    ThresholdInit,
+    TieBreak,
+    check_judgment_branches,
+)
 
 
 def _of_gnp(name: str, unit: str | None = None, **narrower: Any) -> Any:
@@ -59,6 +65,12 @@ class ControllerSettings(BaseModel):
     skip_reward: SkipReward = _of_gnp("skip_reward")
     threshold_init: ThresholdInit = _of_gnp("threshold_init")
     processing_output: ProcessingOutput = _of_gnp("processing_output")
+    judgment_branches: int = _of_gnp("judgment_branches", "count")
+
+    @model_validator(mode="after")
+    def _branches_judged(self) -> ControllerSettings:
+        check_judgment_branches(self.fuzzy, self.judgment_branches)
+        return self
 
     @property
     def sub_nodes(self) -> int:
@@ -82,6 +94,7 @@ class ControllerSettings(BaseModel):
             skip_reward=self.skip_reward,
             threshold_init=self.threshold_init,
             processing_output=self.processing_output,
+            judgment_branches=self.judgment_branches,
         )
 
 

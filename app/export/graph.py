@@ -2,8 +2,8 @@
 
 Nodes are grouped in clusters as the dashboard draws them in columns (app/views/
 graph_layout.py): the start node, the judgment nodes per sensor s0..s7, the processing nodes per
-wheel. There is one edge per distinct (from, to) pair of the individual's connections (both
-branches, every BS branch connection, CS credit branches: app/views/genome.py), weighted by
+wheel. There is one edge per distinct (from, to) pair of the individual's connections (every
+branch, every BS branch connection, CS credit branches: app/views/genome.py), weighted by
 how often the recorded life took it.
 """
 

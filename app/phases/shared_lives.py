@@ -89,7 +89,7 @@ def shared_layout(config: RunConfig) -> Layout | None:
     if not isinstance(family_of(config), GnpFamily):
         return None
     cfg = gnp_settings(config).controller.gnp_config()
-    records = gnp.population.record_dtype(cfg.n_sub, cfg.n_conn_branches)
+    records = gnp.population.record_dtype(cfg.n_sub, cfg.n_conn_branches, cfg.judgment_branches)
     n = config.training.population
     return {
         "population": ((n, cfg.n_nodes), records),

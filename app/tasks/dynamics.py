@@ -34,6 +34,7 @@ from gnp import kernel, methods, rng
 from gnp.config import SENSOR_MAX
 from gnp.engine import check_population, kernel_arguments, method_code
 from gnp.kernel import (
+    LAYOUT_BRANCHES,
     Floats,
     Layout,
     Records,
@@ -321,8 +322,9 @@ def _end_episode(
         words32[last_q + cs_ + 2 * pp + pc] = q + lr * (r - q)
     if method & _BS and walk[0, 6] >= 0:
         bn, bp, bb, bu = walk[0, 6], walk[0, 7], walk[0, 8], walk[0, 9]
-        last = np.float64(words32[last_q + bs + (2 * pp + pb) * n_conn + pu])
-        before = (c * n_nodes + bn) * r32 + bs + (2 * bp + bb) * n_conn + bu
+        n_way = layout[LAYOUT_BRANCHES]
+        last = np.float64(words32[last_q + bs + (n_way * pp + pb) * n_conn + pu])
+        before = (c * n_nodes + bn) * r32 + bs + (n_way * bp + bb) * n_conn + bu
         q = np.float64(words32[before])
         words32[before] = q + lr * (r + gamma * last - q)
     walk[0, 1:] = -1

@@ -65,7 +65,7 @@ class Param:
     `fixed` are settings that come with it (e.g. the schedule "changing" its ε needs);
     `excludes` the settings which, fixed by the study, leave it out of the space; `methods`
     the GNP methods it acts in (all when empty); `discrete_only` for tasks whose action is
-    Discrete."""
+    Discrete; `crisp_only` for studies whose judgment is crisp."""
 
     path: str
     kind: Kind
@@ -78,6 +78,7 @@ class Param:
     excludes: tuple[str, ...] = ()
     methods: tuple[str, ...] = ()
     discrete_only: bool = False
+    crisp_only: bool = False
     why: str = ""
 
     @property
@@ -122,6 +123,8 @@ GNP_SPACE: tuple[Param, ...] = (
     Param("controller.processing_output", "categorical", choices=("parameter", "function"),
           discrete_only=True,
           why="a processing node's parameter read in action bins, or its function the action"),
+    Param("controller.judgment_branches", "int", 2, 4, crisp_only=True,
+          why="branches of a judgment node: k equal bins of β..α (fracnetics' k-way judgment)"),
     Param("training.epsilon_max", "float", 0.0, 0.3, fixed=_CHANGING, excludes=_RATES,
           why="ε at generation 0 (Eq. 4.1)"),
     Param("training.epsilon_min", "share", of="training.epsilon_max", excludes=_RATES,
@@ -160,11 +163,13 @@ def space(
     population: int | None = None,
     method: str | None = None,
     discrete: bool = True,
+    fuzzy: bool = False,
 ) -> list[Param]:
     """The parameters searched for `brain`: its table less the settings the study fixes
     (`--set`: a fixed setting leaves the space, and so do the parameters it `excludes`) and
-    those of other methods than the study's (`methods`) or for Discrete actions only on
-    another task, a tournament no larger than the population."""
+    those of other methods than the study's (`methods`), for Discrete actions only on
+    another task, or for crisp judgment only in a `fuzzy` study; a tournament no larger than
+    the population."""
     params = []
     for p in SPACES[brain]:
         if p.path in fixed or set(fixed) & set(p.excludes):
@@ -172,6 +177,8 @@ def space(
         if p.methods and method is not None and method not in p.methods:
             continue
         if p.discrete_only and not discrete:
+            continue
+        if p.crisp_only and fuzzy:
             continue
         if population is not None and p.path in _TOURNAMENTS:
             p = replace(p, high=min(p.high, population))

@@ -93,11 +93,14 @@ class Declared:
 
     def params(self) -> list[Param]:
         method = self.fixed.get("controller.method")
-        if self.brain == "gnp" and method is None:
+        fuzzy = self.fixed.get("controller.fuzzy")
+        if self.brain == "gnp" and (method is None or fuzzy is None):
             from app.brains.gnp_settings import ControllerSettings
 
-            method = ControllerSettings().method  # the lab's default
-        return space(self.brain, self.fixed, self.population, method, self.discrete)
+            defaults = ControllerSettings()  # the lab's
+            method = defaults.method if method is None else method
+            fuzzy = defaults.fuzzy if fuzzy is None else fuzzy
+        return space(self.brain, self.fixed, self.population, method, self.discrete, bool(fuzzy))
 
     def protocol(self) -> dict[str, Any]:
         """A GNP run's episode protocol (`app.tasks.common.EpisodeProtocol`): greedy tests

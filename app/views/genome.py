@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import gnp
-from gnp.config import JUDGMENT, START, WHEEL_NAMES
+from gnp.config import BRANCH_NAMES, JUDGMENT, START, WHEEL_NAMES
 
 
 @dataclass(frozen=True)
@@ -19,7 +19,7 @@ class GenomeView:
         kinds: (V,) START, JUDGMENT or PROCESSING.
         column_function: (V,) sensor or wheel of each node's first sub node (its column).
         edges: (E, 2) distinct (from, to) node pairs over every connection the individual has
-            (both branches, every BS branch connection, CS credit branches).
+            (every branch, every BS branch connection, CS credit branches).
     """
 
     kinds: np.ndarray
@@ -39,7 +39,7 @@ def genome_view(
     its judgment and processing columns; default the robot's sensors and wheels)."""
     kinds = np.asarray(cfg.node_type, np.int64)
     function = population.function[0]
-    conn = population.conn[0]  # (V, m, 2, U)
+    conn = population.conn[0]  # (V, m, k, U)
     pairs: list[tuple[int, int]] = []
     for node, kind in enumerate(kinds):
         if kind == START:
@@ -74,32 +74,33 @@ def node_markdown(cfg: gnp.GnpConfig, population: gnp.Population, node: int) -> 
         return f"**Node {node}: start** → node {int(pop.conn[0, node, 0, 0, 0])}"
     lines = [f"**Node {node_label(cfg, pop, node)}** ({cfg.method}, m = {cfg.n_sub})", ""]
     u = cfg.n_conn_branches
+    k = cfg.judgment_branches
+    names = BRANCH_NAMES[:k]  # A, B (C, … with more branches)
     if kind == JUDGMENT:
-        header = "| sub | sensor | β..α | → A | → B | Q_SS |"
+        header = "| sub | sensor | β..α | " + " | ".join(f"→ {b}" for b in names) + " | Q_SS |"
     else:
         header = "| sub | wheel | speed | → | Q_SS |"
     if cfg.traits.branch_selection:
-        header += " Q_BS A / B (per u) |"
+        header += f" Q_BS {' / '.join(names)} (per u) |"
     if cfg.traits.credit:
         header += " Q_CS normal / credit | credit → |"
     lines += [header, _rule(header)]
     for p in range(cfg.n_sub):
-        a_targets = ",".join(str(int(t)) for t in pop.conn[0, node, p, 0, :u])
+        targets = [",".join(str(int(t)) for t in pop.conn[0, node, p, b, :u]) for b in range(k)]
+        a_targets = targets[0]
         q_ss = f"{pop.q_ss[0, node, p]:.3f}"
         if kind == JUDGMENT:
             row = (
                 f"| {p} | s{int(pop.function[0, node, p])} | "
                 f"{int(pop.mu_beta[0, node, p])}..{int(pop.mu_alpha[0, node, p])} | "
-                f"{a_targets} | {','.join(str(int(t)) for t in pop.conn[0, node, p, 1, :u])} | "
-                f"{q_ss} |"
+                f"{' | '.join(targets)} | {q_ss} |"
             )
         else:
             wheel = WHEEL_NAMES[int(pop.function[0, node, p])]
             row = f"| {p} | {wheel} | {int(pop.speed[0, node, p]):+d} | {a_targets} | {q_ss} |"
         if cfg.traits.branch_selection:
-            q_a = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 0, :u])
-            q_b = ",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, 1, :u])
-            row += f" {q_a} / {q_b} |" if kind == JUDGMENT else f" {q_a} |"
+            q_bs = [",".join(f"{q:.3f}" for q in pop.q_bs[0, node, p, b, :u]) for b in range(k)]
+            row += f" {' / '.join(q_bs)} |" if kind == JUDGMENT else f" {q_bs[0]} |"
         if cfg.traits.credit:
             q_n, q_c = pop.q_cs[0, node, p]
             row += f" {q_n:.3f} / {q_c:.3f} | {int(pop.credit[0, node, p])} |"

@@ -25,7 +25,7 @@ from app.views.graph_counts import (
 )
 from app.views.graph_layout import GraphLayout, graph_layout
 from app.views.scene import add_node_discs
-from gnp.config import JUDGMENT, START
+from gnp.config import BRANCH_NAMES, JUDGMENT, START
 
 
 @dataclass(frozen=True)
@@ -347,7 +347,7 @@ def describe_visit(visit: np.ndarray, kind: int) -> str:
         return f"node {node}: skipped by its credit branch"
     text = f"node {node}: sub node {sub}"
     if kind == JUDGMENT:
-        text += ", branch " + "AB"[branch]
+        text += ", branch " + BRANCH_NAMES[branch]
     if u > 0:
         text += f", branch connection u = {u}"
     return text

@@ -152,3 +152,20 @@ def test_visits_in_words() -> None:
     )
     assert describe_visit(np.array([50, 1, 0, 0, 0]), PROCESSING) == "node 50: sub node 1"
     assert describe_visit(np.array([9, 0, -1, -1, 1]), JUDGMENT).endswith("credit branch")
+    assert describe_visit(np.array([7, 0, 2, 0, 0]), JUDGMENT).endswith("branch C")
+
+
+def test_a_judgment_node_with_k_branches_shows_every_branch() -> None:
+    from app.views.genome import genome_view, node_markdown
+
+    cfg = gnp.GnpConfig(
+        method="BS", fuzzy=False, judgment_branches=3, n_judgment=2, n_processing=2
+    )  # fmt: skip
+    pop = gnp.init_population(cfg, 1, np.random.default_rng(0))
+    pop.conn[0, 1, 0, 2] = 4  # branch C of node 1's sub node 0 into node 4
+    text = node_markdown(cfg, pop, 1)
+    assert "| → A | → B | → C |" in text and "Q_BS A / B / C (per u)" in text
+    row = text.splitlines()[4]
+    assert row.count("|") == text.splitlines()[2].count("|")  # a cell per column
+    assert "| 4,4 |" in row
+    assert (1, 4) in {tuple(e) for e in genome_view(cfg, pop).edges.tolist()}

@@ -34,6 +34,7 @@ ADDED_SINCE: dict[tuple[str, ...], object] = {
     ("controller", "threshold_init"): "uniform",
     ("controller", "processing_output"): "parameter",
     ("evolution", "p_add_delete"): 0.0,  # add/delete-node mutation (#45), off
+    ("controller", "judgment_branches"): 2,  # multi-way judgment (#45), the thesis's two ways
 }
 
 

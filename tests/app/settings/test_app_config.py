@@ -82,6 +82,11 @@ def test_presets_match_the_thesis_tables() -> None:
         ({"implementation": {"broken_sensors": [2, 2]}}, "listed twice"),
         ({"training": {"epsilon_min": 0.9}}, "epsilon_min (0.9) must not exceed epsilon_max"),
         (
+            {"brain": {"controller": {"judgment_branches": 3}}},  # fuzzy by default
+            "judgment_branches = 3 needs crisp judgment (fuzzy = false)",
+        ),
+        ({"brain": {"controller": {"fuzzy": False, "judgment_branches": 9}}}, "less than or equal"),
+        (
             {"implementation": {"steps": 100, "fault_step": 100, "broken_sensors": [1]}},
             "fault_step (100) must be below steps (100)",
         ),

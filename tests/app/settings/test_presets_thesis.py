@@ -36,6 +36,11 @@ COMMON: list[tuple[str, Any, str]] = [
         "Fuzzy GNP-RL/-TSRL throughout (§2.5.3, §3.5.1, §4.5.1, §5.5.1)",
     ),
     ("brain.controller.skip_reward", "zero", "Eq. 5.3: a credit skip earns no reward"),
+    (
+        "brain.controller.judgment_branches",
+        2,
+        "Eq. 2.1-2.2: a judgment node chooses between its two branches A and B",
+    ),
     # "P_c = 0.1, P_m = 0.01, tournament sizes = 7"
     ("brain.evolution.p_crossover", 0.1, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),
     ("brain.evolution.p_mutation", 0.01, "Tables 2.4/3.1/4.1/5.1, parameter of evolution"),

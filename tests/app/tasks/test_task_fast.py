@@ -89,6 +89,7 @@ def _training(
         # the settings made for tasks (#45), the terminal update's credit skip included
         ("Acrobot-v1", "CS", {"skip_reward": "step", "q0": -10.0, "tie_break": "first"}),
         ("CartPole-v1", "RL", {"processing_output": "function", "threshold_init": "midpoint"}),
+        ("MountainCar-v0", "BS", {"judgment_branches": 3}),  # Q_BS's end of episode with k
     ],
 )
 def test_a_fast_training_is_the_gymnasium_training(

@@ -299,6 +299,37 @@ def test_a_run_with_add_delete_node_mutation_trains_and_resumes_to_the_bit(
     assert not np.array_equal(off.fitness, first.fitness)  # the setting reaches evolution
 
 
+def test_a_run_with_multi_way_judgment_trains_and_resumes_to_the_bit(tmp_path: Path) -> None:
+    def config(k: int) -> TaskRunConfig:
+        controller = ControllerSettings(method="BS", fuzzy=False, judgment_branches=k)
+        return _config(generations=3).model_copy(
+            update={"brain": GnpSettings(controller=controller)}
+        )
+
+    whole = train_task(config(3), tmp_path / "whole.h5")
+
+    def stop_after_one(_summary: object) -> None:
+        raise KeyboardInterrupt
+
+    cut = tmp_path / "cut.h5"
+    with pytest.raises(Interrupted):
+        train_task(config(3), cut, stop_after_one)
+    resume_task(cut)
+    first, resumed = read_task_run(whole), read_task_run(cut)
+    assert resumed.config.brain.controller.judgment_branches == 3
+    np.testing.assert_array_equal(resumed.fitness, first.fitness)
+    with RunReader(whole, TASK) as a, RunReader(cut, TASK) as b:
+        last_a, last_b = a.checkpoint(), b.checkpoint()
+        assert last_a is not None and last_b is not None and last_a[0] == last_b[0]
+        assert last_a[1]["conn"].shape[3] == 3  # the branch axis has k entries
+        for name, values in last_a[1].items():
+            np.testing.assert_array_equal(values, last_b[1][name])
+    _, best = first.best_genome(2)
+    assert best.conn.shape[3] == 3
+    two = read_task_run(train_task(config(2), tmp_path / "two.h5"))
+    assert not np.array_equal(two.fitness, first.fitness)  # the setting reaches the walk
+
+
 @pytest.mark.slow
 def test_a_short_cartpole_training_beats_its_first_generation(tmp_path: Path) -> None:
     # GNP-RL, crisp, ε = 0.01 (examples/gnp_cartpole.py): on seed 1 the best balances the

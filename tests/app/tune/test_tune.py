@@ -272,3 +272,13 @@ def test_a_preset_tuned_on_another_task_is_refused(
     assert "was tuned on CartPole-v1, not Acrobot-v1" in _error(capsys)
     assert main(["train", "--preset", str(preset)]) == 1
     assert "give --task CartPole-v1" in _error(capsys)
+
+
+def test_a_study_searches_judgment_branches_only_when_its_judgment_is_crisp() -> None:
+    crisp = {p.path for p in _declared("crisp").params()}
+    assert "controller.judgment_branches" in crisp
+    fuzzy = tuning.Declared(
+        task="CartPole-v1", brain="gnp", name="fuzzy", budget=20_000, population=10, steps=500,
+        seeds=1, validation=3, sampler_seed=7, fixed={"controller.method": "RL"},
+    )  # fmt: skip  # fuzzy: the lab's default judgment
+    assert {p.path for p in fuzzy.params()} == crisp - {"controller.judgment_branches"}

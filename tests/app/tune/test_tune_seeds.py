@@ -91,6 +91,10 @@ def test_the_space_is_its_table_less_what_the_study_fixes() -> None:
     full = {p.path for p in space("gnp")}
     assert {"evolution.p_mutation", "controller.q0", "controller.tie_break"} <= full
     assert {"controller.processing_output", "evolution.p_add_delete"} <= full
+    (branches,) = [p for p in space("gnp") if p.path == "controller.judgment_branches"]
+    assert (branches.kind, branches.low, branches.high) == ("int", 2, 4)
+    fuzzy = {p.path for p in space("gnp", fuzzy=True)}
+    assert fuzzy == full - {"controller.judgment_branches"}  # k > 2 judges crisply only
     fixed = {"training.epsilon": 0.01, "controller.n_sub": 2}
     less = {p.path for p in space("gnp", fixed, population=4, method="RL")}
     assert less == full - {"controller.n_sub", "controller.skip_reward"} - {
