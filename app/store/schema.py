@@ -133,6 +133,8 @@ def _lives(group: str) -> tuple[Dataset, ...]:
     )
 
 
+_TERM_ROWS: tuple[Axis, ...] = ("generations", "terms")  # a generation's reward terms
+
 #: A training run of any kind (axes: generations, population, steps; lives = 1, the elite).
 LAYOUT: tuple[Dataset, ...] = (
     Dataset("progress/generations_done", (), "i8", initial=0),
@@ -141,24 +143,8 @@ LAYOUT: tuple[Dataset, ...] = (
     Dataset("generations/best_fitness", ("generations",), "f8", 1024, fill=NAN, unit=FITNESS),
     Dataset("generations/mean_fitness", ("generations",), "f8", 1024, fill=NAN, unit=FITNESS),
     Dataset("generations/std_fitness", ("generations",), "f8", 1024, fill=NAN, unit=FITNESS),
-    Dataset(
-        "generations/best_terms",
-        ("generations", "terms"),
-        "f8",
-        256,
-        fill=NAN,
-        unit=TERMS,
-        kinds=ROBOT,
-    ),
-    Dataset(
-        "generations/mean_terms",
-        ("generations", "terms"),
-        "f8",
-        256,
-        fill=NAN,
-        unit=TERMS,
-        kinds=ROBOT,
-    ),
+    Dataset("generations/best_terms", _TERM_ROWS, "f8", 256, fill=NAN, unit=TERMS, kinds=ROBOT),
+    Dataset("generations/mean_terms", _TERM_ROWS, "f8", 256, fill=NAN, unit=TERMS, kinds=ROBOT),
     Dataset("generations/epsilon", ("generations",), "f8", 1024, fill=NAN, unit=EPSILON),
     Dataset("generations/alpha", ("generations",), "f8", 1024, fill=NAN, unit=ALPHA),
     # The env-steps each generation's episodes took (the sum of their lengths); −1: not known
