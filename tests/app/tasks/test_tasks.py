@@ -270,6 +270,30 @@ def test_same_config_and_seed_give_the_same_run_and_a_resumed_run_matches(
     assert not np.array_equal(other.fitness, first.fitness)
 
 
+def _cut_and_resumed(config: TaskRunConfig, tmp_path: Path) -> tuple[Path, Path]:
+    """(a whole run, the same run cut after its first generation and resumed): their files."""
+    whole = train_task(config, tmp_path / "whole.h5")
+
+    def stop_after_one(_summary: object) -> None:
+        raise KeyboardInterrupt
+
+    cut = tmp_path / "cut.h5"
+    with pytest.raises(Interrupted):
+        train_task(config, cut, stop_after_one)
+    resume_task(cut)
+    return whole, cut
+
+
+def _same_last_population(whole: Path, cut: Path) -> dict[str, np.ndarray]:
+    """Both runs' last checkpoints, every field to the bit; returns the whole run's."""
+    with RunReader(whole, TASK) as a, RunReader(cut, TASK) as b:
+        last_a, last_b = a.checkpoint(), b.checkpoint()
+        assert last_a is not None and last_b is not None and last_a[0] == last_b[0]
+        for name, values in last_a[1].items():
+            np.testing.assert_array_equal(values, last_b[1][name])
+        return last_a[1]
+
+
 def test_a_run_with_add_delete_node_mutation_trains_and_resumes_to_the_bit(
     tmp_path: Path,
 ) -> None:
@@ -277,23 +301,11 @@ def test_a_run_with_add_delete_node_mutation_trains_and_resumes_to_the_bit(
         evolution = gnp.EvolutionConfig(p_mutation=0.05, p_add_delete=p_add_delete)
         return _config(generations=4).model_copy(update={"brain": GnpSettings(evolution=evolution)})
 
-    whole = train_task(config(0.3), tmp_path / "whole.h5")
-
-    def stop_after_one(_summary: object) -> None:
-        raise KeyboardInterrupt
-
-    cut = tmp_path / "cut.h5"
-    with pytest.raises(Interrupted):
-        train_task(config(0.3), cut, stop_after_one)
-    resume_task(cut)
+    whole, cut = _cut_and_resumed(config(0.3), tmp_path)
     first, resumed = read_task_run(whole), read_task_run(cut)
     assert resumed.config.brain.evolution.p_add_delete == 0.3
     np.testing.assert_array_equal(resumed.fitness, first.fitness)
-    with RunReader(whole, TASK) as a, RunReader(cut, TASK) as b:
-        last_a, last_b = a.checkpoint(), b.checkpoint()
-        assert last_a is not None and last_b is not None and last_a[0] == last_b[0]
-        for name, values in last_a[1].items():  # the last population, every field, to the bit
-            np.testing.assert_array_equal(values, last_b[1][name])
+    _same_last_population(whole, cut)
     off = read_task_run(train_task(config(0.0), tmp_path / "off.h5"))
     np.testing.assert_array_equal(off.fitness[0], first.fitness[0])  # generation 0 is shared
     assert not np.array_equal(off.fitness, first.fitness)  # the setting reaches evolution
@@ -306,24 +318,12 @@ def test_a_run_with_multi_way_judgment_trains_and_resumes_to_the_bit(tmp_path: P
             update={"brain": GnpSettings(controller=controller)}
         )
 
-    whole = train_task(config(3), tmp_path / "whole.h5")
-
-    def stop_after_one(_summary: object) -> None:
-        raise KeyboardInterrupt
-
-    cut = tmp_path / "cut.h5"
-    with pytest.raises(Interrupted):
-        train_task(config(3), cut, stop_after_one)
-    resume_task(cut)
+    whole, cut = _cut_and_resumed(config(3), tmp_path)
     first, resumed = read_task_run(whole), read_task_run(cut)
     assert resumed.config.brain.controller.judgment_branches == 3
     np.testing.assert_array_equal(resumed.fitness, first.fitness)
-    with RunReader(whole, TASK) as a, RunReader(cut, TASK) as b:
-        last_a, last_b = a.checkpoint(), b.checkpoint()
-        assert last_a is not None and last_b is not None and last_a[0] == last_b[0]
-        assert last_a[1]["conn"].shape[3] == 3  # the branch axis has k entries
-        for name, values in last_a[1].items():
-            np.testing.assert_array_equal(values, last_b[1][name])
+    last = _same_last_population(whole, cut)
+    assert last["conn"].shape[3] == 3  # the branch axis has k entries
     _, best = first.best_genome(2)
     assert best.conn.shape[3] == 3
     two = read_task_run(train_task(config(2), tmp_path / "two.h5"))
