@@ -195,7 +195,9 @@ class GnpFamily(BrainFamily):
 
     @property
     def description(self) -> str:
-        return f"{self.cfg.method} {gnp.judgment_name(self.cfg.fuzzy)}"
+        k = self.cfg.judgment_branches  # said only where it is not the thesis's two
+        ways = f", {k}-way judgment" if k != 2 else ""
+        return f"{self.cfg.method} {gnp.judgment_name(self.cfg.fuzzy)}{ways}"
 
     @property
     def file_stem(self) -> str:

@@ -100,6 +100,22 @@ def test_gnp_keeps_the_contract(method: str) -> None:
     check_family(GnpFamily, RunConfig.model_validate({**selection, "training": training}))
 
 
+@pytest.mark.parametrize(
+    ("controller", "described"),
+    [
+        ({"method": "CS"}, "CS fuzzy"),
+        ({"method": "RL", "fuzzy": False}, "RL crisp"),
+        ({"method": "RL", "fuzzy": False, "judgment_branches": 3}, "RL crisp, 3-way judgment"),
+    ],
+)
+def test_gnp_runs_are_described_by_method_judgment_and_k_beyond_two(
+    controller: dict[str, object], described: str
+) -> None:
+    selection = GnpFamily.selection()
+    selection["brain"]["controller"] = controller
+    assert GnpFamily(RunConfig.model_validate(selection)).description == described
+
+
 @pytest.mark.parametrize("family", [CmaesFamily, NeatFamily, Wanderer])
 def test_the_nets_and_a_family_of_the_least_code_keep_it(family: type[BrainFamily]) -> None:
     check_family(family)
