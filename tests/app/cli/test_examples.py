@@ -111,3 +111,7 @@ def test_gnp_cartpole_example_learns_and_prints_what_its_run_file_holds(tmp_path
     assert len(best) == 8
     assert max(best[-3:]) > 2 * best[0]
     assert "greedy replay of the final best: return" in text
+    read = _run("read_a_run_with_h5py.py", str(run))  # one format: the reader takes a task run
+    assert "task CartPole-v1" in read and "implementation" not in read
+    assert _number(read, "generations done") == 8
+    assert _number(read, "best fitness") == pytest.approx(fitness.max(), abs=1e-6)
