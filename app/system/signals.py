@@ -64,8 +64,11 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
     previous_hook = sys.unraisablehook
 
     def quiet_swallowed(unraisable: Any) -> None:
-        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
-            previous_hook(unraisable)
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return
+        if _signals_heard != heard and _compiler_finalizer(unraisable):
+            return  # a compilation the signal cut half-way: its half-built objects' finalizers
+        previous_hook(unraisable)
 
     sys.unraisablehook = quiet_swallowed
     try:
@@ -78,7 +81,16 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
             raise
         raise KeyboardInterrupt from error
     finally:
-        sys.unraisablehook = previous_hook
+        # After a stop signal the process is ending, and the compiler's half-built objects may
+        # be collected after this block: the quiet hook stays.
+        if _signals_heard == heard:
+            sys.unraisablehook = previous_hook
+
+
+def _compiler_finalizer(unraisable: Any) -> bool:
+    """An error in a finalizer of numba's compiler (llvmlite's objects: one whose construction
+    a signal cut fails in `__del__`, e.g. `ValueRef` without `_as_parameter_`)."""
+    return str(getattr(unraisable.object, "__module__", "")).startswith("llvmlite")
 
 
 def process_alive(pid: int) -> bool:

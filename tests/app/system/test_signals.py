@@ -88,3 +88,33 @@ def test_off_the_main_thread_it_leaves_errors_and_hooks_alone() -> None:
     thread.start()
     thread.join()
     assert [type(error) for error in seen] == [ValueError]
+
+
+def test_after_a_stop_signal_a_cut_compilations_finalizer_errors_are_not_printed() -> None:
+    """A SIGTERM inside numba's compile can leave llvmlite objects half-built, whose `__del__`
+    then fails when collected, even after the command said its one line: not passed on to the
+    process's hook (which prints it); any other finalizer's error still is."""
+    import gc
+    import sys
+
+    class Compiler:
+        def __del__(self) -> None:
+            raise AttributeError("'ValueRef' object has no attribute '_as_parameter_'")
+
+    class Other:
+        def __del__(self) -> None:
+            raise AttributeError("a finalizer of our own")
+
+    Compiler.__del__.__module__ = "llvmlite.binding.ffi"
+    passed_on: list[str] = []
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: passed_on.append(str(unraisable.exc_value))
+    try:
+        with contextlib.suppress(KeyboardInterrupt), interrupted_by_signals():
+            signal.raise_signal(signal.SIGTERM)
+        compiler, other = Compiler(), Other()
+        del compiler, other
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    assert passed_on == ["a finalizer of our own"]
