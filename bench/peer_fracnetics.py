@@ -55,7 +55,14 @@ def _fracnetics(population: int, generations: int, seed: int) -> dict[str, float
 
     wall, cpu = time.perf_counter(), time.process_time()
     result = train_fracnetics(
-        "CartPole-v1", documented("CartPole-v1"), population, generations, seed, 500, [0]
+        "CartPole-v1",
+        documented("CartPole-v1"),
+        population,
+        generations,
+        seed,
+        500,
+        [0],
+        twin=False,  # its own loop on Gymnasium's env, as its notebooks run it
     )
     # the test episode is outside the timing only approximately: one episode of 500 steps at
     # most against population x generations of training (said in the docstring)

@@ -253,8 +253,13 @@ FAST_TASKS: dict[str, FastTask] = {
 def starts(task: FastTask, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The start states (N, state_dim) float64 and first observations (N, obs_dim) float32 of
     the single env's `reset(seed=s)` for each s of `seeds`."""
-    n = len(seeds)
-    rngs = [np.random.default_rng(int(s)) for s in seeds]
+    return start_states(task, [np.random.default_rng(int(s)) for s in seeds])
+
+
+def start_states(task: FastTask, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
+    """`starts`, each start drawn from its env's own generator (`np_random`), as its
+    `reset()` draws it: the draws advance the generators."""
+    n = len(rngs)
     if task.code == CARTPOLE:
         state = np.array([r.uniform(-0.05, 0.05, size=(4,)) for r in rngs]).reshape(n, 4)
         return state, state.astype(np.float32)
@@ -282,6 +287,17 @@ def step_batch(
     terminated = np.empty(n, np.bool_)
     _step_batch(task.code, state, np.asarray(actions, np.int64), obs, reward, terminated, 2.0)
     return obs, reward, terminated
+
+
+@njit(cache=True)
+def step_row(
+    task: int, state: Floats, action: int, obs: Observations
+) -> tuple[float, bool]:  # pragma: no cover - compiled
+    """One step of row 0 of `state` under `action`, its observation into `obs[0]`: (reward,
+    terminated). One env stepped from Python (`app.tasks.twin_env`)."""
+    reward, terminated = _step(task, state, 0, action, 2.0)
+    _observe(task, state, 0, obs, 0)
+    return reward, terminated
 
 
 _NO_TRACE = np.empty((5, 0, 0), np.int32)

@@ -66,6 +66,10 @@ TINY = {
         "--population 10 --generations 2",
         [rf"ours / fracnetics: {RATIO} env-steps per CPU second"],
     ),
+    "fracnetics_twin": (
+        "--population 10 --generations 2 --rounds 1",
+        [rf"Acrobot-v1\s+[\d.]+\s+[\d.]+\s+{RATIO}"],
+    ),
     "tasks": (
         "--generations 2 2 2 --populations 10 --rounds 1",
         [rf"{task}-v1 N=10: compiled / Gymnasium path {RATIO}" for task in ("CartPole", "Acrobot")],

@@ -253,4 +253,5 @@ def test_gymnasium_stays_in_the_envs_modules() -> None:
                     users.add(module_name(path))
     tasks = {"app.tasks.config", "app.tasks.faults", "app.tasks.lives", "app.tasks.spaces"}
     tasks.add("app.tasks.fracnetics_arm")  # fracnetics' own loop, on gymnasium.make(task)
+    tasks.add("app.tasks.twin_env")  # a compiled twin handed to fracnetics as a gymnasium.Env
     assert users == {"sim.gym_env", "sim.gym_vector", *tasks}
