@@ -1,7 +1,7 @@
 """Lives of any brain family's individuals on a Gymnasium task, all of a batch stepping together.
 
 Each individual lives one episode (capped at a number of steps) in its own environment of a
-vector env, driven by its family's controllers (`BrainFamily.controllers`) through the task's
+batch env, driven by its family's controllers (`BrainFamily.controllers`) through the task's
 adapter (features scaled to readings, commands to actions; `app.tasks.spaces`); its fitness is
 the episode's return. Its environment starts from its own seed, and its controller draws from
 its own stream, so its life is the same whatever else is in the batch.
