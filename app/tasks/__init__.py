@@ -2,8 +2,9 @@
 
 `spaces` reads a task's spaces (features scaled to 0..1023, outputs to actions), `config` binds
 a family to the task (`TaskRunConfig.family`), `faults` breaks observation features, `lives`
-steps a family's population through a vector env, `gnp_lives` GNP's own lives (for CartPole,
-MountainCar and Acrobot through the lab's compiled twins of their envs, `dynamics`), `training`
+steps a family's population through a batch env (the lab's compiled twins of CartPole,
+MountainCar, Acrobot and Pendulum, `dynamics` and `pendulum`, else Gymnasium's vector env),
+`gnp_lives` GNP's own lives (fused with the twins on the three discrete tasks), `training`
 trains, resumes and replays, `store` writes the run file, `common` is what the lab needs without
 Gymnasium. The names below load their module (and Gymnasium) on first use, so importing
 `app.tasks.common` leaves Gymnasium unimported.

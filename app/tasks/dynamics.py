@@ -1,20 +1,24 @@
-"""CartPole-v1, MountainCar-v0 and Acrobot-v1 as compiled functions over a batch, bit for bit
-Gymnasium's own environments (issue #34).
+"""CartPole-v1, MountainCar-v0, Acrobot-v1 and Pendulum-v1 as compiled functions over a batch,
+bit for bit Gymnasium's own environments (issues #34, #45).
 
-Each task is a numba function that advances row i of a float64 state array by one step
+Each discrete task is a numba function that advances row i of a float64 state array by one step
 (`_cartpole`, `_mountain_car`, `_acrobot`: returns (reward, terminated)) and one that writes
 row i's float32 observation, with Gymnasium's operations in Gymnasium's order (the same
 float64 arithmetic, libm's `cos`/`sin`, which numpy's give bit for bit on this machine: tested
 step for step against `gymnasium.make(id)` over whole episodes, tests/app/tasks/test_task_fast.py).
-`step_batch` steps a whole (N, d) batch; `starts` draws the start states of seeds as the single
-env's `reset(seed=s)` does (`np.random.default_rng(s)`, Gymnasium's `np_random`), first
-observations computed by numpy as Gymnasium computes them (Acrobot's first one takes float32
-`cos`/`sin` of its float32 start state). An episode also ends at its time limit, `horizon`
-steps (Gymnasium's `TimeLimit`: truncated).
+Pendulum-v1, whose action is a float32 torque (a Box), has its own module (`app.tasks.pendulum`).
+`step_batch` steps a whole (N, d) batch of a discrete task; `starts` draws the start states of
+seeds as the single env's `reset(seed=s)` does (`np.random.default_rng(s)`, Gymnasium's
+`np_random`), first observations computed by numpy as Gymnasium computes them (Acrobot's first
+one takes float32 `cos`/`sin` of its float32 start state). An episode also ends at its time
+limit, `horizon` steps (Gymnasium's `TimeLimit`: truncated).
 
-`FAST_TASKS` is the registry `app.tasks.lives` reads: a task id there lives its batch in
-`lives_kernel`, every individual's whole episode in one compiled call with GNP's own kernel
-(`gnp.kernel.walk_kernel`), as `app.brains.gnp_fused` does for the robot.
+`FAST_TASKS` is the registry `app.tasks.lives` reads. GNP's lives on a discrete task there run
+in `lives`: every individual's whole episode in one compiled call with GNP's own kernel
+(`gnp.kernel.walk_kernel`), as `app.brains.gnp_fused` does for the robot ("fast" batch env).
+Every other family's lives, and GNP's on Pendulum, step a batch env of twins ("twin"):
+`step_live` steps every env of the batch in one compiled call, counting each one's steps to its
+time limit.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import numpy.typing as npt
 from numba import njit
 
 import gnp
+from app.tasks import pendulum
 from app.tasks.spaces import TaskAdapter
 from gnp import config as gnp_config
 from gnp import kernel, methods, rng
@@ -50,7 +55,7 @@ from gnp.methods import CREDIT as _CS
 from gnp.methods import SKIP_EARNS as _SKIP_EARNS
 from sim.kernel_cache import drop_stale_cache, source_fingerprint
 
-CARTPOLE, MOUNTAIN_CAR, ACROBOT = 0, 1, 2
+CARTPOLE, MOUNTAIN_CAR, ACROBOT, PENDULUM = 0, 1, 2, 3
 
 Observations: TypeAlias = npt.NDArray[np.float32]
 """A batch's observations, (N, obs_dim) float32 as the envs return them."""
@@ -230,23 +235,52 @@ def _step_batch(
         _observe(task, state, i, obs, i)
 
 
+@njit(cache=True)
+def _step_live(
+    task: int,
+    horizon: int,
+    state: Floats,
+    actions: npt.NDArray[np.int64],
+    obs: Observations,
+    reward: Floats,
+    terminated: npt.NDArray[np.bool_],
+    done: npt.NDArray[np.bool_],
+    elapsed: npt.NDArray[np.int64],
+    two: float,
+) -> None:  # pragma: no cover - compiled
+    for i in range(state.shape[0]):
+        if elapsed[i] < 0:  # its episode has ended: not stepped
+            reward[i], terminated[i], done[i] = 0.0, False, True
+            continue
+        reward[i], terminated[i] = _step(task, state, i, actions[i], two)
+        _observe(task, state, i, obs, i)
+        elapsed[i] += 1
+        done[i] = terminated[i] or elapsed[i] >= horizon
+        if done[i]:
+            elapsed[i] = -1
+
+
 @dataclass(frozen=True)
 class FastTask:
-    """A task the lab steps itself: its kernel code, state and observation widths, and its
-    episode's time limit (Gymnasium's `max_episode_steps`)."""
+    """A task the lab steps itself: its kernel code, state and observation widths, its
+    episode's time limit (Gymnasium's `max_episode_steps`), and whether its action is a Box
+    (float32 rows; `app.tasks.pendulum`) rather than a Discrete one."""
 
     code: int
     state_dim: int
     obs_dim: int
     horizon: int
+    box: bool = False
 
 
-#: Task id → the lab's compiled twin of its Gymnasium env.
+#: Task id → the lab's compiled twin of its Gymnasium env: GNP's fused lives step the discrete
+#: ones ("fast"), every other family's lives and GNP's on Pendulum a batch of twins ("twin").
 FAST_TASKS: dict[str, FastTask] = {
     "CartPole-v0": FastTask(CARTPOLE, 4, 4, 200),
     "CartPole-v1": FastTask(CARTPOLE, 4, 4, 500),
     "MountainCar-v0": FastTask(MOUNTAIN_CAR, 2, 2, 200),
     "Acrobot-v1": FastTask(ACROBOT, 4, 6, 500),
+    "Pendulum-v1": FastTask(PENDULUM, 2, 3, 200, box=True),
 }
 
 
@@ -260,6 +294,8 @@ def start_states(task: FastTask, rngs: list[np.random.Generator]) -> tuple[np.nd
     """`starts`, each start drawn from its env's own generator (`np_random`), as its
     `reset()` draws it: the draws advance the generators."""
     n = len(rngs)
+    if task.code == PENDULUM:
+        return pendulum.start_states(rngs)
     if task.code == CARTPOLE:
         state = np.array([r.uniform(-0.05, 0.05, size=(4,)) for r in rngs]).reshape(n, 4)
         return state, state.astype(np.float32)
@@ -280,13 +316,42 @@ def step_batch(
     task: FastTask, state: np.ndarray, actions: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One step of every row of `state` ((N, state_dim) float64, updated in place) under
-    `actions` (N,): (observations (N, obs_dim) float32, rewards (N,), terminated (N,))."""
+    `actions` (N,): (observations (N, obs_dim) float32, rewards (N,), terminated (N,)). A
+    discrete task's (Pendulum's batch steps through `step_live`)."""
+    if task.box:
+        raise ValueError(f"task code {task.code} takes Box actions: step it with step_live")
     n = state.shape[0]
     obs = np.empty((n, task.obs_dim), np.float32)
     reward = np.empty(n)
     terminated = np.empty(n, np.bool_)
     _step_batch(task.code, state, np.asarray(actions, np.int64), obs, reward, terminated, 2.0)
     return obs, reward, terminated
+
+
+def step_live(
+    task: FastTask,
+    state: Floats,
+    actions: np.ndarray,
+    obs: Observations,
+    reward: Floats,
+    terminated: npt.NDArray[np.bool_],
+    done: npt.NDArray[np.bool_],
+    elapsed: npt.NDArray[np.int64],
+) -> None:
+    """One step of every env of a batch still in its episode, in one compiled call: row i of
+    `state` ((N, state_dim) float64) under `actions[i]` ((N,) int64, or (N, 1) float32 for a Box
+    task), its observation into `obs[i]`, its reward, `terminated` and `done` (terminated, or
+    truncated at the `horizon`-th step as Gymnasium's `TimeLimit` truncates) into theirs, and
+    `elapsed[i]` (its steps since its reset) counted on. An env whose episode has ended
+    (`elapsed[i]` set to -1 when it ended) is not stepped: it keeps its observation and gives
+    reward 0, not terminated, done (where Gymnasium's vector env would start a new episode,
+    which the lives ignore)."""
+    if task.box:
+        pendulum.step_live(task.horizon, state, actions, obs, reward, terminated, done, elapsed)
+    else:
+        _step_live(
+            task.code, task.horizon, state, actions, obs, reward, terminated, done, elapsed, 2.0
+        )
 
 
 @njit(cache=True)

@@ -197,7 +197,8 @@ def train_fracnetics(
         fractalJudgment=False, nFeatureValues=[0] * s.jnf,
     )  # fmt: skip
     pop.setAllNodeBoundaries(lo, hi)
-    env = StepCounter(TwinEnv(task) if twin and task in FAST_TASKS else gym.make(task))
+    single = twin and task in FAST_TASKS and not FAST_TASKS[task].box  # TwinEnv: discrete
+    env = StepCounter(TwinEnv(task) if single else gym.make(task))
     fitness = np.zeros((generations, population))
     env_steps = np.zeros(generations, np.int64)
     try:

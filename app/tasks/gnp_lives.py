@@ -3,8 +3,9 @@
 Only the individuals still in their episode step: the rest go on in a population of their own
 (`gnp.take`), so an ended individual keeps what it learned in its episode; an episode that
 terminates (not one truncated by a time limit or the cap) ends with the terminal Sarsa update
-(`gnp.end_episode`). On a task with a compiled twin (`app.tasks.dynamics.FAST_TASKS`) the
-whole batch lives in one compiled call (`dynamics.lives`), the same lives bit for bit.
+(`gnp.end_episode`). On a discrete task with a compiled twin (`app.tasks.dynamics.FAST_TASKS`)
+the whole batch lives in one compiled call (`dynamics.lives`), the same lives bit for bit; on
+Pendulum-v1 (a Box action) it steps the batch env, a batch of twins ("twin" mode).
 """
 
 from __future__ import annotations

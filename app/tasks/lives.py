@@ -1,7 +1,7 @@
 """Lives of any brain family's individuals on a Gymnasium task, all of a batch stepping together.
 
 Each individual lives one episode (capped at a number of steps) in its own environment of a
-vector env, driven by its family's controllers (`BrainFamily.controllers`) through the task's
+batch env, driven by its family's controllers (`BrainFamily.controllers`) through the task's
 adapter (features scaled to readings, commands to actions; `app.tasks.spaces`); its fitness is
 the episode's return. Its environment starts from its own seed, and its controller draws from
 its own stream, so its life is the same whatever else is in the batch.
@@ -18,13 +18,18 @@ end a terminated one with the terminal Sarsa update, and on CartPole, MountainCa
 the lab's twins of their envs (bit for bit Gymnasium's, tested step for step), 4-60 times
 faster (bench/tasks.py).
 
-The environments: any task without a compiled twin, any family without lives of its own, and
-a batch with observation faults go through Gymnasium: the batch steps through the task's own
-vector env (`make_vec(..., "vector_entry_point")`) where the lab knows how to start each of its
-environments from its own seed (`START_STATES`: CartPole, whose vector env draws every start
-state from one stream otherwise), else through `SyncVectorEnv` reset with one seed per
-environment. The vector env's autoreset of an environment whose episode ended is ignored; the
-batch ends when every episode has.
+The environments (`BatchEnv`): a task with a compiled twin (`dynamics.FAST_TASKS`: CartPole,
+MountainCar, Acrobot, Pendulum) and no observation faults steps the lab's twins, every
+environment of the batch in one compiled call per step ("twin", `dynamics.step_live`), each
+env's steps counted to its time limit as Gymnasium's `TimeLimit` counts them; so do every
+family without lives of its own (CMA-ES, NEAT) and GNP on Pendulum, whose action is a Box
+(bench/batch_twin.py). Any other task, and a batch with observation faults, go through
+Gymnasium: the batch steps through the task's own vector env (`make_vec(...,
+"vector_entry_point")`) where the lab knows how to start each of its environments from its own
+seed (`START_STATES`: CartPole, whose vector env draws every start state from one stream
+otherwise), else through `SyncVectorEnv` reset with one seed per environment; `twins=False`
+takes this path for a task with a twin too. The vector env's autoreset of an environment whose
+episode ended is ignored; the batch ends when every episode has.
 """
 
 from __future__ import annotations
@@ -72,9 +77,16 @@ class FaultPlan:
 
 
 class BatchEnv:
-    """n environments of `task` stepping together (see the module docstring): `mode` "fast"
-    (the lab's compiled twin of the env: `fast`; no Gymnasium env is made; only with `twins`,
-    for lives that step twins, GNP's), else "vector_entry_point" or "sync" (`env`)."""
+    """n environments of `task` stepping together (see the module docstring), in one of four
+    modes: "fast" (the lab's compiled twin of the env, `fast`, for lives that run it
+    themselves, GNP's fused lives on a discrete task: no Gymnasium env is made and the batch
+    env is never stepped; only with `fused`), "twin" (a batch of compiled twins, `twin`,
+    stepped in one compiled call through `reset` and `step`), else Gymnasium's
+    "vector_entry_point" or "sync" (`env`). Twins only with `twins` and without faults.
+
+    In the "twin" mode an environment whose episode has ended is not stepped again until the
+    next `reset`: it gives reward 0, not terminated, done (Gymnasium's vector env starts a new
+    episode there instead; the lives ignore both)."""
 
     def __init__(
         self,
@@ -83,27 +95,44 @@ class BatchEnv:
         adapter: TaskAdapter,
         faults: FaultPlan | None = None,
         twins: bool = True,
+        fused: bool = True,
     ) -> None:
         spec = gym.spec(task)
         self.n = n
-        self.fast = dynamics.FAST_TASKS.get(task) if faults is None and twins else None
+        self.adapter = adapter
+        twin = dynamics.FAST_TASKS.get(task) if faults is None and twins else None
+        self.fast: dynamics.FastTask | None = None
+        self.twin: dynamics.FastTask | None = None
         self._start = START_STATES.get(task) if faults is None else None
         self.env: gym.vector.VectorEnv | None = None
         self._sync: gym.vector.SyncVectorEnv | None = None
-        if self.fast is not None and adapter.kind == "discrete":
-            self.mode = "fast"
+        if twin is not None and fused and adapter.kind == "discrete" and not twin.box:
+            self.fast, self.mode = twin, "fast"
+        elif twin is not None:
+            self.twin, self.mode = twin, "twin"
+            self._state = np.zeros((n, twin.state_dim))
+            self._obs = np.zeros((n, twin.obs_dim), np.float32)
+            self._elapsed = np.full(n, -1, np.int64)  # no episode before a reset
+            self._reward = np.zeros(n)
+            self._terminated = np.zeros(n, np.bool_)
+            self._done = np.zeros(n, np.bool_)
         elif self._start is not None and spec.vector_entry_point is not None:
-            self.fast = None
             self.env = gym.make_vec(task, num_envs=n, vectorization_mode="vector_entry_point")
             self.mode = "vector_entry_point"
         else:
-            self.fast = self._start = None
+            self._start = None
             makers = [_maker(task, adapter, faults, i) for i in range(n)]
             self.env = self._sync = gym.vector.SyncVectorEnv(makers)
             self.mode = "sync"
 
     def reset(self, seeds: np.ndarray) -> np.ndarray:
         """Start environment i as the single env's `reset(seed=seeds[i])`; (n, d) observations."""
+        if self.twin is not None:
+            if len(seeds) != self.n:
+                raise ValueError(f"{len(seeds)} seeds for a batch of {self.n} environments")
+            self._state[:], self._obs[:] = dynamics.starts(self.twin, np.asarray(seeds))
+            self._elapsed[:] = 0
+            return self._obs.copy()
         assert self.env is not None, "a fast batch has no Gymnasium env"
         if self._start is not None:
             self.env.reset(seed=0)
@@ -115,11 +144,33 @@ class BatchEnv:
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(observations, rewards, terminated, done: terminated or truncated) after one step of
         every environment."""
+        if self.twin is not None:
+            dynamics.step_live(
+                self.twin, self._state, self._twin_actions(actions), self._obs, self._reward,
+                self._terminated, self._done, self._elapsed,
+            )  # fmt: skip
+            return self._obs.copy(), self._reward.copy(), self._terminated.copy(), self._done.copy()
         assert self.env is not None, "a fast batch has no Gymnasium env"
         obs, reward, terminated, truncated, _ = self.env.step(actions)
         done = np.logical_or(terminated, truncated)
         rewards = np.asarray(reward, dtype=np.float64)
         return np.asarray(obs), rewards, np.asarray(terminated, dtype=bool), done
+
+    def _twin_actions(self, actions: np.ndarray) -> np.ndarray:
+        """`actions` as the twins take them, refused where Gymnasium's env would take others
+        (an action outside a Discrete space, a Box action of another dtype or shape)."""
+        adapter = self.adapter
+        if adapter.kind == "discrete":
+            taken = np.asarray(actions)
+            low, high = adapter.action_start, adapter.action_start + adapter.n_actions
+            if taken.shape != (self.n,) or taken.min() < low or taken.max() >= high:
+                raise ValueError(f"{self.n} actions in {low}..{high - 1} expected, got {taken}")
+            return taken.astype(np.int64)
+        taken = np.asarray(actions)
+        if taken.dtype != np.float32 or taken.shape != (self.n, 1):
+            raise ValueError(f"({self.n}, 1) float32 actions expected, got {taken.dtype} "
+                             f"{taken.shape}")  # fmt: skip
+        return np.ascontiguousarray(taken)
 
     def close(self) -> None:
         if self.env is not None:
@@ -193,9 +244,10 @@ def family_lives(name: str) -> FamilyLives | None:
 def batch_env(
     family: BrainFamily, task: str, n: int, adapter: TaskAdapter, faults: FaultPlan | None = None
 ) -> BatchEnv:
-    """The batch env of `family`'s lives: compiled twins only for a family with lives of its
-    own (`FAMILY_LIVES`: GNP's step them), else Gymnasium's."""
-    return BatchEnv(task, n, adapter, faults, twins=family.name in FAMILY_LIVES)
+    """The batch env of `family`'s lives: the task's compiled twin where it has one and there
+    are no faults, fused into the lives of a family with lives of its own (`FAMILY_LIVES`:
+    GNP's, on a discrete task), else a batch of twins; Gymnasium's otherwise."""
+    return BatchEnv(task, n, adapter, faults, fused=family.name in FAMILY_LIVES)
 
 
 def live(

@@ -1,4 +1,5 @@
-"""One Gymnasium env of a task the lab has a compiled twin of (`dynamics.FAST_TASKS`), stepped
+"""One Gymnasium env of a task the lab has a compiled twin of (`dynamics.FAST_TASKS`, those with
+a Discrete action: Pendulum's twin steps in batches only, `app.tasks.lives.BatchEnv`), stepped
 from Python a step at a time: for fracnetics' arm, whose library steps the env it is handed.
 
 `TwinEnv(id)` is `gymnasium.make(id)` bit for bit, seen from its caller: the same observations
@@ -27,8 +28,11 @@ class TwinEnv(gym.Env[np.ndarray, int]):
     """The compiled twin of `gymnasium.make(task)` as a single env (see the module)."""
 
     def __init__(self, task: str) -> None:
-        if task not in FAST_TASKS:
-            raise TaskError(f"{task!r} has no compiled twin; the lab has {', '.join(FAST_TASKS)}")
+        single = [t for t, fast in FAST_TASKS.items() if not fast.box]
+        if task not in single:
+            raise TaskError(
+                f"{task!r} has no compiled single-env twin; the lab has {', '.join(single)}"
+            )
         self.task = task
         self._fast = FAST_TASKS[task]
         spaces = gym.make(task)  # its spaces, as a caller reads them from the env

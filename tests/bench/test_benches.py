@@ -70,6 +70,13 @@ TINY = {
         "--population 10 --generations 2 --rounds 1",
         [rf"Acrobot-v1\s+[\d.]+\s+[\d.]+\s+{RATIO}"],
     ),
+    "batch_twin": (
+        "--population 10 --generations 2 --rounds 1",
+        [
+            rf"Pendulum-v1 {family}\s+Gymnasium [\d.]+ M/s\s+twin [\d.]+ M/s\s+{RATIO}\s+\(same"
+            for family in ("gnp-rl", "cmaes")
+        ],
+    ),
     "tasks": (
         "--generations 2 2 2 --populations 10 --rounds 1",
         [rf"{task}-v1 N=10: compiled / Gymnasium path {RATIO}" for task in ("CartPole", "Acrobot")],

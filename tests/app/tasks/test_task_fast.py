@@ -64,6 +64,36 @@ def test_the_batched_dynamics_are_gymnasiums_env_bit_for_bit(task: str, greedy: 
         env.close()
 
 
+@pytest.mark.parametrize("spread", [1.0, 40.0])
+def test_the_pendulum_twin_is_gymnasiums_env_bit_for_bit(spread: float) -> None:
+    """Whole episodes of many seeds under random float32 torques, most of them far outside ±2
+    (clipped) when `spread` is 40: the same observations, rewards and truncation."""
+    fast = dynamics.FAST_TASKS["Pendulum-v1"]
+    assert fast.horizon == gym.spec("Pendulum-v1").max_episode_steps == 200 and fast.box
+    seeds = np.arange(64) * 7919 + 3
+    n = len(seeds)
+    state, obs = dynamics.starts(fast, seeds)
+    envs = [gym.make("Pendulum-v1") for _ in seeds]
+    for env, seed, first in zip(envs, seeds, obs, strict=True):
+        expected, _ = env.reset(seed=int(seed))
+        np.testing.assert_array_equal(first, expected)
+    rng = np.random.default_rng(int(spread))
+    reward, terminated = np.empty(n), np.empty(n, np.bool_)
+    done, elapsed = np.empty(n, np.bool_), np.zeros(n, np.int64)
+    for t in range(fast.horizon):
+        actions = (rng.normal(size=(n, 1)) * spread).astype(np.float32)
+        dynamics.step_live(fast, state, actions, obs, reward, terminated, done, elapsed)
+        for i in range(n):
+            o, r, term, trunc, _ = envs[i].step(actions[i])
+            assert o.dtype == obs.dtype and type(r) is np.float64
+            np.testing.assert_array_equal(obs[i], o, err_msg=f"seed {seeds[i]} step {t}")
+            assert (reward[i], bool(terminated[i]), bool(done[i])) == (r, term, trunc)
+            assert trunc == (t + 1 == fast.horizon)
+    assert done.all() and (elapsed == -1).all()
+    for env in envs:
+        env.close()
+
+
 def _training(
     task: str, method: Literal["RL", "BS", "CS"], controller: dict[str, Any] | None = None
 ) -> TaskRunConfig:

@@ -208,12 +208,13 @@ def _one_by_one(
         ("MountainCar-v0", "sync", 60),
         ("Acrobot-v1", "sync", 40),
         ("Pendulum-v1", "sync", 40),
+        ("Pendulum-v1", "twin", 250),  # GNP on a Box action: a batch of twins
     ],
 )
 def test_a_batch_lives_as_each_individual_alone_with_the_single_env(
     task: str, mode: str, max_steps: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    if mode != "fast":  # the Gymnasium path
+    if mode not in ("fast", "twin"):  # the Gymnasium path
         monkeypatch.setattr("app.tasks.dynamics.FAST_TASKS", {})
     config = TaskRunConfig(
         seed=4, task=TaskSettings(id=task), training=TaskTraining(population=12, steps=max_steps)

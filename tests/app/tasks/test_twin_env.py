@@ -70,5 +70,7 @@ def test_the_twin_refuses_what_gymnasium_would_run_differently() -> None:
         pass
     with pytest.raises(TaskError, match="no live episode"):
         twin.step(0)
-    with pytest.raises(TaskError, match="no compiled twin"):
-        TwinEnv("Pendulum-v1")
+    with pytest.raises(TaskError, match="no compiled single-env twin"):
+        TwinEnv("Pendulum-v1")  # a Box action: its twin steps in batches only
+    with pytest.raises(TaskError, match="no compiled single-env twin"):
+        TwinEnv("LunarLander-v3")
