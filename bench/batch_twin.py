@@ -24,18 +24,20 @@ path; CMA-ES's controllers through `generic_lives`), and evolution and the run f
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from app.brains.gnp_settings import ControllerSettings, GnpSettings
 from app.settings.loading import build_config
-from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, dynamics, read_task_run, train_task
+from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, read_task_run, train_task
 from gnp import Schedule
+
+sys.path.insert(0, str(Path(__file__).parent))
+from tasks import gymnasium_path  # bench/tasks.py: the compiled twins unregistered while on
 
 TASK = "Pendulum-v1"
 
@@ -57,18 +59,6 @@ def config(family: str, population: int, generations: int) -> TaskRunConfig:
     sizes = {"population": population, "generations": generations, "steps": 200}
     run = build_config({"seed": 7, "brain": {"family": family}, "training": sizes})
     return TaskRunConfig.from_run_config(run, TaskSettings(id=TASK))
-
-
-@contextmanager
-def gymnasium_path(on: bool) -> Iterator[None]:
-    """The Gymnasium path while on (the lab's compiled twins unregistered)."""
-    kept = dynamics.FAST_TASKS
-    if on:
-        dynamics.FAST_TASKS = {}
-    try:
-        yield
-    finally:
-        dynamics.FAST_TASKS = kept
 
 
 def run(cfg: TaskRunConfig, folder: Path, name: str) -> tuple[float, np.ndarray]:
