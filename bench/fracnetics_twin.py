@@ -17,14 +17,17 @@ from __future__ import annotations
 
 import argparse
 import time
-import tomllib
-from pathlib import Path
 
 import numpy as np
 
-from app.tasks.fracnetics_arm import FracneticsResult, arm_settings, train_fracnetics
+from app.experiments.spec_loading import load_shipped
+from app.tasks.fracnetics_arm import (
+    FracneticsResult,
+    FracneticsSettings,
+    arm_settings,
+    train_fracnetics,
+)
 
-SPECS = Path(__file__).resolve().parents[1] / "app" / "experiments" / "shipped"
 TASKS = {
     "CartPole-v1": "gnp-vs-fracnetics-tuned-cartpole",
     "MountainCar-v0": "gnp-vs-fracnetics-tuned-mountaincar",
@@ -32,13 +35,18 @@ TASKS = {
 }
 
 
+def _tuned(task: str) -> tuple[FracneticsSettings, list[int]]:
+    """The spec's tuned fracnetics settings on `task`, and its test episode seeds."""
+    spec = load_shipped(TASKS[task])
+    assert spec.task is not None, f"{TASKS[task]} is a task experiment"
+    return arm_settings(task, spec.arm("fracnetics-tuned").fracnetics), list(spec.task.seeds())
+
+
 def _run(
-    task: str, population: int, generations: int, twin: bool
-) -> tuple[float, FracneticsResult]:
-    spec = tomllib.loads((SPECS / f"{TASKS[task]}.toml").read_text())
-    arm = next(a for a in spec["arms"] if a["name"] == "fracnetics-tuned")
-    settings = arm_settings(task, arm["fracnetics"])
-    tests = list(range(1_000_000, 1_000_020))
+    task: str, tuned: tuple[FracneticsSettings, list[int]], population: int, generations: int,
+    twin: bool,
+) -> tuple[float, FracneticsResult]:  # fmt: skip
+    settings, tests = tuned
     cpu = time.process_time()
     result = train_fracnetics(task, settings, population, generations, 6200, 500, tests, twin=twin)
     cpu = time.process_time() - cpu
@@ -55,11 +63,12 @@ def main() -> None:
     print(f"population {args.population}, {args.generations} generations, best of {args.rounds}")
     print(f"{'task':16}{'gymnasium µs':>14}{'twin µs':>10}{'gymnasium / twin':>18}")
     for task in TASKS:
+        tuned = _tuned(task)
         best = {True: np.inf, False: np.inf}
         results: dict[bool, FracneticsResult] = {}
         for r in range(args.rounds):
             for twin in (r % 2 == 0, r % 2 == 1):
-                cost, results[twin] = _run(task, args.population, args.generations, twin)
+                cost, results[twin] = _run(task, tuned, args.population, args.generations, twin)
                 best[twin] = min(best[twin], cost)
         same = np.array_equal(results[True].fitness, results[False].fitness) and np.array_equal(
             results[True].test_returns, results[False].test_returns

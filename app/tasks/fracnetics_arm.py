@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.tasks.common import TaskError
-from app.tasks.dynamics import FAST_TASKS
+from app.tasks.twin_env import TASKS as TWIN_TASKS
 from app.tasks.twin_env import TwinEnv
 
 
@@ -197,8 +197,7 @@ def train_fracnetics(
         fractalJudgment=False, nFeatureValues=[0] * s.jnf,
     )  # fmt: skip
     pop.setAllNodeBoundaries(lo, hi)
-    single = twin and task in FAST_TASKS and not FAST_TASKS[task].box  # TwinEnv: discrete
-    env = StepCounter(TwinEnv(task) if single else gym.make(task))
+    env = StepCounter(TwinEnv(task) if twin and task in TWIN_TASKS else gym.make(task))
     fitness = np.zeros((generations, population))
     env_steps = np.zeros(generations, np.int64)
     try:

@@ -23,15 +23,17 @@ import numpy as np
 from app.tasks.common import TaskError
 from app.tasks.dynamics import FAST_TASKS, start_states, step_row
 
+TASKS = tuple(task for task, fast in FAST_TASKS.items() if not fast.box)
+"""The tasks with a single-env twin: the discrete ones (Pendulum's steps in batches only)."""
+
 
 class TwinEnv(gym.Env[np.ndarray, int]):
     """The compiled twin of `gymnasium.make(task)` as a single env (see the module)."""
 
     def __init__(self, task: str) -> None:
-        single = [t for t, fast in FAST_TASKS.items() if not fast.box]
-        if task not in single:
+        if task not in TASKS:
             raise TaskError(
-                f"{task!r} has no compiled single-env twin; the lab has {', '.join(single)}"
+                f"{task!r} has no compiled single-env twin; the lab has {', '.join(TASKS)}"
             )
         self.task = task
         self._fast = FAST_TASKS[task]
