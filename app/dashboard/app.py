@@ -228,6 +228,7 @@ class Dashboard:
                         self.train.follow()
                         self.runs.follow_implementation()
                         self.experiments.follow()
+                        self.task.follow()
                         self.show.refresh()
             except Exception:  # keep the page alive; say what went wrong
                 self.status.set(

@@ -33,6 +33,7 @@ from sim import FAULT_MODES
 
 if TYPE_CHECKING:
     from app.dashboard.task_replay import TaskReplay
+    from app.tasks.store import TaskRun
 
 ROBOT_NOTE = (
     "<small>A task run: the arena, the sensor faults (Faults tab) and the implementation phase "
@@ -70,6 +71,7 @@ class TaskPanel:
     replay: TaskReplay | None = None
     frame_line: str = ""  # why there is no frame, if there is none
     frames: int = 0  # frames drawn since the replay started
+    _unfinished: int | None = None  # an unfinished run's file modification time, as last read
     _last_frame: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -79,27 +81,52 @@ class TaskPanel:
 
     def load(self, path: Path, name: str) -> None:
         """Load a task run: its summary and fitness plot, then replay its best on the task."""
-        from app.tasks.store import read_task_run
-
         try:
-            run = read_task_run(path)
+            stamp = path.stat().st_mtime_ns  # before the read: a change meanwhile is read again
+            run = _read(path)
         except (KeyError, ValueError, OSError) as error:  # a damaged file: one line, no trace
             first = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise DashboardInputError(f"cannot read task run {name}: {first}") from None
         if run.generation_done == 0:
             raise DashboardInputError(f"task run {name} has no generation done yet")
         self.path, self.name = path, name
-        fitness = run.fitness
-        config = run.config
-        self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1), name)
-        self.summary.content = (
-            f"**{name}**: task **{config.task.id}**, {config.description}, population "
-            f"{config.training.population}, {run.generation_done}/"
-            f"{config.training.generations} generations, ≤ {config.training.steps} steps, "
-            f"seed {config.seed}  \nbest return {fitness.max():.1f}  \n" + ROBOT_NOTE
-        )
+        self._stage(run, stamp)
         self.folder.visible = True
         self.start()
+
+    def follow(self) -> None:
+        """A task run loaded before it finished (written by `gnp-lab task train`, a tune, an
+        experiment): its new generations onto the plot and the summary as the file grows, read
+        only when the file changed; the replay on show carries on (Replay on task restarts it
+        on the new last generation)."""
+        path = self.path
+        if path is None or self.replay is None or self._unfinished is None:
+            return  # nothing loaded, a robot on show, or the run finished
+        try:
+            stamp = path.stat().st_mtime_ns
+            if stamp == self._unfinished:
+                return
+            run = _read(path)
+        except (KeyError, ValueError, OSError):  # a torn read while written: the next poll
+            return
+        if run.generation_done:  # a run begun again under its name: nothing to plot yet
+            self._stage(run, stamp)
+
+    def _stage(self, run: TaskRun, stamp: int) -> None:
+        """The run's returns per generation on the plot and its summary; an unfinished run is
+        followed from its file's modification time `stamp`."""
+        fitness, config = run.fitness, run.config
+        total = config.training.generations
+        unfinished = run.generation_done < total
+        self._unfinished = stamp if unfinished else None
+        self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1), self.name)
+        following = " (unfinished: followed as its file grows)" if unfinished else ""
+        self.summary.content = (
+            f"**{self.name}**: task **{config.task.id}**, {config.description}, population "
+            f"{config.training.population}, {run.generation_done}/{total} generations"
+            f"{following}, ≤ {config.training.steps} steps, seed {config.seed}  \n"
+            f"best return {fitness.max():.1f}  \n" + ROBOT_NOTE
+        )
 
     def start(self) -> None:
         """(Re)start the replay with the panel's settings."""
@@ -246,6 +273,12 @@ def task_line(status: Any, node: str) -> str:
         f"{status.episode} · step {status.t} · return {status.episode_return:g}{last}  \n"
         f"{node} · action {status.action} · broken features: {broken}"
     )
+
+
+def _read(path: Path) -> TaskRun:
+    from app.tasks.store import read_task_run
+
+    return read_task_run(path)
 
 
 def _robot_controls(handles: Sequence[Any], on: bool) -> None:

@@ -4,6 +4,7 @@ replayed; a damaged file or a task whose extra is missing is one line on the pag
 from __future__ import annotations
 
 import shutil
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from page_helpers import dashboard_in_process, until
 from test_task_replay import tiny_task_config
 
 from app.cli import main
+from app.phases.generations import GenerationSummary
 from app.tasks import train_task
 from gnp.config import JUDGMENT
 
@@ -85,3 +87,31 @@ def test_the_panel_exports_the_task_run(board: Any, runs: Path) -> None:
     assert out == runs / "exports" / "cartpole-g2"
     assert sorted(p.name for p in out.iterdir()) == ["controller.json", "fitness.csv"]
     assert board.status.text == f"exported task run cartpole to {out}"
+
+
+def test_a_run_loaded_while_written_is_followed_to_its_end(board: Any, runs: Path) -> None:
+    """A run on show before it finished gains its generations on the plot and the summary as
+    its writer (here a thread held after generation 0) writes them; the replay carries on."""
+    release, written = threading.Event(), threading.Event()
+
+    def hold(summary: GenerationSummary) -> None:
+        if summary.generation == 0:
+            written.set()
+            assert release.wait(60)
+
+    out = runs / "growing.h5"
+    writer = threading.Thread(target=train_task, args=(tiny_task_config(seed=2), out, hold))
+    writer.start()
+    try:
+        assert written.wait(60)
+        board.status.guarded(None, lambda: board.runs.load("growing"))
+        assert board.task.active and board.plots.fitness_points == 1
+        assert "1/3 generations (unfinished: followed" in board.task.summary.content
+    finally:
+        release.set()
+        writer.join(60)
+    until(lambda: board.plots.fitness_points == 3)
+    until(lambda: "3/3 generations," in board.task.summary.content)
+    assert "unfinished" not in board.task.summary.content and board.task.active
+    with board.lock:  # the run finished: nothing more is read
+        assert board.task._unfinished is None
