@@ -102,20 +102,34 @@ class RunsTab:
     def load(self, name: str) -> None:
         """Load a run of the runs dir and put it on show: its best on the stage (a task run:
         its replay), its summary, fitness history, stored implementation, fault settings."""
-        if name != NO_RUNS and self.load_task is not None:
-            path = store.resolve_run(self.runs_dir, name)
-            if is_task_run(path):
-                self.load_task(path, name)
-                if self.run.value != name and name in self.run.options:
-                    set_value(self.run, name)
-                self.summary.content = f"**{name}** is a task run: see *Task run* below."
-                return
+        if name != NO_RUNS and self._task_run(store.resolve_run(self.runs_dir, name), name):
+            if self.run.value != name and name in self.run.options:
+                set_value(self.run, name)
+            return
         self._load(open_run(self.runs_dir, name), name)
 
     def load_file(self, path: Path) -> None:
         """Load a run file another tab found inside the runs dir (an experiment's run) and put
-        it on show."""
-        self._load(store.RunReader(path), str(path.relative_to(self.runs_dir).with_suffix("")))
+        it on show (a task run: its replay; a fracnetics arm's file holds no individual)."""
+        from app.tasks.peer import is_fracnetics_run
+
+        name = str(path.relative_to(self.runs_dir).with_suffix(""))
+        if self._task_run(path, name):
+            return
+        if is_fracnetics_run(path):
+            raise DashboardInputError(
+                f"{name} is a fracnetics arm's run: its returns and test only, no individual "
+                "to replay (fracnetics' library hands back none); its arm is in the report"
+            )
+        self._load(store.RunReader(path), name)
+
+    def _task_run(self, path: Path, name: str) -> bool:
+        """A task run goes to the task panel (True); anything else is the robot's (False)."""
+        if self.load_task is None or not is_task_run(path):
+            return False
+        self.load_task(path, name)
+        self.summary.content = f"**{name}** is a task run: see *Task run* below."
+        return True
 
     def _load(self, reader: store.RunReader, name: str) -> None:
         if self.leave_task is not None:

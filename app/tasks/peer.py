@@ -81,6 +81,16 @@ class PeerResult:
         return self.generations_done >= self.generations and self.test_returns is not None
 
 
+def is_fracnetics_run(path: str | Path) -> bool:
+    """Whether `path` is a fracnetics arm's run file (`_write_fracnetics`' format); False for
+    anything else, and for what is not a regular file or not HDF5."""
+    try:
+        with open_for_read(Path(path)) as handle:
+            return bool(handle.attrs.get("format") == FRACNETICS_FORMAT)
+    except (RunFileError, OSError):
+        return False
+
+
 def read_peer(path: str | Path) -> PeerResult:
     """A task experiment's run file, either brain (a GNP run: a task run, read by
     `read_task_run`, its `test` group beside).

@@ -17,7 +17,9 @@ from test_task_replay import tiny_task_config
 
 from app.cli import main
 from app.phases.generations import GenerationSummary
-from app.tasks import train_task
+from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, train_task
+from app.tasks.fracnetics_arm import documented
+from app.tasks.peer import PeerRun, run_peer
 from gnp.config import JUDGMENT
 
 
@@ -115,3 +117,35 @@ def test_a_run_loaded_while_written_is_followed_to_its_end(board: Any, runs: Pat
     assert "unfinished" not in board.task.summary.content and board.task.active
     with board.lock:  # the run finished: nothing more is read
         assert board.task._unfinished is None
+
+
+def test_an_experiments_task_run_is_replayed_and_a_fracnetics_run_is_one_line(
+    board: Any, runs: Path
+) -> None:
+    """The Experiments tab's *Load run* on a task experiment: our arm's run replays in the task
+    panel; a fracnetics arm's file (returns and tests, no individual) is one line, nothing
+    changes."""
+    folder = runs / "experiments" / "gnp-vs-fracnetics-cartpole" / "small"
+    folder.mkdir(parents=True)
+    run = TaskRunConfig(
+        seed=3,
+        task=TaskSettings(id="CartPole-v1"),
+        training=TaskTraining(population=6, generations=2, steps=40),
+    )
+    for brain in ("gnp", "fracnetics"):
+        settings = documented("CartPole-v1") if brain == "fracnetics" else None
+        peer = PeerRun(brain=brain, run=run, fracnetics=settings, test_seeds=(7, 8))
+        run_peer(peer, folder / f"{brain}-seed3.h5")
+    board.status.guarded(None, lambda: board.runs.load("cartpole"))  # another run on show
+    board.status.guarded(None, lambda: board.experiments.show_run(folder / "gnp-seed3.h5"))
+    name = "experiments/gnp-vs-fracnetics-cartpole/small/gnp-seed3"
+    assert board.status.text == (
+        f"replaying the best of generation 1 of task run {name} on CartPole-v1"
+    )
+    assert board.task.active and board.task.name == name and board.plots.fitness_points == 2
+    board.status.guarded(None, lambda: board.experiments.show_run(folder / "fracnetics-seed3.h5"))
+    assert board.status.text.startswith(
+        "⚠ experiments/gnp-vs-fracnetics-cartpole/small/fracnetics-seed3 is a fracnetics arm's "
+        "run: its returns and test only, no individual to replay"
+    )
+    assert board.task.name == name and board.task.active  # nothing changed
