@@ -95,10 +95,10 @@ class TaskPanel:
         self.start()
 
     def follow(self) -> None:
-        """A task run loaded before it finished (written by `gnp-lab task train`, a tune, an
-        experiment): its new generations onto the plot and the summary as the file grows, read
-        only when the file changed; the replay on show carries on (Replay on task restarts it
-        on the new last generation)."""
+        """A task run loaded before it finished (a `gnp-lab train --task` under way, an
+        experiment's run): its new generations onto the plot and the summary as the file grows,
+        read only when the file changed; the replay on show carries on (*Replay on task* starts
+        again on the newest generation)."""
         path = self.path
         if path is None or self.replay is None or self._unfinished is None:
             return  # nothing loaded, a robot on show, or the run finished
@@ -276,6 +276,8 @@ def task_line(status: Any, node: str) -> str:
 
 
 def _read(path: Path) -> TaskRun:
+    """`read_task_run`, imported on first use: `app.tasks.store` brings Gymnasium in, which the
+    page leaves out until a task run is loaded."""
     from app.tasks.store import read_task_run
 
     return read_task_run(path)
