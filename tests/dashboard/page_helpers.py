@@ -103,6 +103,11 @@ def press(page: Any, button: str) -> None:
     sent(page, page.get_by_role("button", name=button).click, button, "true")
 
 
+LINE_TEXT = """(prefix) => {
+  const line = [...document.querySelectorAll("p")].find((p) => p.innerText.startsWith(prefix));
+  return line ? line.innerText : "(no such line)";
+}"""
+
 LINE_MATCH = """([prefix, pattern]) => {
   const line = [...document.querySelectorAll("p")].find((p) => p.innerText.startsWith(prefix));
   const match = line && new RegExp(pattern).exec(line.innerText);
@@ -118,8 +123,7 @@ def wait_for_line(page: Any, prefix: str, pattern: str) -> re.Match[str]:
     try:
         found = page.wait_for_function(LINE_MATCH, arg=[prefix, pattern], polling=100)
     except PlaywrightTimeout:
-        line = page.get_by_text(re.compile("^" + re.escape(prefix))).first
-        text = line.inner_text() if line.count() else "(no such line)"
+        text = page.evaluate(LINE_TEXT, prefix)  # the paragraph LINE_MATCH read, whole
         raise AssertionError(f"{prefix!r} never matched {pattern!r}; last: {text}") from None
     match = re.search(pattern, found.json_value())
     assert match is not None
