@@ -76,6 +76,12 @@ class JobSnapshot:
     seconds: float
     seeds: int | None = None  # adaptive: seeds per arm of the stage under way
 
+    @property
+    def active(self) -> bool:
+        """Whether the job was still going when this was taken (its phase and `active` from
+        one read, so a job ending meanwhile is not reported in the phase it left)."""
+        return self.phase not in ENDED
+
 
 class _StartedOnUse:
     """The cluster's client, started only when a stage has runs to submit (`run_adaptive`

@@ -178,7 +178,7 @@ class ExperimentsTab:
             return
         snapshot = job.snapshot()
         self._show_progress(job, snapshot)
-        if not job.active and not job.reported:
+        if not snapshot.active and not job.reported:
             job.reported = True
             self.refresh()
             if snapshot.phase == "failed":
@@ -275,7 +275,7 @@ class ExperimentsTab:
         set_options(self.run, view.runs, ev.NO_RUNS)
 
     def _show_progress(self, job: ExperimentJob, snapshot: JobSnapshot) -> None:
-        phase = snapshot.detail if job.active else f"{snapshot.phase}: {snapshot.detail}"
+        phase = snapshot.detail if snapshot.active else f"{snapshot.phase}: {snapshot.detail}"
         text = ev.progress_line(job.spec.name, job.scale, phase, snapshot.counts)
         text += f"  \n{snapshot.seconds:.0f} s"
         text += "".join(f"  \n{line}" for line in snapshot.outcomes)

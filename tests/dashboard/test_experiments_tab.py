@@ -24,7 +24,7 @@ from page_helpers import dashboard_in_process, until_tab
 from app import store
 from app.dashboard import experiment_view as ev
 from app.dashboard.controls import DashboardInputError
-from app.dashboard.experiment_job import DaskCluster, ExperimentJob
+from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
 from app.dashboard.experiment_verdicts import badge, whole
 from app.dashboard.plots import MAX_POINTS
 from app.experiments import execution, harvest, layout, planning
@@ -302,6 +302,42 @@ def test_one_experiment_at_a_time(dashboard: Any) -> None:
     assert dashboard.status.text == "⚠ experiment ch5-cs-bs-rl at small is running: one at a time"
     assert tab.job is running
     tab.job = None
+
+
+class EndsAfterItsSnapshot:
+    """A job that ends between its snapshot and any later look: the race the tab must not
+    report as "running" (the snapshot said running, `active` then says ended)."""
+
+    spec = SimpleNamespace(name=NAME)
+    scale = SCALE
+    reported = False
+    design = None
+
+    def __init__(self) -> None:
+        self.phase = "running"
+
+    @property
+    def active(self) -> bool:
+        return self.phase == "running"
+
+    def snapshot(self) -> JobSnapshot:
+        taken = JobSnapshot(phase=self.phase, detail="", counts=None, outcomes=(), seconds=1.0)  # type: ignore[arg-type]
+        self.phase = "finished"  # it ends right after
+        return taken
+
+
+def test_a_job_ending_while_read_is_reported_in_the_phase_it_ended_in(dashboard: Any) -> None:
+    tab = dashboard.experiments
+    try:
+        with dashboard.lock:  # the page's loop follows too, under this lock
+            tab.job = EndsAfterItsSnapshot()
+            tab.follow()  # its snapshot says running: nothing reported yet
+            assert not tab.job.reported
+            tab.follow()
+        assert tab.job.reported
+        assert dashboard.status.text == f"experiment {NAME} at {SCALE} finished"
+    finally:
+        tab.job = None
 
 
 def test_starting_a_finished_experiment_writes_its_summary_without_a_cluster(
