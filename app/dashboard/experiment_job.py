@@ -78,8 +78,8 @@ class JobSnapshot:
 
     @property
     def active(self) -> bool:
-        """Whether the job was still going when this was taken (its phase and `active` from
-        one read, so a job ending meanwhile is not reported in the phase it left)."""
+        """Whether the job was going when this was taken: read with its phase, so a job that
+        ends meanwhile is not reported in the phase it left."""
         return self.phase not in ENDED
 
 
