@@ -78,6 +78,10 @@ def _reward_series(labels: Sequence[str]) -> tuple[dict[str, Any], ...]:
     return tuple(series)
 
 
+REWARD_TITLE = "Reward per step (robots on show)"
+"""The reward chart's title when it names no run (a task run on show)."""
+
+
 def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
     """Reward per step of the robots on show; the broken-sensor count as a dashed line.
 
@@ -88,7 +92,7 @@ def reward_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
     return gui.add_uplot(
         data=_empty(len(series)),
         series=series,  # type: ignore[arg-type]
-        title="Reward per step (robots on show)",
+        title=REWARD_TITLE,
         scales={**X_NOT_TIME, "y": {"range": REWARD_RANGE}, **BROKEN_SCALE},
         axes=({"incrs": WHOLE_STEPS}, REWARD_AXIS, BROKEN_AXIS),
         legend=LABELS_ONLY,

@@ -106,8 +106,8 @@ class PlotsTab:
         self.fitness_points, self.fitness_run = len(best), run or task
         self.staged_once = False  # the robot's next show sets its charts again
         plots.set_reward_series(self.reward, [])
-        self.implementation.data = tuple(np.zeros(1) for _ in self.implementation.data)
-        self.implementation_line = f"implementation: the robot's (none for {task})"
+        self.reward.title = plots.REWARD_TITLE  # no robot on show: no run named
+        self.clear_implementation(f"implementation: the robot's (none for {task})")
 
     def show_implementation(self, name: str, result: store.Implementation) -> None:
         settings = result.settings

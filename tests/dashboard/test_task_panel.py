@@ -12,7 +12,7 @@ from typing import Any
 import h5py
 import numpy as np
 import pytest
-from page_helpers import dashboard_in_process, until
+from page_helpers import DEMO, dashboard_in_process, until
 from test_task_replay import tiny_task_config
 
 from app.cli import main
@@ -149,3 +149,21 @@ def test_an_experiments_task_run_is_replayed_and_a_fracnetics_run_is_one_line(
         "run: its returns and test only, no individual to replay"
     )
     assert board.task.name == name and board.task.active  # nothing changed
+
+
+def test_the_robots_charts_name_no_robot_run_while_a_task_run_is_on_show(
+    board: Any, runs: Path
+) -> None:
+    shutil.copyfile(DEMO, runs / "demo.h5")
+    board.status.guarded(None, lambda: board.runs.load("demo"))
+    plots = board.plots
+    assert plots.reward.title == "Reward per step · demo"
+    assert plots.implementation.title.startswith("Implementation phase · demo/")
+    board.status.guarded(None, lambda: board.runs.load("cartpole"))
+    assert board.task.active
+    assert plots.reward.title == "Reward per step (robots on show)"
+    assert plots.implementation.title == "Implementation phase"
+    assert plots.implementation_line == "implementation: the robot's (none for CartPole-v1)"
+    board.status.guarded(None, lambda: board.runs.load("demo"))  # the robot back: its charts
+    assert plots.reward.title == "Reward per step · demo" and not board.task.active
+    assert plots.implementation.title.startswith("Implementation phase · demo/")
