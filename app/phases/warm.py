@@ -40,10 +40,15 @@ COMPILING = "compiling kernels, first run only"
 
 def warm_up(configs: list[RunConfig]) -> None:
     """Train and implement a tiny run of each config's controller in this process: every
-    kernel the lab's tasks call gets compiled (or loaded from numba's cache)."""
+    kernel the lab's tasks call gets compiled (or loaded from numba's cache).
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C or SIGTERM, also one that numba's compiler swallowed.
+    """
     from app.phases.implementation import implement
     from app.phases.training import train
     from app.settings.loading import build_config
+    from app.system.signals import raise_if_stopped
 
     with tempfile.TemporaryDirectory(prefix="gnp-lab-warm-") as folder:
         for i, config in enumerate(configs):
@@ -57,7 +62,9 @@ def warm_up(configs: list[RunConfig]) -> None:
             )  # fmt: skip
             path = Path(folder) / f"warm{i}.h5"
             train(tiny, path, workers=1)
+            raise_if_stopped()  # a tiny run's one generation ends with no check of a stop
             implement(path, tiny.implementation, name="warm", workers=1)
+            raise_if_stopped()
 
 
 def kernel_name(dispatcher: Any) -> str:

@@ -5,7 +5,8 @@ command says so on one line.
 numba's compiler calls back into Python from llvmlite; a KeyboardInterrupt raised there is
 swallowed (printed as "Exception ignored") and the compiler may then fail in its place.
 `interrupted_by_signals` counts the signals it turned into KeyboardInterrupt, so an error that
-follows one is raised as the stop it is, and the swallowed one is not printed.
+follows one is raised as the stop it is, and the swallowed one is not printed; should the
+compiler succeed instead, `raise_if_stopped` after it raises the stop it swallowed.
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ class Stopped(Exception):
 _signals_heard = 0
 """How many stop signals `raise_interrupt` has turned into KeyboardInterrupt in this process."""
 
+_marks: list[int] = []
+"""`_signals_heard` when each `interrupted_by_signals` block under way began, innermost last."""
+
 
 def raise_interrupt(_signum: int, _frame: object) -> None:
     """A signal handler: SIGTERM (or any) ends the main thread's work as Ctrl-C does, so every
@@ -71,6 +75,7 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
         previous_hook(unraisable)
 
     sys.unraisablehook = quiet_swallowed
+    _marks.append(heard)
     try:
         with handling(signal.SIGINT, handler), handling(signal.SIGTERM, handler):
             yield
@@ -81,10 +86,19 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
             raise
         raise KeyboardInterrupt from error
     finally:
+        _marks.pop()
         # After a stop signal the process is ending, and the compiler's half-built objects may
         # be collected after this block: the quiet hook stays.
         if _signals_heard == heard:
             sys.unraisablehook = previous_hook
+
+
+def raise_if_stopped() -> None:
+    """KeyboardInterrupt if a stop signal came during the `interrupted_by_signals` block under
+    way: its KeyboardInterrupt may have been swallowed by numba's compiler, which then went on.
+    Called after work that compiles, before the next (an experiment's warm-up)."""
+    if _marks and _signals_heard != _marks[-1]:
+        raise KeyboardInterrupt
 
 
 def _compiler_finalizer(unraisable: Any) -> bool:

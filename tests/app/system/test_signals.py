@@ -9,7 +9,7 @@ import signal
 
 import pytest
 
-from app.system.signals import Stopped, interrupted_by_signals, raise_interrupt
+from app.system.signals import Stopped, interrupted_by_signals, raise_if_stopped, raise_interrupt
 
 
 def swallowed(sig: int) -> None:
@@ -51,6 +51,34 @@ def test_nested_blocks_each_see_the_signal() -> None:
             swallowed(signal.SIGTERM)
             raise OSError("a compiler's half-written cache")
     assert isinstance(stop.value.__cause__, OSError)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_swallowed_interrupt_that_left_no_error_stops_at_the_next_check(sig: int) -> None:
+    """The compiler went on as if nothing happened (seen in CI: a SIGTERM in an experiment's
+    warm-up, and the experiment then ran to its end): the next `raise_if_stopped` stops."""
+    went_on = False
+    with pytest.raises(KeyboardInterrupt), interrupted_by_signals():
+        raise_if_stopped()  # nothing heard yet: nothing raised
+        swallowed(sig)
+        raise_if_stopped()
+        went_on = True
+    assert not went_on
+
+
+def test_a_check_hears_only_the_signals_of_its_own_block() -> None:
+    """A stop heard by an earlier block (an earlier command in the same process) is not heard
+    again; outside any block there is nothing to check."""
+    with contextlib.suppress(KeyboardInterrupt), interrupted_by_signals():
+        swallowed(signal.SIGTERM)
+        raise_if_stopped()
+    raise_if_stopped()
+    with interrupted_by_signals():
+        raise_if_stopped()
+    with pytest.raises(KeyboardInterrupt), interrupted_by_signals():
+        with interrupted_by_signals():  # the inner block ends; the stop is the outer's too
+            swallowed(signal.SIGTERM)
+        raise_if_stopped()
 
 
 def test_a_stop_reported_as_such_is_left_as_it_is() -> None:
