@@ -4,7 +4,8 @@ The lock is `experiments/NAME/.run.lock`, filelock's advisory lock (flock) holdi
 pid. The kernel drops it when its holder dies (even by SIGKILL); the holder removes the file when
 it ends, while it still holds it (filelock's acquire starts over on a file removed meanwhile, so
 two processes never hold different files). Taking it also clears the temporary files
-(`.*.PID.tmp`) that killed runs left in the folder.
+(`.*.PID.tmp`) and the run files' writer locks (`.NAME.h5.lock`, held by no one) that killed
+runs left in the folder.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 from filelock import FileLock, Timeout
 
 from app.experiments.spec import ExperimentError
-from app.store.files import remove_temporaries
+from app.store.files import remove_stale_lock, remove_temporaries, writer_lock_path
 
 LOCK_NAME = ".run.lock"
 
@@ -47,6 +48,11 @@ def experiment_lock(folder: str | Path) -> Iterator[None]:
         for scale_dir in (folder, *(p for p in folder.iterdir() if p.is_dir())):
             for leftover in scale_dir.glob(".*.tmp"):
                 remove_temporaries(leftover.with_name(_target_name(leftover.name)))
+            # A run killed once complete, before it removed its lock file: no resume of it
+            # comes to take the lock over.
+            for run in scale_dir.glob("*.h5"):
+                if writer_lock_path(run).exists():
+                    remove_stale_lock(writer_lock_path(run))
         yield
     finally:
         path.unlink(missing_ok=True)  # while held: no lock file is left behind

@@ -74,7 +74,7 @@ class WriterLock:
     """
 
     def __init__(self, path: Path) -> None:
-        self._path = path.with_name(f".{path.name}.lock")
+        self._path = writer_lock_path(path)
         try:
             handle = take_lock(self._path)
         except OSError as error:
@@ -89,6 +89,21 @@ class WriterLock:
 
     def release(self) -> None:
         release_lock(self._path, self._handle)
+
+
+def writer_lock_path(path: Path) -> Path:
+    """The lock file of run file `path`'s writer (`WriterLock`): `.NAME.h5.lock` beside it."""
+    return path.with_name(f".{path.name}.lock")
+
+
+def remove_stale_lock(lock_path: Path) -> bool:
+    """Remove lock file `lock_path` if no process holds its lock (its holder was killed after
+    the run was complete: no later writer comes to take it over); True if removed."""
+    handle = take_lock(lock_path)
+    if handle is None:  # held: a live writer's
+        return False
+    release_lock(lock_path, handle)
+    return True
 
 
 def take_lock(lock_path: Path) -> IO[str] | None:

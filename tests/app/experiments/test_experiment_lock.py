@@ -12,6 +12,7 @@ import pytest
 
 from app.experiments.lock import LOCK_NAME, experiment_lock
 from app.experiments.spec import ExperimentError
+from app.store.files import release_lock, take_lock, writer_lock_path
 
 
 def test_the_holder_writes_its_pid_and_leaves_no_file(tmp_path: Path) -> None:
@@ -63,6 +64,27 @@ def test_temporaries_of_killed_runs_are_cleared(tmp_path: Path) -> None:
     left.write_bytes(b"")
     with experiment_lock(tmp_path):
         assert not left.exists()
+
+
+def test_a_complete_runs_lock_left_by_a_killed_writer_is_cleared(tmp_path: Path) -> None:
+    """Seen in a test that kills an experiment at ten moments: one killed after its run was
+    complete, before it removed the run's lock file; no resume writes that run again, so the
+    file stayed. A lock a live writer holds stays."""
+    scale = tmp_path / "smoke"
+    scale.mkdir()
+    stale, held = scale / "RL-seed0.h5", scale / "RL-seed1.h5"
+    for run in (stale, held):
+        run.write_bytes(b"")
+        writer_lock_path(run).write_text("")
+    holder = take_lock(writer_lock_path(held))  # another open file: flock conflicts with it
+    assert holder is not None
+    try:
+        with experiment_lock(tmp_path):
+            assert not writer_lock_path(stale).exists()
+            assert writer_lock_path(held).exists()
+    finally:
+        release_lock(writer_lock_path(held), holder)
+    assert sorted(p.name for p in scale.iterdir()) == ["RL-seed0.h5", "RL-seed1.h5"]
 
 
 def test_a_folder_that_cannot_be_made_is_refused(tmp_path: Path) -> None:
