@@ -25,6 +25,7 @@ import gnp
 import neuro
 from app import store
 from app.dashboard.network_view import NetworkView
+from app.dashboard.runs_watch import RunsWatch
 from app.dashboard.stage import Show, Stage, random_show
 from app.dashboard.status import Status
 from app.dashboard.tab_compare import populate_compare_tab
@@ -67,6 +68,8 @@ class Dashboard:
     def __init__(self, server: viser.ViserServer, runs_dir: Path, run: str | None = None) -> None:
         self.server = server
         self.runs_dir = Path(runs_dir)
+        self.runs_watch = RunsWatch(self.runs_dir)
+        self._robot_runs: list[str] | None = None  # the robot runs the Compare tab offers
         self.lock = threading.RLock()
         self._stop = threading.Event()
         self.stage = Stage()
@@ -173,10 +176,21 @@ class Dashboard:
         self.runs.load_file(path)
 
     def refresh_runs(self) -> None:
-        """Re-read the runs dir into every list of runs on the page."""
-        runs = store.list_runs(self.runs_dir)
+        """Re-read the runs dir into every list of runs on the page (*Refresh list*)."""
+        self._list_runs(self.runs_watch.look(again=True))
+
+    def follow_runs(self) -> None:
+        """The lists of runs follow the runs dir: runs added, removed or being written."""
+        self._list_runs(self.runs_watch.look())
+
+    def _list_runs(self, runs: list[store.RunSummary] | None) -> None:
+        if runs is None:
+            return
         self.runs.list_runs(runs)
-        self.compare.list_runs([r.name for r in runs if r.error is None and not r.task])
+        robots = [r.name for r in runs if r.error is None and not r.task]
+        if robots != self._robot_runs:  # the Compare tab's choices change only with the list
+            self._robot_runs = robots
+            self.compare.list_runs(robots)
 
     def _show_first(self, run: str | None) -> None:
         """Show `run`, else `demo`, else the newest run, else an untrained random individual."""
@@ -230,6 +244,7 @@ class Dashboard:
                         self.experiments.follow()
                         self.task.follow()
                         self.show.refresh()
+                        self.follow_runs()
             except Exception:  # keep the page alive; say what went wrong
                 self.status.set(
                     "⚠ internal error: " + traceback.format_exc(limit=1).splitlines()[-1]

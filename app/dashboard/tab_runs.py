@@ -95,9 +95,14 @@ class RunsTab:
     )
 
     def list_runs(self, runs: Sequence[store.RunSummary]) -> None:
-        """Offer `runs` to load and describe them in a table."""
-        set_options(self.run, [r.name for r in runs if r.error is None])
-        self.table.content = runs_table(runs, self.runs_dir)
+        """Offer `runs` to load and describe them in a table (what changed only: the list
+        follows the runs dir twice a second)."""
+        names = tuple(r.name for r in runs if r.error is None) or (NO_RUNS,)
+        if tuple(self.run.options) != names:
+            set_options(self.run, names)
+        table = runs_table(runs, self.runs_dir)
+        if self.table.content != table:
+            self.table.content = table
 
     def load(self, name: str) -> None:
         """Load a run of the runs dir and put it on show: its best on the stage (a task run:

@@ -18,7 +18,9 @@ from app.store.catalogue import (
     list_runs,
     new_run_path,
     resolve_run,
+    run_files,
     run_name,
+    summarize,
 )
 from app.store.files import RunFileError
 from app.store.reader import History, Implementation, RunReader, file_kind
@@ -55,5 +57,7 @@ __all__ = [
     "new_run_path",
     "package_version",
     "resolve_run",
+    "run_files",
     "run_name",
+    "summarize",
 ]

@@ -99,13 +99,19 @@ class RunSummary:
 
 def list_runs(runs_dir: str | Path) -> list[RunSummary]:
     """Every `*.h5` file in `runs_dir`, sorted by name; unreadable ones carry an `error`."""
+    return [summarize(path) for path in run_files(runs_dir)]
+
+
+def run_files(runs_dir: str | Path) -> list[Path]:
+    """The `*.h5` files of `runs_dir` (not of its subfolders), sorted by name."""
     runs_dir = Path(runs_dir)
     if not runs_dir.is_dir():
         return []
-    return [_summary(path) for path in sorted(runs_dir.glob("*" + SUFFIX))]
+    return sorted(runs_dir.glob("*" + SUFFIX))
 
 
-def _summary(path: Path) -> RunSummary:
+def summarize(path: Path) -> RunSummary:
+    """The `list_runs` line of run file `path` (an unreadable one carries an `error`)."""
     name = path.name[: -len(SUFFIX)]
     kind: RunKind | None = None
     try:
