@@ -19,7 +19,7 @@ import re
 import tomllib
 from functools import cache
 from importlib import resources
-from importlib.abc import Traversable
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Literal
 
