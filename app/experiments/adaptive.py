@@ -101,14 +101,17 @@ def run_adaptive(
     errors: list[str] = []
     own: Any = None
     with contextlib.ExitStack() as stack:
-        for n in design.looks:
+        for look, n in enumerate(design.looks):
             tasks = [t for t in plan(spec, scale, runs_dir, n) if t.arm in arms]
             todo = options.pending(tasks)
             if todo:
                 if client is None and own is None:
                     own = stack.enter_context(connect(options.scheduler, options.workers))
-                first = spec.first_seed
-                say(f"stage {len(stages) + 1}: seeds {first}-{first + n - 1} of {', '.join(arms)}")
+                # The seeds this stage adds (the earlier ones ran at earlier stages, or came
+                # with a ledger): what it runs, less any a cut run finished.
+                first = spec.first_seed + (design.looks[look - 1] if look else 0)
+                last = spec.first_seed + n - 1
+                say(f"stage {look + 1}: seeds {first}-{last} of {', '.join(arms)}")
                 errors += options.execute(tasks, client or own)
             results = collect(spec, scale, runs_dir, n, design.looks, ledger=options.ledger)
             # After every look, so that `report` and `status` see the looks made so far.
