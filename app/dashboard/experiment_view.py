@@ -97,6 +97,10 @@ def summary_count(results: ExperimentResults) -> ScaleCount:
     return ScaleCount(int(np.sum(done)), len(results.arms) * len(results.seeds))
 
 
+STATES = planning.StateCache()
+"""The run files' states this dashboard has read (a Refresh reads only what changed)."""
+
+
 def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:
     """The entry's runs done at `scale`; None when it has nothing at that scale."""
     if entry.spec is None:
@@ -112,7 +116,7 @@ def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:
     if not (layout.experiment_dir(runs_dir, entry.name) / scale).is_dir():  # nothing run yet
         runs = len(entry.spec.arms) * len(entry.spec.seed_list(cast(Scale, scale)))
         return ScaleCount(0, runs)
-    status = planning.scale_status(entry.spec, scale, runs_dir)
+    status = planning.scale_status(entry.spec, scale, runs_dir, read=STATES.inspect)
     return ScaleCount(status.done, len(status.tasks), len(status.problems))
 
 
@@ -210,7 +214,7 @@ def build_view(
     if live:  # the job's progress counts the runs; reading every file twice is too slow
         count = None
     elif spec is not None and scale in spec.scales and folder.is_dir():
-        status = planning.scale_status(spec, scale, runs_dir)
+        status = planning.scale_status(spec, scale, runs_dir, read=STATES.inspect)
         count = ScaleCount(status.done, len(status.tasks), len(status.problems))
         problems = tuple(status.problems.values())
     else:
