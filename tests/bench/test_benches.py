@@ -85,6 +85,13 @@ TINY = {
         "--seeds 1 --population 4 --generations 1 --steps 20 --workers 1",
         [r"identical results: True", rf"scale-out\s+{RATIO}"],
     ),
+    "experiment_catalogue": (
+        "--rounds 1",
+        [
+            r"experiments catalogue: 4 run files",
+            rf"first read\s+[\d.]+ s\s+again\s+[\d.]+ s\s+first / again {RATIO}",
+        ],
+    ),
     "warm_workers": (
         "--rounds 1",
         [r"cold worker\s+first task\s+[\d.]+ s", r"with WarmWorkers\s+first task"],
