@@ -24,11 +24,12 @@ from pathlib import Path
 
 from app.dashboard import experiment_view as ev
 from app.experiments import planning
+from app.experiments.spec import ExperimentSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def read(runs_dir: Path, shipped: tuple) -> float:
+def read(runs_dir: Path, shipped: tuple[ExperimentSpec, ...]) -> float:
     """Seconds to read the catalogue with the current cache."""
     began = time.perf_counter()
     ev.catalogue(runs_dir, shipped)
