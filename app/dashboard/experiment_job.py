@@ -190,7 +190,7 @@ class ExperimentJob:
             else:
                 client, self._detail = None, "every run is done: writing the summary"
             self._phase = "running"
-            with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name)):
+            with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name), self.scale):
                 self.results = runner.run_experiment(
                     self.spec,
                     self.scale,
@@ -225,7 +225,7 @@ class ExperimentJob:
         self._seeds = first
         self._phase = "running"
         self._detail = "stage 1: starting the Dask cluster and loading numba's kernels"
-        with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name)):
+        with experiment_lock(layout.experiment_dir(self.runs_dir, self.spec.name), self.scale):
             self.results, self.stages = run_adaptive(
                 self.spec,
                 self.scale,

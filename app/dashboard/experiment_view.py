@@ -156,6 +156,25 @@ def progress_line(name: str, scale: str, phase: str, counts: Counts | None) -> s
     return line
 
 
+def elsewhere(entry: Entry, scale: str, runs_dir: Path) -> tuple[int, Counts] | None:
+    """(pid, how far it is) of the entry running in another process at `scale` (an `experiment
+    run` in another terminal holds its folder's lock, and wrote the scale it runs there), from
+    its run files; None when none is.
+
+    A started scale's runs that changed are read (`STATES`), so a look costs what the
+    runs under way wrote, not every file."""
+    from app.experiments.lock import holder_elsewhere
+    from app.experiments.progress import Progress
+
+    holder = holder_elsewhere(layout.experiment_dir(runs_dir, entry.name))
+    if holder is None or holder[1] != scale or entry.spec is None:
+        return None  # none, or at another scale
+    pid = holder[0]
+    status = planning.scale_status(entry.spec, scale, runs_dir, read=STATES.inspect)
+    states = {t.key: s for t, s in zip(status.tasks, status.states, strict=True)}
+    return pid, Progress(list(status.tasks), states, quiet=True).counts()
+
+
 # --- one experiment at one scale ----------------------------------------------------------
 
 

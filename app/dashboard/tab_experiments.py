@@ -32,11 +32,13 @@ from app.dashboard.tab_committed import CommittedSection, populate_committed
 from app.dashboard.tab_runs import set_options
 from app.experiments.adaptive import DEFAULT_MAX_SEEDS, DEFAULT_STAGE_SEEDS
 from app.experiments.layout import DEFINITION
+from app.experiments.progress import Counts
 from app.experiments.spec import SCALES, ExperimentSpec
 
 STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the command line
 LIVE_SECONDS = 5.0  # how often the curves are re-read from the run files while it runs
 NO_CONDITIONS = "(none)"
+NOT_STARTED = "experiment: none started"
 
 
 @dataclass
@@ -77,7 +79,12 @@ class ExperimentsTab:
     _again: bool = False  # the wanted view is to be read (again)
     _live_at: float = 0.0
     _closed: bool = False
-    _shown: str = ""  # the progress text on the page
+    _shown: str = ""  # the progress text of this tab's job on the page
+    # The chosen experiment run by `gnp-lab experiment run` in another process: looked for
+    # every LIVE_SECONDS, and (name, scale, pid) of the one whose progress is on the page.
+    _elsewhere: Future[tuple[tuple[str, str], tuple[int, Counts] | None]] | None = None
+    _elsewhere_at: float = 0.0
+    _elsewhere_shown: tuple[str, str, int] | None = None
 
     # -- what the callbacks do (quick: they only start background work) --
 
@@ -174,6 +181,8 @@ class ExperimentsTab:
             return
         self._put_read()
         job = self.job
+        if job is None or not job.active:
+            self._look_elsewhere()
         if job is None:
             return
         snapshot = job.snapshot()
@@ -214,6 +223,10 @@ class ExperimentsTab:
                 self._apply_catalogue(catalogue.result())
             except Exception as error:  # e.g. a runs dir that went away
                 self.table.content = f"⚠ could not list the experiments: {error}"
+        if self._elsewhere is not None and self._elsewhere.done():
+            looked, self._elsewhere = self._elsewhere, None
+            if looked.exception() is None:  # else an unreadable folder: its view says why
+                self._apply_elsewhere(*looked.result())
         if self._pending is not None and self._pending.done():
             pending, self._pending = self._pending, None
             try:
@@ -282,11 +295,50 @@ class ExperimentsTab:
         if text == self._shown:
             return
         self._shown = text
-        self.progress_text.content = text
-        counts = snapshot.counts
+        self._put_progress(text, snapshot.counts)
+
+    def _put_progress(self, text: str, counts: Counts | None) -> None:
+        if self.progress_text.content != text:
+            self.progress_text.content = text
         if counts is not None and counts.generations:
             done = counts.generations_done + counts.conditions_done
             set_value(self.progress, 100.0 * done / (counts.generations + counts.conditions))
+
+    def _look_elsewhere(self) -> None:
+        """Whether the chosen experiment runs in another process, and how far it is (read in
+        the background every LIVE_SECONDS)."""
+        wanted = self._wanted
+        if wanted is None or self._elsewhere is not None or self._closed:
+            return
+        entry = self.entries.get(wanted[0])
+        if entry is None or time.monotonic() - self._elsewhere_at < LIVE_SECONDS:
+            return
+        self._elsewhere_at = time.monotonic()
+        self._elsewhere = self._pool.submit(
+            lambda: (wanted, ev.elsewhere(entry, wanted[1], self.runs_dir))
+        )
+        self._elsewhere.add_done_callback(self._landed)
+
+    def _apply_elsewhere(self, looked: tuple[str, str], found: tuple[int, Counts] | None) -> None:
+        """The progress of the chosen experiment run in another process; once it ends, what
+        it left (its summary, verdicts and counts), read again."""
+        shown = self._elsewhere_shown
+        if found is not None and looked == self._wanted:
+            pid, counts = found
+            self._elsewhere_shown = (*looked, pid)
+            phase = f"running in another process (pid {pid})"
+            self._put_progress(ev.progress_line(*looked, phase, counts), counts)
+            return
+        if shown is None or (found is not None and shown[:2] == looked):
+            return
+        self._elsewhere_shown = None
+        if shown[:2] == looked:  # it ended: the page shows what it left
+            name, scale, pid = shown
+            self._put_progress(f"experiment: {name} at {scale} · ended in another process "
+                               f"(pid {pid})", None)  # fmt: skip
+            self.refresh()
+        else:  # another experiment chosen: its own line (this tab's job's, or none)
+            self._put_progress(self._shown or NOT_STARTED, None)
 
 
 def draw_chart(plot: viser.GuiUplotHandle, chart: ev.Chart) -> None:
@@ -339,7 +391,7 @@ def _populate_local(
         stage_seeds=stage_seeds,
         max_seeds=max_seeds,
         progress=gui.add_progress_bar(0.0),
-        progress_text=gui.add_markdown("experiment: none started"),
+        progress_text=gui.add_markdown(NOT_STARTED),
         about=gui.add_markdown(""),
         stages=gui.add_markdown(""),
         verdicts=gui.add_markdown(""),

@@ -255,7 +255,7 @@ def cmd_run(spec: ExperimentSpec, args: argparse.Namespace) -> int:
     if not args.adaptive and (args.max_seeds or args.stage_seeds):
         raise ExperimentError("--max-seeds and --stage-seeds go with --adaptive")
     folder = layout.experiment_dir(args.runs_dir, spec.name)
-    with experiment_lock(folder), _scheduler_client(args.scheduler) as client:
+    with experiment_lock(folder, args.scale), _scheduler_client(args.scheduler) as client:
         options = RunOptions(
             client=client,
             workers=args.workers,

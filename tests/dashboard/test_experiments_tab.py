@@ -10,7 +10,10 @@ from __future__ import annotations
 import dataclasses
 import re
 import shutil
+import subprocess
+import sys
 import threading
+import time
 from collections.abc import Iterator
 from importlib import resources
 from pathlib import Path
@@ -23,6 +26,7 @@ from page_helpers import dashboard_in_process, until_tab
 
 from app import store
 from app.dashboard import experiment_view as ev
+from app.dashboard import tab_experiments
 from app.dashboard.controls import DashboardInputError
 from app.dashboard.experiment_job import DaskCluster, ExperimentJob, JobSnapshot
 from app.dashboard.experiment_verdicts import badge, whole
@@ -384,3 +388,51 @@ def test_a_read_that_lands_after_the_tab_closed_stays_off_the_page(
     with dashboard.lock:  # nor does the page's loop, should it turn once more
         tab.follow()
     assert tab.view is shown and tab.about.content == about
+
+
+def hold_the_lock(runs: Path, scale: str) -> subprocess.Popen[str]:
+    """Another process holding the experiment's lock, as `gnp-lab experiment run` does while it
+    runs `scale`; started once it holds it."""
+    folder = layout.experiment_dir(runs, NAME)
+    holder = subprocess.Popen(
+        [sys.executable, "-c",
+         "import sys, time; from app.experiments.lock import experiment_lock\n"
+         f"with experiment_lock({str(folder)!r}, {scale!r}):\n"
+         "    print('held', flush=True); time.sleep(120)"],
+        stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[2],
+    )  # fmt: skip
+    assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+    return holder
+
+
+def test_an_experiment_run_in_another_process_is_followed_until_it_ends(
+    dashboard: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`gnp-lab experiment run` in another terminal: while it holds the experiment's lock at the
+    chosen scale, the tab's progress line says so and counts its runs from the files as they
+    change; once it ends, the line says that it ended and the tab reads what it left. A run at
+    another scale is not this scale's."""
+    monkeypatch.setattr(tab_experiments, "LIVE_SECONDS", 0.2)
+    tab = dashboard.experiments
+    until_tab(dashboard, lambda: NAME in tab.entries)
+    choose(dashboard, NAME, SCALE)
+    other = hold_the_lock(tab.runs_dir, "small")
+    try:
+        time.sleep(1.0)  # several looks
+        until_tab(dashboard, lambda: tab._elsewhere is None)
+        assert tab.progress_text.content == tab_experiments.NOT_STARTED
+    finally:
+        other.kill()
+        other.wait()
+    holder = hold_the_lock(tab.runs_dir, SCALE)
+    try:
+        running = f"experiment: {NAME} at {SCALE} · running in another process (pid {holder.pid})"
+        until_tab(dashboard, lambda: f"{running} · 4/4 runs done" in tab.progress_text.content)
+        Path(ev.run_file(tab.runs_dir, NAME, SCALE, "BS-seed1")).unlink()  # as if re-run
+        until_tab(dashboard, lambda: f"{running} · 3/4 runs done" in tab.progress_text.content)
+    finally:
+        holder.kill()  # killed: its lock file stays, with a pid that runs nowhere
+        holder.wait()
+    ended = f"experiment: {NAME} at {SCALE} · ended in another process (pid {holder.pid})"
+    until_tab(dashboard, lambda: tab.progress_text.content == ended)
+    until_tab(dashboard, lambda: f"{SCALE}: 3/4 runs done" in tab.about.content)  # read again

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from app.experiments.lock import LOCK_NAME, experiment_lock
+from app.experiments.lock import LOCK_NAME, experiment_lock, holder_elsewhere
 from app.experiments.spec import ExperimentError
 from app.store.files import release_lock, take_lock, writer_lock_path
 
@@ -94,3 +94,18 @@ def test_a_folder_that_cannot_be_made_is_refused(tmp_path: Path) -> None:
         experiment_lock(tmp_path / "file" / "tiny"),
     ):
         pass
+
+
+def test_the_holder_writes_the_scale_it_runs_and_others_read_it(tmp_path: Path) -> None:
+    """What the dashboard reads of a run in another process: its pid and scale, never this
+    process's own, nor a killed holder's (its file stays, its pid runs nowhere)."""
+    with experiment_lock(tmp_path, "small"):
+        assert (tmp_path / LOCK_NAME).read_text(encoding="utf-8") == f"{os.getpid()}\nsmall\n"
+        assert holder_elsewhere(tmp_path) is None  # ours
+    assert holder_elsewhere(tmp_path) is None  # nobody
+    (tmp_path / LOCK_NAME).write_text("999999999\nsmall\n")  # a pid that runs nowhere
+    assert holder_elsewhere(tmp_path) is None
+    (tmp_path / LOCK_NAME).write_text(f"{os.getppid()}\nthesis\n")  # a live process
+    assert holder_elsewhere(tmp_path) == (os.getppid(), "thesis")
+    (tmp_path / LOCK_NAME).write_text("")  # a holder that has not written yet
+    assert holder_elsewhere(tmp_path) is None
