@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -86,16 +87,14 @@ def _check_rows(group: h5py.Group, rows: Iterable[Dataset], dims: Mapping[str, i
 
 
 def plain_group(parent: h5py.Group, path: str) -> h5py.Group:
-    _own(parent, path)
-    found = parent[path]
+    found = _own(parent, path)
     if not isinstance(found, h5py.Group):
         raise RunFileError(f"{parent.name.rstrip('/')}/{path} is not a group")
     return found
 
 
 def plain_dataset(parent: h5py.Group, path: str) -> h5py.Dataset:
-    _own(parent, path)
-    found = parent[path]
+    found = _own(parent, path)
     if not isinstance(found, h5py.Dataset):
         raise RunFileError(f"{found.name} is not a dataset")
     if found.external or found.is_virtual:
@@ -103,8 +102,9 @@ def plain_dataset(parent: h5py.Group, path: str) -> h5py.Dataset:
     return found
 
 
-def _own(parent: h5py.Group, path: str) -> None:
-    """`path` exists under `parent` through hard links only (never another file's object)."""
+def _own(parent: h5py.Group, path: str) -> Any:
+    """The object at `path` under `parent`, reached through hard links only (never another
+    file's object)."""
     at = parent
     for part in path.split("/"):
         if not isinstance(at, h5py.Group):
@@ -115,6 +115,7 @@ def _own(parent: h5py.Group, path: str) -> None:
         if not isinstance(link, h5py.HardLink):
             raise RunFileError(f"{at.name.rstrip('/')}/{part} is a link, not part of the file")
         at = at[part]
+    return at
 
 
 def _check(dataset: h5py.Dataset, shape: tuple[int, ...], dtype: np.dtype) -> None:
