@@ -339,6 +339,8 @@ class ExperimentsTab:
             self.refresh()
         else:  # another experiment chosen: its own line (this tab's job's, or none)
             self._put_progress(self._shown or NOT_STARTED, None)
+            if not self._shown:
+                set_value(self.progress, 0.0)
 
 
 def draw_chart(plot: viser.GuiUplotHandle, chart: ev.Chart) -> None:

@@ -430,6 +430,12 @@ def test_an_experiment_run_in_another_process_is_followed_until_it_ends(
         until_tab(dashboard, lambda: f"{running} · 4/4 runs done" in tab.progress_text.content)
         Path(ev.run_file(tab.runs_dir, NAME, SCALE, "BS-seed1")).unlink()  # as if re-run
         until_tab(dashboard, lambda: f"{running} · 3/4 runs done" in tab.progress_text.content)
+        assert tab.progress.value > 0
+        choose(dashboard, NAME, "small")  # not the scale it runs: this one's line, none
+        until_tab(dashboard, lambda: tab.progress_text.content == tab_experiments.NOT_STARTED)
+        assert tab.progress.value == 0
+        choose(dashboard, NAME, SCALE)
+        until_tab(dashboard, lambda: f"{running} · 3/4 runs done" in tab.progress_text.content)
     finally:
         holder.kill()  # killed: its lock file stays, with a pid that runs nowhere
         holder.wait()
