@@ -83,7 +83,7 @@ def _written(path: Path) -> tuple[int | None, str]:
     """The pid (None if not yet written) and scale a lock file holds."""
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError:
+    except (OSError, UnicodeDecodeError):  # none, or not one a holder wrote
         return None, ""
     pid = int(lines[0]) if lines and lines[0].strip().isdigit() else None
     return pid, lines[1].strip() if len(lines) > 1 else ""

@@ -109,3 +109,5 @@ def test_the_holder_writes_the_scale_it_runs_and_others_read_it(tmp_path: Path) 
     assert holder_elsewhere(tmp_path) == (os.getppid(), "thesis")
     (tmp_path / LOCK_NAME).write_text("")  # a holder that has not written yet
     assert holder_elsewhere(tmp_path) is None
+    (tmp_path / LOCK_NAME).write_bytes(b"\xff\xfe junk")  # not one a holder wrote
+    assert holder_elsewhere(tmp_path) is None
