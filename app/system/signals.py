@@ -96,7 +96,10 @@ def interrupted_by_signals(handler: Any = raise_interrupt) -> Iterator[None]:
 def raise_if_stopped() -> None:
     """KeyboardInterrupt if a stop signal came during the `interrupted_by_signals` block under
     way: its KeyboardInterrupt may have been swallowed by numba's compiler, which then went on.
-    Called after work that compiles, before the next (an experiment's warm-up)."""
+    Called after work that compiles, before the next (an experiment's warm-up). Elsewhere
+    than in the main thread, which alone gets signals and holds such blocks, it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        return
     if _marks and _signals_heard != _marks[-1]:
         raise KeyboardInterrupt
 

@@ -81,6 +81,28 @@ def test_a_check_hears_only_the_signals_of_its_own_block() -> None:
         raise_if_stopped()
 
 
+def test_a_check_off_the_main_thread_is_not_stopped_by_the_main_threads_signal() -> None:
+    """A worker thread's warm-up (an in-process Dask worker's) is not the main thread's work:
+    the main thread's stop ends its own block, not the thread's."""
+    import threading
+
+    raised: list[BaseException] = []
+
+    def check() -> None:
+        try:
+            raise_if_stopped()
+        except BaseException as error:
+            raised.append(error)
+
+    with pytest.raises(KeyboardInterrupt), interrupted_by_signals():
+        swallowed(signal.SIGTERM)
+        thread = threading.Thread(target=check)
+        thread.start()
+        thread.join()
+        raise_if_stopped()  # the main thread's own check: stopped
+    assert raised == []
+
+
 def test_a_stop_reported_as_such_is_left_as_it_is() -> None:
     """Training stopped by the signal says how far it got (`Interrupted`): that report stays."""
 
