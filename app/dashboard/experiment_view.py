@@ -9,7 +9,7 @@ files and cannot be started here, since the dashboard does not have their file.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -123,12 +123,21 @@ def scale_count(entry: Entry, scale: str, runs_dir: Path) -> ScaleCount | None:
 Catalogue = tuple[tuple[Entry, dict[str, ScaleCount | None]], ...]
 
 
-def catalogue(runs_dir: Path, shipped: Sequence[ExperimentSpec]) -> Catalogue:
-    """Every experiment with its runs done per scale (reads run files: not for a callback)."""
-    return tuple(
-        (entry, {scale: scale_count(entry, scale, runs_dir) for scale in SCALES})
-        for entry in find_experiments(runs_dir, shipped)
-    )
+def catalogue(
+    runs_dir: Path,
+    shipped: Sequence[ExperimentSpec],
+    counted: Callable[[int, int], None] | None = None,
+) -> Catalogue:
+    """Every experiment with its runs done per scale (reads run files: not for a callback);
+    `counted(done, experiments)` is told after each experiment."""
+    entries = find_experiments(runs_dir, shipped)
+    rows: list[tuple[Entry, dict[str, ScaleCount | None]]] = []
+    for done, entry in enumerate(entries, 1):
+        counts: dict[str, ScaleCount | None] = {s: scale_count(entry, s, runs_dir) for s in SCALES}
+        rows.append((entry, counts))
+        if counted is not None:
+            counted(done, len(entries))
+    return tuple(rows)
 
 
 def catalogue_table(rows: Catalogue) -> str:

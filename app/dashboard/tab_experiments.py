@@ -39,6 +39,7 @@ STARTABLE_SCALES = ("smoke", "small")  # minutes at most; `thesis` is for the co
 LIVE_SECONDS = 5.0  # how often the curves are re-read from the run files while it runs
 NO_CONDITIONS = "(none)"
 NOT_STARTED = "experiment: none started"
+READING = "Reading the experiments and counting their runs (each run file is checked)…"
 
 
 @dataclass
@@ -259,7 +260,14 @@ class ExperimentsTab:
             self._shipped = ev.shipped_specs()
             # Import matplotlib and scipy now, off the page, not with the first chart.
             import app.experiments.report  # noqa: F401
-        return ev.catalogue(self.runs_dir, self._shipped)
+        return ev.catalogue(self.runs_dir, self._shipped, self._counted)
+
+    def _counted(self, done: int, experiments: int) -> None:
+        """How far the first read of the experiments is, on the page while nothing else is
+        listed (a first read validates every run file: seconds with many)."""
+        with self.status.lock:
+            if not self.entries and not self._closed:
+                self.table.content = f"{READING} {done} of {experiments} read."
 
     def _apply_catalogue(self, rows: ev.Catalogue) -> None:
         self.entries = {entry.name: entry for entry, _ in rows}
@@ -370,7 +378,7 @@ def _populate_local(
     gui: viser.GuiApi, status: Status, runs_dir: Path, show_run: Callable[[Path], None]
 ) -> ExperimentsTab:
     """The experiments with their local runs: start one, follow it, its verdicts and curves."""
-    table = gui.add_markdown("Reading the experiments…")
+    table = gui.add_markdown(READING)
     experiment = gui.add_dropdown("Experiment", (ev.NO_EXPERIMENTS,))
     scale = gui.add_dropdown("Scale", SCALES, initial_value=STARTABLE_SCALES[0])
     adaptive = gui.add_checkbox(

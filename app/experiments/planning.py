@@ -258,7 +258,7 @@ SETTLED_SECONDS = 2.0
 class StateCache:
     """`inspect`, remembered while a run file is unchanged (its inode, size, modification and
     change times): the dashboard reads a folder again (Refresh, another experiment chosen and
-    back) at the cost of the files that changed, not of every file's validation (about 10 ms
+    back) at the cost of the files that changed, not of every file's validation (about 5 ms
     each). A file written in the last `SETTLED_SECONDS` is read each time: two writes in one
     tick of the file system's clock look alike. The dashboard's views only; what runs next is
     decided on a fresh `inspect`."""

@@ -442,3 +442,32 @@ def test_an_experiment_run_in_another_process_is_followed_until_it_ends(
     ended = f"experiment: {NAME} at {SCALE} · ended in another process (pid {holder.pid})"
     until_tab(dashboard, lambda: tab.progress_text.content == ended)
     until_tab(dashboard, lambda: f"{SCALE}: 3/4 runs done" in tab.about.content)  # read again
+
+
+def test_the_first_read_of_the_experiments_says_how_far_it_is(
+    runs: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Counting the runs checks every run file (seconds with many): until the table is read,
+    it says how many experiments are read so far."""
+    scale_count, held, release = ev.scale_count, threading.Event(), threading.Event()
+    counted: list[str] = []
+
+    def slow_scale_count(entry: ev.Entry, scale: str, runs_dir: Path) -> Any:
+        if entry.name not in counted:
+            counted.append(entry.name)
+        if len(counted) == 3:  # the third experiment's read, held back
+            held.set()
+            assert release.wait(60)
+        return scale_count(entry, scale, runs_dir)
+
+    monkeypatch.setattr(ev, "scale_count", slow_scale_count)
+    with dashboard_in_process(runs) as board:
+        tab = board.experiments
+        try:
+            assert held.wait(60)
+            total = len(ev.find_experiments(runs, ev.shipped_specs()))
+            until_tab(board, lambda: tab.table.content.endswith(f" 2 of {total} read."))
+            assert tab.table.content.startswith(tab_experiments.READING)
+        finally:
+            release.set()
+        until_tab(board, lambda: f"| {NAME} | 4/4 |" in tab.table.content)
