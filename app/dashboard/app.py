@@ -123,8 +123,7 @@ class Dashboard:
             )
 
         self.stage.on_staged(self._staged)
-        self.refresh_runs()
-        self._show_first(run)
+        self._show_first(run, self.runs_watch.look(again=True))
         self._thread = threading.Thread(target=self._loop, name="dashboard-loop", daemon=True)
         self._thread.start()
 
@@ -192,9 +191,11 @@ class Dashboard:
             self._robot_runs = robots
             self.compare.list_runs(robots)
 
-    def _show_first(self, run: str | None) -> None:
-        """Show `run`, else `demo`, else the newest run, else an untrained random individual."""
-        runs = store.list_runs(self.runs_dir)
+    def _show_first(self, run: str | None, runs: list[store.RunSummary] | None) -> None:
+        """List `runs` (the runs dir's, read once) and show `run`, else `demo`, else the newest
+        run, else an untrained random individual."""
+        runs = runs or []
+        self._list_runs(runs)
         names = [s.name for s in runs if s.error is None and not s.task]
         if run is not None and run in {s.name for s in runs if s.task}:
             self.stage.present(random_show())  # what a robot show starts from later

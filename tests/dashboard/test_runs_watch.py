@@ -20,6 +20,7 @@ from test_task_replay import tiny_task_config
 from app import store
 from app.dashboard.runs_watch import TORN_SECONDS, RunsWatch
 from app.phases.generations import GenerationSummary
+from app.store import catalogue
 from app.tasks import train_task
 
 
@@ -32,7 +33,8 @@ def task_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture
 def reads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """The names of the run files `store.summarize` reads, in order."""
+    """The names of the run files `store.summarize` reads, in order (also through
+    `store.list_runs`)."""
     read: list[str] = []
     summarize = store.summarize
 
@@ -41,6 +43,7 @@ def reads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
         return summarize(path)
 
     monkeypatch.setattr(store, "summarize", counted)
+    monkeypatch.setattr(catalogue, "summarize", counted)  # `store.list_runs`' own
     return read
 
 
@@ -136,3 +139,15 @@ def test_the_page_follows_runs_written_added_and_removed(board: Any, tmp_path: P
     (tmp_path / "growing.h5").unlink()
     until(lambda: "growing" not in board.runs.table.content, 30)
     assert board.runs.run.options == ("demo",)
+
+
+def test_the_page_reads_each_run_once_as_it_opens(
+    tmp_path: Path, task_run: Path, reads: list[str]
+) -> None:
+    """The runs dir is read once to list the runs and to choose the run shown first."""
+    shutil.copyfile(DEMO, tmp_path / "demo.h5")
+    shutil.copyfile(task_run, tmp_path / "cartpole.h5")
+    with dashboard_in_process(tmp_path) as board:
+        assert sorted(reads) == ["cartpole", "demo"]
+        assert board.runs.loaded_name == "demo"
+        assert "| cartpole | task CartPole-v1 | 3/3 |" in board.runs.table.content
