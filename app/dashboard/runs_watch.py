@@ -1,8 +1,9 @@
 """The runs dir, watched: the page's lists of runs follow runs as they are written, added and
 removed (by this dashboard or by `gnp-lab` in another terminal), without a *Refresh list*.
 
-A look stats the run files (microseconds each) and reads only those whose modification time or
-size changed since the last look; a file being written is read once per look while it grows.
+A look stats the run files (microseconds each) and reads only those whose stamp changed since
+the last look, or that were written too lately for an unchanged stamp to tell (`files.settled`):
+a file being written is read once per look until it settles.
 """
 
 from __future__ import annotations
@@ -12,25 +13,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from app import store
+from app.store.files import Stamp, settled, stamp
 
-Stamp = tuple[int, int]
-"""A run file's modification time (ns) and size: what a write changes."""
-
-UNSETTLED: Stamp = (-1, -1)
-"""The stamp of a line kept from an earlier read: no file has it, so the file is read again."""
+UNSETTLED: Stamp = (-1, -1, -1, -1)
+"""The stamp of a line to read again at the next look: no file has it."""
 
 TORN_SECONDS = 10.0
 """A file written less than this long ago that cannot be read is taken as caught half-way
 through a write (its earlier line stays); older, its error is shown."""
-
-
-def stamp(path: Path) -> Stamp | None:
-    """`path`'s stamp, or None if it is gone."""
-    try:
-        info = path.stat()
-    except OSError:
-        return None
-    return info.st_mtime_ns, info.st_size
 
 
 @dataclass
@@ -57,11 +47,11 @@ class RunsWatch:
                 lines[path] = kept
                 continue
             summary = store.summarize(path)
-            if summary.error is not None and time.time() - now[0] / 1e9 < TORN_SECONDS:
+            if summary.error is not None and time.time() - now[2] / 1e9 < TORN_SECONDS:
                 # Perhaps caught half-way through a write: read again at the next look, the
                 # earlier line (if any) shown meanwhile.
                 lines[path] = (UNSETTLED, summary if kept is None else kept[1])
-            else:
-                lines[path] = (now, summary)
+            else:  # a file still being written is read again until it settles
+                lines[path] = (now if settled(now) else UNSETTLED, summary)
         self._lines = lines
         return [summary for _, summary in lines.values()]

@@ -24,6 +24,7 @@ from app.dashboard.controls import DashboardInputError
 from app.dashboard.network_view import NetworkView
 from app.dashboard.status import Status
 from app.dashboard.tab_plots import PlotsTab
+from app.store.files import Stamp, settled, stamp
 from app.tasks.common import TaskError
 from app.views.arena_view import ArenaView
 from app.views.genome import genome_view
@@ -71,7 +72,7 @@ class TaskPanel:
     replay: TaskReplay | None = None
     frame_line: str = ""  # why there is no frame, if there is none
     frames: int = 0  # frames drawn since the replay started
-    _unfinished: int | None = None  # an unfinished run's file modification time, as last read
+    _unfinished: Stamp | None = None  # an unfinished run's file stamp, as last read
     _last_frame: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -82,7 +83,7 @@ class TaskPanel:
     def load(self, path: Path, name: str) -> None:
         """Load a task run: its summary and fitness plot, then replay its best on the task."""
         try:
-            stamp = path.stat().st_mtime_ns  # before the read: a change meanwhile is read again
+            mark = stamp(path)  # before the read: a change meanwhile is read again
             run = _read(path)
         except (KeyError, ValueError, OSError) as error:  # a damaged file: one line, no trace
             first = str(error).splitlines()[0] if str(error) else type(error).__name__
@@ -90,7 +91,7 @@ class TaskPanel:
         if run.generation_done == 0:
             raise DashboardInputError(f"task run {name} has no generation done yet")
         self.path, self.name = path, name
-        self._stage(run, stamp)
+        self._stage(run, mark)
         self.folder.visible = True
         self.start()
 
@@ -102,23 +103,23 @@ class TaskPanel:
         path = self.path
         if path is None or self.replay is None or self._unfinished is None:
             return  # nothing loaded, a robot on show, or the run finished
+        mark = stamp(path)
+        if mark is None or (mark == self._unfinished and settled(mark)):
+            return  # gone, or unchanged since it was read
         try:
-            stamp = path.stat().st_mtime_ns
-            if stamp == self._unfinished:
-                return
             run = _read(path)
         except (KeyError, ValueError, OSError):  # a torn read while written: the next poll
             return
         if run.generation_done:  # a run begun again under its name: nothing to plot yet
-            self._stage(run, stamp)
+            self._stage(run, mark)
 
-    def _stage(self, run: TaskRun, stamp: int) -> None:
+    def _stage(self, run: TaskRun, mark: Stamp | None) -> None:
         """The run's returns per generation on the plot and its summary; an unfinished run is
-        followed from its file's modification time `stamp`."""
+        followed from its file's stamp `mark` (read again until it settles)."""
         fitness, config = run.fitness, run.config
         total = config.training.generations
         unfinished = run.generation_done < total
-        self._unfinished = stamp if unfinished else None
+        self._unfinished = mark if unfinished else None
         self.plots.task_staged(config.task.id, fitness.max(axis=1), fitness.mean(axis=1), self.name)
         following = " (unfinished: followed as its file grows)" if unfinished else ""
         self.summary.content = (

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +23,7 @@ from app.experiments.layout import experiment_dir
 from app.experiments.spec import ExperimentError, ExperimentSpec
 from app.settings.config import ImplementationSettings, RunConfig
 from app.store import RunFileError, RunReader
+from app.store.files import Stamp, settled, stamp
 
 if TYPE_CHECKING:
     from app.tasks.config import TaskRunConfig
@@ -251,20 +250,15 @@ def _inspect_task_run(task: Task, state: RunState) -> RunState:
     return state
 
 
-SETTLED_SECONDS = 2.0
-"""A run file last written this long ago is not being written: what is read of it is kept."""
-
-
 class StateCache:
-    """`inspect`, remembered while a run file is unchanged (its inode, size, modification and
-    change times): the dashboard reads a folder again (Refresh, another experiment chosen and
-    back) at the cost of the files that changed, not of every file's validation (about 5 ms
-    each). A file written in the last `SETTLED_SECONDS` is read each time: two writes in one
-    tick of the file system's clock look alike. The dashboard's views only; what runs next is
-    decided on a fresh `inspect`."""
+    """`inspect`, remembered while a run file is unchanged (its `files.stamp`): the dashboard
+    reads a folder again (Refresh, another experiment chosen and back) at the cost of the files
+    that changed, not of every file's validation (about 5 ms each). A file not yet `settled` is
+    read each time. The dashboard's views only; what runs next is decided on a fresh
+    `inspect`."""
 
     def __init__(self) -> None:
-        self._known: dict[Task, tuple[tuple[int, ...], RunState | str]] = {}
+        self._known: dict[Task, tuple[Stamp, RunState | str]] = {}
         self._lock = threading.Lock()
 
     def inspect(self, task: Task) -> RunState:
@@ -273,23 +267,21 @@ class StateCache:
         Raises:
             ExperimentError: as `inspect`, also when remembered.
         """
-        try:
-            info = os.stat(task.path)
-        except OSError:
+        mark = stamp(Path(task.path))
+        if mark is None:
             return inspect(task)
-        stamp = (info.st_ino, info.st_size, info.st_mtime_ns, info.st_ctime_ns)
         with self._lock:
             known = self._known.get(task)
-        if known is not None and known[0] == stamp:
+        if known is not None and known[0] == mark:
             outcome = known[1]
         else:
             try:
                 outcome = inspect(task)
             except ExperimentError as error:
                 outcome = str(error)
-            if time.time() - info.st_mtime_ns / 1e9 >= SETTLED_SECONDS:
+            if settled(mark):
                 with self._lock:
-                    self._known[task] = (stamp, outcome)
+                    self._known[task] = (mark, outcome)
         if isinstance(outcome, str):
             raise ExperimentError(outcome)
         return dataclasses.replace(outcome)

@@ -91,6 +91,29 @@ class WriterLock:
         release_lock(self._path, self._handle)
 
 
+Stamp = tuple[int, int, int, int]
+"""A file's inode, size, modification and change times (ns): what a write changes."""
+
+SETTLED_SECONDS = 2.0
+"""A file last written this long ago is not being written: a stamp that has not changed since
+means the file has not (two writes in one tick of the file system's clock look alike)."""
+
+
+def stamp(path: Path) -> Stamp | None:
+    """`path`'s stamp, or None if it is gone."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    return info.st_ino, info.st_size, info.st_mtime_ns, info.st_ctime_ns
+
+
+def settled(mark: Stamp) -> bool:
+    """Whether the file `mark` stamps was last written `SETTLED_SECONDS` ago or more: until
+    then, the same stamp does not tell that the file is unchanged."""
+    return time.time() - mark[2] / 1e9 >= SETTLED_SECONDS
+
+
 def writer_lock_path(path: Path) -> Path:
     """The lock file of run file `path`'s writer (`WriterLock`): `.NAME.h5.lock` beside it."""
     return path.with_name(f".{path.name}.lock")

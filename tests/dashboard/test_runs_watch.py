@@ -21,6 +21,7 @@ from app import store
 from app.dashboard.runs_watch import TORN_SECONDS, RunsWatch
 from app.phases.generations import GenerationSummary
 from app.store import catalogue
+from app.store.files import SETTLED_SECONDS
 from app.tasks import train_task
 
 
@@ -64,18 +65,35 @@ def test_a_look_reads_only_what_changed(tmp_path: Path, task_run: Path, reads: l
     assert watch.look() is None  # no runs dir, no runs: nothing changed from nothing
     watch = RunsWatch(tmp_path)
     shutil.copyfile(task_run, tmp_path / "a.h5")
+    aged(tmp_path / "a.h5")  # settled: see the next test
     assert lines(watch.look()) == {"a": "3/3"}
     assert watch.look() is None and reads == ["a"]
     shutil.copyfile(task_run, tmp_path / "b.h5")
+    aged(tmp_path / "b.h5")
     assert lines(watch.look()) == {"a": "3/3", "b": "3/3"}
     assert reads == ["a", "b"]
-    aged(tmp_path / "a.h5", 1)  # rewritten: a new modification time
+    aged(tmp_path / "a.h5", 3 * TORN_SECONDS)  # rewritten: a new modification time
     assert lines(watch.look()) == {"a": "3/3", "b": "3/3"}
     assert reads == ["a", "b", "a"]
     (tmp_path / "b.h5").unlink()
     assert lines(watch.look()) == {"a": "3/3"} and reads == ["a", "b", "a"]
     assert lines(watch.look(again=True)) == {"a": "3/3"}  # Refresh list: everything, again
     assert reads == ["a", "b", "a", "a"]
+
+
+def test_a_file_written_lately_is_read_at_each_look_until_it_settles(
+    tmp_path: Path, task_run: Path, reads: list[str]
+) -> None:
+    """Two writes in one tick of the file system's clock leave the same stamp: until a file
+    settles, an unchanged stamp does not tell that it is unchanged."""
+    shutil.copyfile(task_run, tmp_path / "a.h5")
+    watch = RunsWatch(tmp_path)
+    assert lines(watch.look()) == {"a": "3/3"}
+    assert lines(watch.look()) == {"a": "3/3"}
+    assert reads == ["a", "a"]
+    aged(tmp_path / "a.h5", SETTLED_SECONDS + 1)
+    assert lines(watch.look()) == {"a": "3/3"}
+    assert watch.look() is None and reads == ["a"] * 3
 
 
 def test_a_torn_read_keeps_the_earlier_line_until_the_write_is_old(
@@ -147,6 +165,8 @@ def test_the_page_reads_each_run_once_as_it_opens(
     """The runs dir is read once to list the runs and to choose the run shown first."""
     shutil.copyfile(DEMO, tmp_path / "demo.h5")
     shutil.copyfile(task_run, tmp_path / "cartpole.h5")
+    for run in ("demo", "cartpole"):
+        aged(tmp_path / f"{run}.h5")  # settled: the page's loop does not read them again
     with dashboard_in_process(tmp_path) as board:
         assert sorted(reads) == ["cartpole", "demo"]
         assert board.runs.loaded_name == "demo"

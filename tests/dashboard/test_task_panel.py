@@ -16,6 +16,7 @@ from page_helpers import DEMO, dashboard_in_process, until
 from test_task_replay import tiny_task_config
 
 from app.cli import main
+from app.dashboard import tab_task
 from app.phases.generations import GenerationSummary
 from app.tasks import TaskRunConfig, TaskSettings, TaskTraining, train_task
 from app.tasks.fracnetics_arm import documented
@@ -117,6 +118,41 @@ def test_a_run_loaded_while_written_is_followed_to_its_end(board: Any, runs: Pat
     assert "unfinished" not in board.task.summary.content and board.task.active
     with board.lock:  # the run finished: nothing more is read
         assert board.task._unfinished is None
+
+
+@pytest.mark.parametrize("settled", [False, True])
+def test_an_unchanged_stamp_is_trusted_only_once_settled(
+    board: Any, runs: Path, monkeypatch: pytest.MonkeyPatch, settled: bool
+) -> None:
+    """Two writes in one tick of the file system's clock leave the same stamp: while the file
+    has not settled, the run is read again at each poll even though its stamp is unchanged
+    (here every stamp is one constant); once settled, an unchanged stamp means no read."""
+    release, written = threading.Event(), threading.Event()
+
+    def hold(summary: GenerationSummary) -> None:
+        if summary.generation == 0:
+            written.set()
+            assert release.wait(60)
+
+    monkeypatch.setattr(tab_task, "stamp", lambda _path: (1, 1, 1, 1))
+    monkeypatch.setattr(tab_task, "settled", lambda _mark: settled)
+    out = runs / f"same-stamp-{settled}.h5"
+    writer = threading.Thread(target=train_task, args=(tiny_task_config(seed=3), out, hold))
+    writer.start()
+    try:
+        assert written.wait(60)
+        board.status.guarded(None, lambda: board.runs.load(out.stem))
+        assert board.plots.fitness_points == 1
+    finally:
+        release.set()
+        writer.join(60)
+    if settled:
+        with board.lock:
+            for _ in range(5):
+                board.task.follow()
+        assert board.plots.fitness_points == 1  # the same settled stamp: not read
+    else:
+        until(lambda: board.plots.fitness_points == 3)
 
 
 def test_an_experiments_task_run_is_replayed_and_a_fracnetics_run_is_one_line(

@@ -15,6 +15,7 @@ from app.experiments import planning
 from app.experiments.planning import RunState, StateCache, Task
 from app.experiments.spec import ExperimentError
 from app.experiments.spec_loading import load_file
+from app.store.files import SETTLED_SECONDS
 
 
 def aged(path: Path, seconds: float = 60.0) -> None:
@@ -69,7 +70,7 @@ def test_a_file_written_lately_is_read_each_time(tmp_path: Path, reads: list[str
     cache.inspect(task)
     cache.inspect(task)
     assert reads == ["RL-seed0.h5"] * 2
-    aged(run, planning.SETTLED_SECONDS + 1)
+    aged(run, SETTLED_SECONDS + 1)
     cache.inspect(task)
     cache.inspect(task)
     assert reads == ["RL-seed0.h5"] * 3
